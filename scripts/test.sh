@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# The README's test command (via 'make test'): set up if needed, lint, then pytest over the
+# workspace with ROS isolated to this machine and to this run.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+bash scripts/setup.sh
+# shellcheck disable=SC1091
+. scripts/env.sh
+echo "[test] ruff check" >&2
+ruff check .
+# A run-unique block of domain ids: each test takes its own from it (tactile_sensor/test/conftest.py).
+base=$(( (RANDOM % 9) * 10 + 20 ))
+export TACTILE_TEST_DOMAIN_BASE="$base" ROS_DOMAIN_ID="$base"
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+export MPLBACKEND=Agg
+export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
+echo "[test] pytest (ROS_DOMAIN_ID base $base, localhost discovery)" >&2
+exec python -m pytest "$@"

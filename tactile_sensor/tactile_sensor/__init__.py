@@ -1,0 +1,1 @@
+"""Photoreflective tactile sensing for soft robots."""

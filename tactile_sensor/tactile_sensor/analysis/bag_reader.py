@@ -1,0 +1,185 @@
+"""Read the few fields the analysis needs from a rosbag2 recording (sqlite3 or MCAP).
+
+rosbags supplies the raw CDR bytes; ``cdr_columns`` turns them into numpy columns.
+Every low-level failure (missing path, truncated file, corrupt database) becomes a
+``BagError`` here, at the boundary.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import apsw
+import numpy as np
+from rosbags.rosbag2 import Reader
+from rosbags.rosbag2.errors import ReaderError
+
+from .cdr_columns import CdrLayoutError, decode_columns, missing_fields
+from .errors import BagError, TopicError
+from .message_types import field_definitions
+
+_STAMP_PATHS = ("header.stamp.sec", "header.stamp.nanosec")
+# Errors rosbags and its storage back-ends let through on damaged files.
+_READ_ERRORS = (ReaderError, apsw.Error, OSError, struct.error, EOFError, ValueError,
+                KeyError, IndexError)
+
+Progress = Callable[[float], None]
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    """One topic the analysis reads: its role, name, and which fields under which names."""
+
+    role: str
+    topic: str
+    fields: dict[str, str]  # our name -> field path in the message, e.g. "force_n": "wrench.force.z"
+    option: str  # the CLI option that sets the topic, for error messages
+    expected_type: str  # what the user should point the option at
+
+
+@dataclass(frozen=True)
+class Series:
+    """Samples of one topic, ordered by time."""
+
+    topic: str
+    msgtype: str
+    stamp_ns: np.ndarray  # int64; header stamps unless they were all zero
+    values: dict[str, np.ndarray]
+    stamp_source: str  # "header" or "bag"
+
+
+@dataclass(frozen=True)
+class Recording:
+    """What one bag holds for the analysis."""
+
+    path: Path
+    storage: str
+    series: dict[str, Series]
+    notes: list[str] = field(default_factory=list)
+
+
+def storage_of(path: Path) -> str:
+    """'sqlite3' or 'mcap' (by file suffix), 'unknown' when neither is recognisable."""
+    files = [path] if path.is_file() else list(path.iterdir()) if path.is_dir() else []
+    suffixes = {p.suffix for p in files}
+    if ".mcap" in suffixes:
+        return "mcap"
+    if ".db3" in suffixes:
+        return "sqlite3"
+    return "unknown"
+
+
+def _bag_error(path: Path, err: BaseException) -> BagError:
+    detail = str(err).strip().rstrip(".") or type(err).__name__
+    return BagError(f"cannot read the bag {path} ({detail}); it may be truncated or corrupt "
+                    "- re-record it or pass the rosbag2 directory or its .db3/.mcap file.")
+
+
+def open_reader(path: Path) -> Reader:
+    """An opened rosbags Reader, or a BagError that says why not."""
+    if not path.exists():
+        raise BagError(f"the bag {path} does not exist; pass a rosbag2 directory or a "
+                       ".db3/.mcap file.")
+    try:
+        reader = Reader(path)
+        reader.open()
+    except _READ_ERRORS as err:
+        raise _bag_error(path, err) from None
+    return reader
+
+
+def read_recording(path: Path | str, specs: Sequence[TopicSpec],
+                   progress: Progress | None = None) -> Recording:
+    """Read the specified topics; progress(fraction of selected messages read)."""
+    path = Path(path)
+    reader = open_reader(path)
+    try:
+        return _read(reader, path, specs, progress)
+    finally:
+        reader.close()
+
+
+def _read(reader: Reader, path: Path, specs: Sequence[TopicSpec],
+          progress: Progress | None) -> Recording:
+    topics = reader.topics
+    defs = field_definitions(reader.connections)
+    chosen = {}
+    for spec in specs:
+        if spec.topic not in topics:
+            have = ", ".join(sorted(topics)) or "no topics"
+            raise TopicError(f"topic {spec.topic} is not in the bag {path} (it has: {have}); "
+                             f"pass {spec.option} naming the {spec.expected_type} topic.")
+        info = topics[spec.topic]
+        msgtype = info.msgtype or ""
+        missing = missing_fields(msgtype, defs, list(spec.fields.values()))
+        if missing:
+            raise TopicError(f"topic {spec.topic} carries {msgtype or 'mixed types'}, which "
+                             f"has no field {missing[0]}; pass {spec.option} naming the "
+                             f"{spec.expected_type} topic.")
+        if info.msgcount == 0:
+            raise TopicError(f"topic {spec.topic} has no messages in the bag {path}; "
+                             f"record it or pass {spec.option} naming another topic.")
+        chosen[spec.role] = (spec, msgtype, info.connections)
+
+    conn_role = {c.id: role for role, (_, _, conns) in chosen.items() for c in conns}
+    total = sum(c.msgcount for _, _, conns in chosen.values() for c in conns)
+    raws: dict[str, list[bytes]] = {role: [] for role in chosen}
+    bag_ns: dict[str, list[int]] = {role: [] for role in chosen}
+    appenders = {cid: (raws[role].append, bag_ns[role].append)
+                 for cid, role in conn_role.items()}
+    step = max(1, total // 100)
+    mark, count = step, 0
+    connections = [c for _, _, conns in chosen.values() for c in conns]
+    try:
+        for conn, stamp, data in reader.messages(connections=connections):
+            add_raw, add_ns = appenders[conn.id]
+            add_raw(data)
+            add_ns(stamp)
+            count += 1
+            if count >= mark and progress is not None:
+                progress(min(count / total, 1.0))
+                mark += step
+    except _READ_ERRORS as err:
+        raise _bag_error(path, err) from None
+    if progress is not None:
+        progress(1.0)
+
+    notes: list[str] = []
+    series = {}
+    for role, (spec, msgtype, _) in chosen.items():
+        if not raws[role]:
+            raise TopicError(f"topic {spec.topic} has no messages in the bag {path}; "
+                             f"record it or pass {spec.option} naming another topic.")
+        series[role] = _decode(path, spec, msgtype, defs, raws[role], bag_ns[role], notes)
+    return Recording(path=path, storage=storage_of(path), series=series, notes=notes)
+
+
+def _decode(path: Path, spec: TopicSpec, msgtype: str, defs: dict, raws: list[bytes],
+            bag_ns: list[int], notes: list[str]) -> Series:
+    has_header = not missing_fields(msgtype, defs, list(_STAMP_PATHS))
+    paths = list(spec.fields.values()) + (list(_STAMP_PATHS) if has_header else [])
+    try:
+        cols = decode_columns(raws, msgtype, defs, paths)
+    except CdrLayoutError as err:
+        raise BagError(f"messages on {spec.topic} in the bag {path} do not match their type "
+                       f"{msgtype} ({err}); the bag is corrupt or its definitions are "
+                       "wrong - re-record it.") from None
+    received = np.asarray(bag_ns, dtype=np.int64)
+    stamp_source = "header"
+    if has_header:
+        stamps = (cols[_STAMP_PATHS[0]].astype(np.int64) * 1_000_000_000
+                  + cols[_STAMP_PATHS[1]].astype(np.int64))
+        if not np.any(stamps):
+            stamps, stamp_source = received, "bag"
+            notes.append(f"{spec.topic}: header stamps are all zero; used the bag's receive "
+                         "times instead.")
+    else:
+        stamps, stamp_source = received, "bag"
+        notes.append(f"{spec.topic}: {msgtype} has no header; used the bag's receive times.")
+    order = np.argsort(stamps, kind="stable")
+    values = {name: cols[p][order] for name, p in spec.fields.items()}
+    return Series(topic=spec.topic, msgtype=msgtype, stamp_ns=stamps[order], values=values,
+                  stamp_source=stamp_source)

@@ -1,0 +1,229 @@
+"""Every physical parameter of the sensor model, in SI units, with the paper value or assumption.
+
+One frozen dataclass so the FEM, the optics, the cache key and the ROS config all read the same
+numbers. Field metadata carries the unit and the source; ``config/physics.yaml`` mirrors it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from .errors import PhysicsError
+
+#: Bump when the model code changes in a way that changes results, so old caches are ignored.
+MODEL_VERSION = 1
+
+BOUNDARIES = ("bonded", "frictionless")
+
+
+def _f(default: Any, unit: str, doc: str, *, curve: bool = True,
+       low: float | None = None, high: float | None = None,
+       low_open: bool = False) -> Any:
+    """A field with its unit, its source/reason, bounds and whether it changes the curve."""
+    meta = {"unit": unit, "doc": doc, "curve": curve, "low": low, "high": high,
+            "low_open": low_open}
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class PhysicsParams:
+    """Geometry, material, module, optics, viscoelasticity and mesh of the sensor model.
+
+    Axes: x across the 22 mm width, y through the depth (the photoreflector looks at the face
+    y = +depth/2 from outside), z up from the fixed base to the top face the probe presses.
+    """
+
+    # --- skin geometry -------------------------------------------------------------------
+    width: float = _f(0.022, "m", "skin body width (paper Sec. II-C: 22 mm)", low=0.0,
+                      low_open=True)
+    depth: float = _f(0.022, "m", "skin body depth (assumption: square section like the "
+                      "22 mm width; the paper gives no number)", low=0.0, low_open=True)
+    height: float = _f(0.025, "m", "skin body height (assumption chosen so the bonded "
+                       "model gives the paper's ~7 N at 3 mm; see docs)", low=0.0,
+                       low_open=True)
+    # --- material (paper Table I, Mooney–Rivlin, Ecoflex 00-30) ---------------------------
+    c10: float = _f(-3.335e1, "Pa", "Mooney–Rivlin C10 (paper Table I: -3.335e-5 MPa)")
+    c01: float = _f(1.218e4, "Pa", "Mooney–Rivlin C01 (paper Table I: 1.218e-2 MPa)")
+    bulk_ratio: float = _f(1000.0, "1", "bulk modulus / initial shear modulus (assumption: "
+                           "nearly incompressible silicone, K = 1000 mu)", low=10.0)
+    # --- load ------------------------------------------------------------------------------
+    max_indentation: float = _f(0.003, "m", "largest probe indentation (paper Sec. III-B: "
+                                "3 mm)", low=0.0, low_open=True)
+    steps: int = _f(15, "1", "load steps from 0 to max_indentation", low=1, high=1000)
+    boundary: str = _f("bonded", "-", "'bonded': base fixed, top bonded to the flat probe "
+                       "(paper); 'frictionless': top and base slide (verification only, no "
+                       "module)")
+    # --- module (ABS, paper Table II E = 1.628 GPa >> skin: modelled as rigid) ---------------
+    module_height: float = _f(0.010, "m", "height of the rigid ABS module band that holds "
+                              "all four side faces from the base up (normal displacement "
+                              "zero, tangential sliding); assumption from Fig. 4; 0 = no "
+                              "module", low=0.0)
+    window_width: float = _f(0.006, "m", "width of the open window in the module's front "
+                             "wall through which the photoreflector looks (assumption)",
+                             low=0.0, low_open=True)
+    window_height: float = _f(0.004, "m", "height of that window (assumption)", low=0.0,
+                              low_open=True)
+    window_center_z: float = _f(0.005, "m", "height of the window centre (= photoreflector "
+                                "axis) above the fixed base (assumption)", low=0.0,
+                                low_open=True)
+    gap: float = _f(0.002, "m", "photoreflector-skin distance at rest (paper Sec. II-C: "
+                    "~2 mm)", low=0.0, low_open=True)
+    # --- optics (paper Sec. II-B, Fig. 3) -----------------------------------------------------
+    pigment_white: float = _f(75.0, "%", "white share of the skin pigment (paper: 75 % "
+                              "white / 25 % black chosen)", low=0.0, high=100.0)
+    supply_voltage: float = _f(5.0, "V", "photoreflector supply, the upper rail "
+                               "(assumption: 5 V QTR-1A supply)", low=0.0, low_open=True)
+    # --- viscoelastic rate term (does not change the elastic curve) ---------------------------
+    prony_g: tuple[float, ...] = _f((0.05, 0.04), "1", "Prony relative moduli (assumption "
+                                    "tuned to the paper's Fig. 9 speed effect)", curve=False)
+    prony_tau: tuple[float, ...] = _f((0.1, 1.5), "s", "Prony relaxation times "
+                                      "(assumption)", curve=False)
+    # --- mesh (half model, symmetric about x = 0) --------------------------------------------
+    mesh_nx: int = _f(10, "1", "elements across the half width", low=1, high=200)
+    mesh_ny: int = _f(22, "1", "elements through the depth (rounded up to even)", low=2,
+                      high=400)
+    mesh_nz: int = _f(28, "1", "elements along the height", low=2, high=400)
+    mesh_grading: float = _f(2.0, "1", "ratio of largest to smallest element along the "
+                             "height, finer toward the base and probe corners (1 = uniform)",
+                             low=1.0, high=10.0)
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _check(f, getattr(self, f.name))
+        if self.boundary not in BOUNDARIES:
+            raise PhysicsError(f"Parameter 'boundary' is {self.boundary!r}; use one of "
+                               f"{', '.join(BOUNDARIES)}.")
+        if len(self.prony_g) != len(self.prony_tau):
+            raise PhysicsError("Parameters 'prony_g' and 'prony_tau' have different lengths; "
+                               "give one relaxation time per Prony modulus.")
+        if any(t <= 0 for t in self.prony_tau) or any(g < 0 for g in self.prony_g):
+            raise PhysicsError("Parameters 'prony_g' must be >= 0 and 'prony_tau' > 0; fix "
+                               "the Prony series.")
+        if self.c10 + self.c01 <= 0:
+            raise PhysicsError("Parameters 'c10' + 'c01' must be positive (the shear "
+                               "modulus 2(C10+C01) would be <= 0); fix the material.")
+        if self.max_indentation >= 0.6 * self.height:
+            raise PhysicsError("Parameter 'max_indentation' exceeds 60 % of 'height'; "
+                               "reduce it or make the skin taller.")
+        if self.boundary == "bonded" and self.module_height > 0:
+            top = self.window_center_z + self.window_height / 2
+            bottom = self.window_center_z - self.window_height / 2
+            if bottom <= 0 or top >= self.module_height:
+                raise PhysicsError("The photoreflector window (window_center_z +- "
+                                   "window_height/2) must lie inside the module band "
+                                   "(0, module_height); move or shrink it.")
+            if self.window_width >= self.width:
+                raise PhysicsError("Parameter 'window_width' must be smaller than 'width'.")
+            if self.module_height >= self.height - self.max_indentation:
+                raise PhysicsError("Parameter 'module_height' reaches the probe; make it "
+                                   "lower than height - max_indentation.")
+        elif self.window_center_z >= self.height:
+            raise PhysicsError("Parameter 'window_center_z' lies above the skin top; lower "
+                               "it below 'height'.")
+
+    # ------------------------------------------------------------------------------------------
+    @property
+    def shear_modulus(self) -> float:
+        """Initial shear modulus mu = 2 (C10 + C01) [Pa]."""
+        return 2.0 * (self.c10 + self.c01)
+
+    @property
+    def bulk_modulus(self) -> float:
+        """Bulk modulus K = bulk_ratio * mu [Pa] of the volumetric penalty."""
+        return self.bulk_ratio * self.shear_modulus
+
+    @classmethod
+    def names(cls) -> list[str]:
+        return [f.name for f in dataclasses.fields(cls)]
+
+    @classmethod
+    def describe(cls) -> dict[str, dict[str, Any]]:
+        """Name -> {default, unit, doc} (for config files and --help)."""
+        return {f.name: {"default": f.default, "unit": f.metadata["unit"],
+                         "doc": f.metadata["doc"]} for f in dataclasses.fields(cls)}
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any], *, ignore_unknown: bool = False
+                     ) -> PhysicsParams:
+        """Build from a name -> value mapping; unknown or invalid names raise PhysicsError."""
+        known = {f.name: f for f in dataclasses.fields(cls)}
+        kwargs: dict[str, Any] = {}
+        for name, raw in values.items():
+            if name not in known:
+                if ignore_unknown:
+                    continue
+                raise PhysicsError(f"Unknown physics parameter {name!r}; known ones are "
+                                   f"{', '.join(known)}.")
+            kwargs[name] = _coerce(known[name], raw)
+        return cls(**kwargs)
+
+    def replace(self, **changes: Any) -> PhysicsParams:
+        return PhysicsParams.from_mapping({**self.to_dict(), **changes})
+
+    def to_dict(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def digest(self) -> str:
+        """Hash of every field that changes the prediction curve (plus the model version)."""
+        curve = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                 if f.metadata["curve"]}
+        if curve["boundary"] == "frictionless":
+            # The module and window play no part without the module; keep one cache entry.
+            for name in ("module_height", "window_width", "window_height"):
+                curve.pop(name)
+        text = json.dumps({"model_version": MODEL_VERSION, **curve}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _coerce(f: dataclasses.Field[Any], raw: Any) -> Any:
+    """Convert a config/CLI value to the field's type, or raise naming the parameter."""
+    name = f.name
+    default = f.default
+    try:
+        if isinstance(default, bool):
+            raise TypeError
+        if isinstance(default, tuple):
+            if isinstance(raw, str):
+                raw = [p for p in raw.replace("[", "").replace("]", "").split(",") if p.strip()]
+            return tuple(float(v) for v in raw)
+        if isinstance(default, int):
+            if isinstance(raw, bool):
+                raise TypeError
+            value = float(raw)
+            if not value.is_integer():
+                raise ValueError
+            return int(value)
+        if isinstance(default, float):
+            if isinstance(raw, bool):
+                raise TypeError
+            return float(raw)
+        return str(raw)
+    except (TypeError, ValueError):
+        kind = type(default).__name__ if not isinstance(default, tuple) else "list of numbers"
+        raise PhysicsError(f"Parameter {name!r} must be a {kind}, got {raw!r}; give a "
+                           f"value in {f.metadata['unit']}.") from None
+
+
+def _check(f: dataclasses.Field[Any], value: Any) -> None:
+    """Bounds and finiteness of one field."""
+    meta = f.metadata
+    values = value if isinstance(value, tuple) else (value,)
+    for v in values:
+        if isinstance(v, str):
+            continue
+        if not isinstance(v, int | float) or isinstance(v, bool) or not math.isfinite(v):
+            raise PhysicsError(f"Parameter {f.name!r} must be a finite number, got {v!r}.")
+        low, high = meta["low"], meta["high"]
+        if low is not None and (v < low or (meta["low_open"] and v <= low)):
+            op = ">" if meta["low_open"] else ">="
+            raise PhysicsError(f"Parameter {f.name!r} is {v!r} but must be {op} {low} "
+                               f"{meta['unit']}.")
+        if high is not None and v > high:
+            raise PhysicsError(f"Parameter {f.name!r} is {v!r} but must be <= {high} "
+                               f"{meta['unit']}.")
