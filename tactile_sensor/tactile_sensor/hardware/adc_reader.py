@@ -16,6 +16,7 @@ A ROS node uses it like this::
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import errno
 import threading
@@ -296,10 +297,8 @@ class AdcStreamReader:
 
     @staticmethod
     def _close(port: serial.SerialBase) -> None:
-        try:
+        with contextlib.suppress(serial.SerialException, OSError):  # device already gone
             port.close()
-        except (serial.SerialException, OSError):
-            pass  # the device is already gone; nothing left to release
 
     def _ingest(self, data: bytes) -> None:
         host_ns = time.time_ns()

@@ -16,3 +16,50 @@ class SerialPortError(HardwareError):
 
 class FrameError(HardwareError):
     """A byte string is not one valid ADC frame (bad sync, header, length or CRC)."""
+
+
+# -- Dynamixel servo (hardware/xm430.py) -------------------------------------------------
+
+
+class DynamixelError(HardwareError):
+    """Base of every fault talking to a Dynamixel servo."""
+
+
+class PortOpenError(DynamixelError):
+    """The servo's serial port cannot be opened (missing, busy, unsupported baud rate)."""
+
+
+class CommunicationTimeout(DynamixelError):
+    """No status packet came back in time (power, id, baud rate or cable)."""
+
+
+class CorruptPacket(DynamixelError):
+    """A status packet arrived damaged or incomplete (noise, baud mismatch, two masters)."""
+
+
+class ServoRejected(DynamixelError):
+    """The servo answered with an error code (instruction, CRC, range, length, limit, access).
+
+    ``code`` is the low seven bits of the status packet's error byte.
+    """
+
+    def __init__(self, message: str, code: int) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+class ServoHardwareError(DynamixelError):
+    """The servo latched a hardware error (the Alert bit); ``bits`` names the causes,
+    e.g. ``frozenset({"overload"})``. Reboot clears it once the cause is gone."""
+
+    def __init__(self, message: str, bits: frozenset[str]) -> None:
+        super().__init__(message)
+        self.bits = bits
+
+
+class ModelMismatch(DynamixelError):
+    """The servo at the configured id is not the expected model."""
+
+
+class InvalidServoValue(DynamixelError):
+    """A requested value cannot be represented in the servo's control table."""

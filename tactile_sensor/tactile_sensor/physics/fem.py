@@ -206,10 +206,7 @@ class SkinModel:
         self._fixed = fixed.ravel()
         self._free = np.flatnonzero(~self._fixed)
         # window patch: area-weighted average of u_y over front-face quads inside the window.
-        if p.boundary == "bonded" and p.module_height > 0:
-            zc, wh, ww = p.window_center_z, p.window_height / 2, p.window_width / 2
-        else:
-            zc, wh, ww = p.window_center_z, p.window_height / 2, p.window_width / 2
+        zc, wh, ww = p.window_center_z, p.window_height / 2, p.window_width / 2
         weights = np.zeros(self.nodes)
         facets = self.mesh.facets
         on_front = np.all(y[facets] > hd - tol, axis=0)
@@ -252,9 +249,6 @@ class SkinModel:
         ue = u[self._edofs].reshape(-1, 8, 3)                         # (e, a, i)
         dndx = self._dndx                                             # (e, q, a, K)
         F = np.swapaxes(ue, 1, 2)[:, None] @ dndx + np.eye(3)         # (e, q, i, K)
-        if np.any(np.linalg.det(F) <= 0):
-            raise ConvergenceError("An element inverted during the FEM solve; use more load "
-                                   "steps or a finer mesh.")
         P, A, J, Finv = _mooney_rivlin(F, p.c10, p.c01)
         w = self._w
         JFinvT = J[..., None, None] * np.swapaxes(Finv, -1, -2)       # (e, q, i, K)
@@ -269,12 +263,6 @@ class SkinModel:
         if not tangent:
             return fint, None
         # volumetric geometric part: p J (F^-1_Ki F^-1_Lk - F^-1_Kk F^-1_Li)
-        Jp = (pres[:, None] * J)[..., None, None, None, None]
-        Av = Jp * (np.swapaxes(Finv, -1, -2)[..., :, :, None, None]
-                   * Finv[..., None, None, :, :].swapaxes(-1, -2)
-                   - Finv.swapaxes(-1, -2)[..., :, None, None, :]
-                   * Finv.swapaxes(-1, -2)[..., None, :, :, None].swapaxes(-2, -3)
-                   .swapaxes(-2, -3))
         Av = _vol_geometric(Finv, pres[:, None] * J)
         A = A + Av                                                    # (e, q, i, K, k, L)
         ne, nq = w.shape
@@ -306,17 +294,15 @@ class SkinModel:
         u_prev = u.copy()
         lu = None
         Kp = self._perm
-        z = self.mesh.p[2]
         for n in range(1, d_all.size):
             d = d_all[n]
             if n == 1:
-                guess = np.zeros(self.ndof)
-                guess.reshape(-1, 3)[:, 2] = -d * z / p.height
+                u, lu = self._tangent_predictor(u, d, Kp)
             else:
                 ratio = (d - d_all[n - 1]) / (d_all[n - 1] - d_all[n - 2])
                 guess = u + ratio * (u - u_prev)
-            u_prev = u
-            u = guess
+                u_prev = u
+                u = guess
             self._prescribe(u, d)
             u, lu = self._newton(u, lu, Kp)
             fint, _ = self._evaluate(u, tangent=False)
@@ -328,41 +314,80 @@ class SkinModel:
         return SweepResult(d_all, np.array(forces), np.array(bulges), self.nodes,
                            time.perf_counter() - start)
 
+    def _factorise(self, u: np.ndarray, perm: np.ndarray) -> object:
+        _, K = self._evaluate(u, tangent=True)
+        assert K is not None
+        return (spla.splu(K[perm][:, perm].tocsc(), permc_spec="NATURAL",
+                          options={"SymmetricMode": True}), perm)
+
+    def _tangent_predictor(self, u: np.ndarray, d: float, perm: np.ndarray
+                           ) -> tuple[np.ndarray, object]:
+        """Linearised step from equilibrium u to the new probe position (K_fc du_c by FD).
+
+        Moving only the probe nodes puts a large volume error into the top elements, and
+        Newton from there diverges for a nearly incompressible solid; the linear response to
+        the boundary increment is a consistent starting point.
+        """
+        lu = self._factorise(u, perm)
+        moved = u.copy()
+        self._prescribe(moved, d)
+        delta = moved - u
+        eps = 1e-3
+        r0 = self._evaluate(u, tangent=False)[0][self._free]
+        r1 = self._evaluate(u + eps * delta, tangent=False)[0][self._free]
+        rhs = r0 + (r1 - r0) / eps
+        solver, pm = lu  # type: ignore[misc]
+        du = np.empty_like(rhs)
+        du[pm] = solver.solve(-rhs[pm])
+        moved[self._free] += du
+        return moved, lu
+
     def _newton(self, u: np.ndarray, lu: object, perm: np.ndarray
                 ) -> tuple[np.ndarray, object]:
+        """Modified Newton: keep the factorisation while the residual falls fast enough."""
         free = self._free
         tol_u = 1e-9 * self.params.height
         last_norm = np.inf
-        refactor = lu is None
-        for _ in range(60):
-            fint, K = self._evaluate(u, tangent=refactor)
+        fresh = False
+        for _ in range(80):
+            fint, _ = self._evaluate(u, tangent=False)
             r = fint[free]
             norm = np.linalg.norm(r)
-            if refactor or lu is None:
-                assert K is not None
-                Kpp = K[perm][:, perm].tocsc()
-                lu = (spla.splu(Kpp, permc_spec="NATURAL",
-                                options={"SymmetricMode": True}), perm)
-                refactor = False
+            if lu is None or (not fresh and norm > 0.2 * last_norm):
+                lu = self._factorise(u, perm)
+                fresh = True
+            else:
+                fresh = False
             solver, pm = lu  # type: ignore[misc]
             du = np.empty_like(r)
             du[pm] = solver.solve(-r[pm])
-            u[free] += du
-            step = np.abs(du).max()
-            if step < tol_u:
-                return u, lu
-            if norm > 0.25 * last_norm:
-                refactor = True
+            alpha = 1.0
+            while not self._admissible(u, du * alpha):
+                alpha *= 0.5
+                if alpha < 1e-3:
+                    raise ConvergenceError("An element inverted during the FEM solve; use "
+                                           "more load steps or a finer mesh.")
+            u[free] += alpha * du
             last_norm = norm
+            if alpha == 1.0 and np.abs(du).max() < tol_u:
+                return u, lu
         raise ConvergenceError("The FEM Newton solve did not converge; use more load steps "
                                "('steps') or a smaller 'max_indentation'.")
+
+    def _admissible(self, u: np.ndarray, du_free: np.ndarray) -> bool:
+        """True when u + du keeps every quadrature point's det F > 0 (no inverted element)."""
+        trial = u.copy()
+        trial[self._free] += du_free
+        ue = trial[self._edofs].reshape(-1, 8, 3)
+        F = np.swapaxes(ue, 1, 2)[:, None] @ self._dndx + np.eye(3)
+        return bool(np.all(np.linalg.det(F) > 0.05))
 
 
 def _vol_geometric(Finv: np.ndarray, pj: np.ndarray) -> np.ndarray:
     """p J (F^-1_Ki F^-1_Lk - F^-1_Kk F^-1_Li) as A[..., i, K, k, L]."""
     G = np.swapaxes(Finv, -1, -2)                 # G_iK = F^-1_Ki
     t1 = G[..., :, :, None, None] * G[..., None, None, :, :]          # G_iK G_kL
-    t2 = G[..., :, None, None, :] * G[..., None, :, :, None]          # G_iL G_kK
+    t2 = G[..., :, None, None, :] * Finv[..., None, :, :, None]       # G_iL G_kK
     # t1: i K k L -> F^-1_Ki F^-1_Lk ; need F^-1_Ki F^-1_Lk - F^-1_Kk F^-1_Li
     # F^-1_Kk F^-1_Li = G_kK G_iL = t2[i, K, k, L]
     return pj[..., None, None, None, None] * (t1 - t2)

@@ -36,7 +36,7 @@ class ContactDetector:
             return self.contact
         if self._since is None:
             self._since = t_s
-        if t_s - self._since >= self.debounce_s:
+        if t_s - self._since >= self.debounce_s - 1e-9:  # times come from integer µs
             self.contact = not self.contact
             self._since = None
         return self.contact

@@ -1,0 +1,138 @@
+"""Recorder throughput: how many messages per second reach the bag without loss.
+
+Two figures:
+1. core: BagRecorder.write + close for pre-serialized WrenchStamped (no ROS), messages/s;
+2. node: the recorder node in its own process, fed by a publisher in this process at
+   rising rates (reliable, deep queues, as the driver publishes); for each rate the
+   messages sent, found in the bag, and the rate actually achieved by the publisher.
+
+Run from /work/main with the venv active and install/setup.bash sourced
+(``make bench`` does both). Uses ROS domain 97 (override with ROS_DOMAIN_ID).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SOURCE = Path(__file__).resolve().parents[1] / "tactile_sensor"
+sys.path.insert(0, str(SOURCE))
+
+from tactile_sensor.recording import BagRecorder, default_typestore  # noqa: E402
+
+RATES_HZ = (1000, 2000, 5000, 10000, 0)  # 0 = as fast as the publisher can
+PHASE_S = float(os.environ.get('PHASE_S', '2.0'))
+MAX_BURST = 20_000  # messages in the as-fast-as-possible phase
+
+
+def bench_core(folder: Path, n: int = 200_000) -> float:
+    ts = default_typestore()
+    t = ts.types
+    msg = t["geometry_msgs/msg/WrenchStamped"](
+        header=t["std_msgs/msg/Header"](stamp=t["builtin_interfaces/msg/Time"](sec=1, nanosec=2),
+                                         frame_id="skin"),
+        wrench=t["geometry_msgs/msg/Wrench"](force=t["geometry_msgs/msg/Vector3"](x=1, y=2, z=3),
+                                             torque=t["geometry_msgs/msg/Vector3"](x=0, y=0, z=0)))
+    cdr = bytes(ts.serialize_cdr(msg, "geometry_msgs/msg/WrenchStamped"))
+    start = time.perf_counter()
+    with BagRecorder(folder / "core") as bag:
+        bag.add_topic("/w", "geometry_msgs/msg/WrenchStamped")
+        for i in range(n):
+            bag.write("/w", i, cdr)
+        queued_s = time.perf_counter() - start
+    total_s = time.perf_counter() - start
+    assert bag.counts["/w"] == n
+    print(f"core: {n} messages queued at {n / queued_s:,.0f}/s (caller side), "
+          f"written and closed at {n / total_s:,.0f}/s")
+    return n / total_s
+
+
+def bench_node(folder: Path) -> None:
+    import rclpy
+    from geometry_msgs.msg import WrenchStamped
+    from rclpy.duration import Duration
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rosbags.highlevel import AnyReader
+
+    env = dict(os.environ)
+    env.setdefault("ROS_DOMAIN_ID", "97")
+    env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    os.environ.update({k: env[k] for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")})
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(SOURCE), env.get("PYTHONPATH")]))
+    bag_path = folder / "node"
+    log = (folder / "recorder.log").open("wb")
+    recorder = subprocess.Popen(
+        [sys.executable, "-m", "tactile_sensor.nodes.recorder", "--ros-args",
+         "-p", f"path:={bag_path}", "-p", "topics:=['/bench/wrench']"],
+        env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    rclpy.init()
+    node = Node("bench_recorder_publisher")
+    depth = 10_000
+    pub = node.create_publisher(
+        WrenchStamped, "/bench/wrench", QoSProfile(depth=depth,
+                                                   reliability=ReliabilityPolicy.RELIABLE))
+    deadline = time.monotonic() + 30
+    while pub.get_subscription_count() == 0:
+        if time.monotonic() > deadline or recorder.poll() is not None:
+            raise SystemExit("recorder did not subscribe; see " + str(folder / "recorder.log"))
+        time.sleep(0.05)
+    msg = WrenchStamped()
+    sent: dict[int, tuple[int, float]] = {}
+    seq = 0
+    for phase, rate in enumerate(RATES_HZ):
+        msg.wrench.torque.x = float(phase)
+        n = int(rate * PHASE_S) if rate else MAX_BURST
+        start = time.monotonic()
+        for i in range(n):
+            msg.wrench.force.z = float(seq)
+            seq += 1
+            pub.publish(msg)
+            if rate:
+                delay = start + (i + 1) / rate - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+        sent[phase] = (n, n / (time.monotonic() - start))
+        pub.wait_for_all_acked(Duration(seconds=30))
+        time.sleep(0.5)
+    node.destroy_node()
+    rclpy.shutdown()
+    os.killpg(recorder.pid, signal.SIGINT)
+    recorder.wait(60)
+    log.close()
+    got: dict[int, int] = dict.fromkeys(sent, 0)
+    with AnyReader([bag_path]) as reader:
+        for conn, _, raw in reader.messages():
+            got[int(reader.deserialize(raw, conn.msgtype).wrench.torque.x)] += 1
+    best = 0.0
+    for phase, rate in enumerate(RATES_HZ):
+        n, achieved = sent[phase]
+        lost = n - got[phase]
+        label = f"{rate} Hz" if rate else "max"
+        print(f"node: target {label:>8}: sent {n:6d} at {achieved:8,.0f}/s, "
+              f"in bag {got[phase]:6d}, lost {lost}")
+        if lost == 0:
+            best = max(best, achieved)
+    print(f"node: highest rate recorded without loss: {best:,.0f} messages/s")
+
+
+def main() -> int:
+    with tempfile.TemporaryDirectory(prefix="bench_recorder_") as tmp:
+        folder = Path(tmp)
+        bench_core(folder)
+        try:
+            import rclpy  # noqa: F401
+        except ImportError:
+            print("node: skipped (source install/setup.bash for rclpy)")
+            return 0
+        bench_node(folder)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,205 @@
+"""One recording in, the paper's characterisation out: metrics plus what the plots need."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import metrics as m
+from .alignment import Aligned, align
+from .bag_reader import Progress, Recording, TopicSpec, read_recording
+from .calibration_fit import Calibration, fit_calibration
+from .prediction import Prediction
+from .segmentation import Segmentation, segment
+
+SCHEMA = "tactile_sensor/analysis-metrics"
+PAPER: dict[str, Any] = {
+    "sensitivity_v_per_n": 0.07,
+    "dynamic_range_db": 31.49,
+    "full_scale_n": 7.0,  # "approximately 7 N" at 3 mm, 1 mm/s
+    "phase_lag_s": {"10.0": 0.005, "1.0": 0.062, "0.1": 0.706},
+    "hysteresis_pct_fs": None,  # described as low, not quantified
+    "peak_output_cv_pct": None,  # "no change was observed in the maximum output"
+    "drift_pct": None,
+}
+
+
+@dataclass(frozen=True)
+class Topics:
+    reading: str = "/driver/reading"
+    reference: str = "/bench/gauge/wrench"
+    position: str = "/bench/stage/joint_states"
+
+    def specs(self) -> list[TopicSpec]:
+        return [
+            TopicSpec("reading", self.reading, {"output_v": "output"}, "--reading-topic",
+                      "TactileReading"),
+            TopicSpec("reference", self.reference, {"force_n": "wrench.force.z"},
+                      "--reference-topic", "WrenchStamped"),
+            TopicSpec("position", self.position, {"indentation_m": "position[0]"},
+                      "--position-topic", "JointState"),
+        ]
+
+
+@dataclass(frozen=True)
+class Options:
+    topics: Topics = field(default_factory=Topics)
+    reference_speed_mm_s: float = 1.0
+    noise_window: int = 9
+    calibration: Calibration | None = None
+    fit_calibration: bool = False
+    prediction: Prediction | None = None
+    prediction_note: str = "no prediction requested"
+
+
+@dataclass(frozen=True)
+class Characterisation:
+    """Metrics (JSON-ready) and the intermediate results plots and the report draw."""
+
+    metrics: dict[str, Any]
+    recording: Recording
+    aligned: Aligned
+    segmentation: Segmentation
+    signals: m.Signals
+    hysteresis: m.Hysteresis | None
+    repeatability: m.Repeatability
+    prediction: m.PredictionComparison | None
+    fitted: Calibration | None
+    evaluated: Calibration | None
+    lags_s: dict[str, float | None]
+
+
+def _num(x: float | None, digits: int = 6) -> float | None:
+    if x is None or not math.isfinite(x):
+        return None
+    return float(f"{x:.{digits}g}")
+
+
+def _err_dict(e: m.EstimationError | None) -> dict[str, Any] | None:
+    if e is None:
+        return None
+    return {"rmse_n": _num(e.rmse_n), "max_n": _num(e.max_n),
+            "rmse_pct_fs": _num(e.rmse_pct_fs), "max_pct_fs": _num(e.max_pct_fs),
+            "samples": e.samples}
+
+
+def analyse_bag(bag: str, options: Options, progress: Progress | None = None
+                ) -> Characterisation:
+    recording = read_recording(bag, options.topics.specs(), progress)
+    return characterise(recording, options)
+
+
+def characterise(recording: Recording, options: Options) -> Characterisation:
+    aligned = align(recording)
+    seg = segment(aligned, options.reference_speed_mm_s, recording.series["position"].topic)
+    sig = m.baseline(aligned, seg)
+    cycles = seg.cycles
+    notes = list(recording.notes)
+    if aligned.force_flipped:
+        notes.append("reference force was mostly negative; its sign was flipped so that "
+                     "compression is positive.")
+    if seg.skipped:
+        notes.append(f"{seg.skipped} press(es) cut off by the recording's start or end, or "
+                     "with too few samples, were left out.")
+    ref_key = seg.reference_key
+    ref_cycles = [cycles[i] for i in seg.speed_groups[ref_key]]
+    peaks = np.array([m.peak_values(sig, c) for c in ref_cycles])
+    full_scale_v, full_scale_n = (float(np.median(peaks[:, 0])), float(np.median(peaks[:, 1])))
+
+    by_speed: dict[str, Any] = {}
+    lags: dict[str, float | None] = {}
+    for key, members in seg.speed_groups.items():
+        group = [cycles[i] for i in members]
+        fit = m.sensitivity(sig, group)
+        gpeaks = np.array([m.peak_values(sig, c) for c in group])
+        lags[key] = m.phase_lag(sig, group, aligned.rate_hz)
+        by_speed[key] = {
+            "cycles": len(group),
+            "loading_speed_mm_s": _num(float(np.median([c.speed_mm_s for c in group]))),
+            "unloading_speed_mm_s": _num(float(np.median([c.unload_speed_mm_s
+                                                          for c in group]))),
+            "sensitivity_v_per_n": _num(fit.slope) if fit else None,
+            "sensitivity_r2": _num(fit.r2) if fit else None,
+            "peak_force_n": _num(float(np.median(gpeaks[:, 1]))),
+            "peak_output_v": _num(float(np.median(gpeaks[:, 0]))),
+            "phase_lag_s": _num(lags[key]),
+        }
+
+    sens = m.sensitivity(sig, ref_cycles)
+    noise = m.noise(sig, seg, options.noise_window)
+    resolution = (noise.sigma_v / sens.slope
+                  if noise and sens and sens.slope > 0 and noise.sigma_v > 0 else None)
+    dyn = (20 * math.log10(full_scale_n / resolution)
+           if resolution and full_scale_n > 0 else None)
+    hyst = m.hysteresis(sig, ref_cycles, full_scale_n, full_scale_v)
+    rep = m.repeatability(peaks[:, 0])
+
+    fitted = None
+    if options.fit_calibration:
+        idx = np.concatenate([m.ramp_indices(ref_cycles, "load"),
+                              m.ramp_indices(ref_cycles, "unload")])
+        fitted = fit_calibration(sig.output_v[idx], sig.force_n[idx],
+                                 source=f"tactile-sensor analyze {recording.path}")
+        fitted.fit.update({"speed_mm_s": float(ref_key), "cycles": len(ref_cycles),
+                           "output_baseline_v": sig.output_baseline_v,
+                           "force_baseline_n": sig.force_baseline_n})
+    evaluated = options.calibration or fitted
+    cal_metrics = None
+    if evaluated is not None:
+        per_speed = {}
+        for key, members in seg.speed_groups.items():
+            group = [cycles[i] for i in members]
+            idx = np.concatenate([m.ramp_indices(group, "load"),
+                                  m.ramp_indices(group, "unload")])
+            per_speed[key] = _err_dict(m.estimation_error(
+                evaluated.force(sig.output_v[idx]), sig.force_n[idx], full_scale_n))
+        cal_metrics = {"source": evaluated.source,
+                       "in_sample": options.calibration is None, "by_speed": per_speed}
+
+    pred_cmp = None
+    pred_metrics = None
+    if options.prediction is not None:
+        pred_cmp = m.compare_prediction(sig, ref_cycles, options.prediction.indentation_m,
+                                        options.prediction.output_v, full_scale_v)
+        if pred_cmp is not None:
+            pred_metrics = {"source": options.prediction.source, "rmse_v": _num(pred_cmp.rmse_v),
+                            "max_v": _num(pred_cmp.max_v),
+                            "rmse_pct_fs": _num(pred_cmp.rmse_pct_fs)}
+        else:
+            notes.append("the prediction does not overlap the measured indentation range.")
+    else:
+        notes.append(f"model prediction: {options.prediction_note}.")
+
+    metrics: dict[str, Any] = {
+        "schema": SCHEMA, "version": 1,
+        "bag": str(recording.path), "storage": recording.storage,
+        "topics": {r: s.topic for r, s in recording.series.items()},
+        "stamps": {r: s.stamp_source for r, s in recording.series.items()},
+        "samples": int(aligned.t_s.size), "duration_s": _num(float(aligned.t_s[-1])),
+        "sample_rate_hz": _num(aligned.rate_hz),
+        "cycles": len(cycles), "reference_speed_mm_s": float(ref_key),
+        "full_scale_n": _num(full_scale_n), "full_scale_output_v": _num(full_scale_v),
+        "output_baseline_v": _num(sig.output_baseline_v),
+        "force_baseline_n": _num(sig.force_baseline_n),
+        "sensitivity_v_per_n": _num(sens.slope) if sens else None,
+        "sensitivity_r2": _num(sens.r2) if sens else None,
+        "noise_v": _num(noise.sigma_v) if noise else None,
+        "noise_estimate": noise.source if noise else None,
+        "resolution_n": _num(resolution),
+        "dynamic_range_db": _num(dyn),
+        "hysteresis_pct_fs": _num(hyst.pct_fs) if hyst else None,
+        "peak_output_cv_pct": _num(rep.cv_pct),
+        "drift_pct": _num(rep.drift_pct),
+        "drift_cycles_compared": rep.drift_cycles,
+        "phase_lag_s": {k: _num(v) for k, v in lags.items()},
+        "by_speed": by_speed,
+        "calibration_error": cal_metrics,
+        "prediction": pred_metrics,
+        "paper": PAPER,
+        "notes": notes,
+    }
+    return Characterisation(metrics, recording, aligned, seg, sig, hyst, rep, pred_cmp, fitted,
+                            evaluated, lags)

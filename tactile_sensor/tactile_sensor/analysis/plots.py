@@ -1,0 +1,138 @@
+"""PNG figures in the paper's layout (Figs. 7-9), drawn with Matplotlib's Agg backend.
+
+Long recordings are thinned to at most MAX_POINTS per line, and margins are fixed rather
+than computed: the figures stay readable and drawing stays a small part of the analysis.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+
+from .characterise import Characterisation  # noqa: E402
+from .metrics import ramp_indices  # noqa: E402
+
+MAX_POINTS = 4_000
+
+
+def _thin(idx: np.ndarray) -> np.ndarray:
+    step = max(1, idx.size // MAX_POINTS)
+    return idx[::step]
+
+
+def _save(fig: Figure, path: Path, top: float = 0.9) -> Path:
+    # fixed margins: tight_layout would draw every figure twice
+    fig.subplots_adjust(left=0.13, right=0.87, bottom=0.12, top=top, hspace=0.45, wspace=0.6)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _ref_cycles(ch: Characterisation) -> list:
+    seg = ch.segmentation
+    return [seg.cycles[i] for i in seg.speed_groups[seg.reference_key]]
+
+
+def force_vs_indentation(ch: Characterisation, path: Path) -> Path:
+    sig, cycles = ch.signals, _ref_cycles(ch)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    for which, colour in (("load", "tab:red"), ("unload", "tab:blue")):
+        idx = _thin(ramp_indices(cycles, which))
+        ax.plot(sig.indentation_m[idx] * 1e3, sig.force_n[idx], ".", ms=1, color=colour,
+                label="loading" if which == "load" else "unloading")
+    ax.set(xlabel="indentation [mm]", ylabel="force [N]",
+           title=f"Force vs indentation ({ch.segmentation.reference_key} mm/s; cf. Fig. 7a)")
+    ax.legend(markerscale=8)
+    return _save(fig, path)
+
+
+def output_vs_indentation(ch: Characterisation, path: Path) -> Path:
+    sig, cycles = ch.signals, _ref_cycles(ch)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    idx = _thin(ramp_indices(cycles, "load"))
+    ax.plot(sig.indentation_m[idx] * 1e3, sig.output_v[idx], ".", ms=1, color="tab:red",
+            label="measured (loading)")
+    if ch.prediction is not None:
+        ax.plot(ch.prediction.indentation_m * 1e3, ch.prediction.predicted_v, "o", ms=3,
+                color="tab:blue", label="model")
+    ax.set(xlabel="indentation [mm]", ylabel="output change [V]",
+           title="Output vs indentation (cf. Fig. 7b)")
+    ax.legend(markerscale=3)
+    return _save(fig, path)
+
+
+def output_vs_force(ch: Characterisation, path: Path) -> Path:
+    sig, cycles = ch.signals, _ref_cycles(ch)
+    fig, ax = plt.subplots(figsize=(5, 4))
+    for which, colour in (("load", "tab:red"), ("unload", "tab:blue")):
+        idx = _thin(ramp_indices(cycles, which))
+        ax.plot(sig.force_n[idx], sig.output_v[idx], ".", ms=1, color=colour,
+                label="loading" if which == "load" else "unloading")
+    if ch.hysteresis is not None:
+        h = ch.hysteresis
+        ax.plot(h.force_bins_n, h.load_v, "-", color="darkred", lw=1)
+        ax.plot(h.force_bins_n, h.unload_v, "-", color="navy", lw=1)
+    if ch.evaluated is not None:
+        cal = ch.evaluated
+        ax.plot(cal.force_n, cal.output_v, "k--", lw=1, label="calibration")
+    ax.set(xlabel="force [N]", ylabel="output change [V]",
+           title="Output vs force, loading and unloading (cf. Fig. 7c)")
+    ax.legend(markerscale=8)
+    return _save(fig, path)
+
+
+def cycles_over_time(ch: Characterisation, path: Path) -> Path:
+    sig, seg = ch.signals, ch.segmentation
+    cycles = _ref_cycles(ch)
+    a, b = cycles[0].window[0], cycles[-1].window[1]
+    idx = _thin(np.arange(a, b))
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(8, 5), height_ratios=(2, 1))
+    ax.plot(sig.t_s[idx], sig.output_v[idx], lw=0.5, color="tab:red", label="output [V]")
+    ax_f = ax.twinx()
+    ax_f.plot(sig.t_s[idx], sig.force_n[idx], lw=0.5, color="tab:gray", label="force [N]")
+    ax.set(xlabel="time [s]", ylabel="output change [V]",
+           title=f"{len(cycles)} cycles at {seg.reference_key} mm/s (cf. Fig. 8a)")
+    ax_f.set_ylabel("force [N]")
+    peaks = ch.repeatability.peaks_v
+    ax2.plot(np.arange(1, peaks.size + 1), peaks, "o-", ms=3)
+    ax2.set(xlabel="cycle", ylabel="peak output [V]")
+    return _save(fig, path)
+
+
+def speeds(ch: Characterisation, path: Path) -> Path:
+    sig, seg = ch.signals, ch.segmentation
+    keys = sorted(seg.speed_groups, key=float)
+    fig, axes = plt.subplots(1, len(keys), figsize=(4 * len(keys), 3.5), squeeze=False)
+    for ax, key in zip(axes[0], keys, strict=True):
+        cycle = seg.cycles[seg.speed_groups[key][0]]
+        a, b = cycle.window
+        pad = (b - a) // 10
+        idx = _thin(np.arange(max(0, a - pad), min(sig.t_s.size, b + pad)))
+        t = sig.t_s[idx] - sig.t_s[a]
+        ax.plot(t, sig.output_v[idx], lw=0.7, color="tab:red")
+        ax.set(xlabel="time [s]", ylabel="output change [V]")
+        lag = ch.lags_s.get(key)
+        ax.set_title(f"{key} mm/s, lag {lag:.3f} s" if lag is not None else f"{key} mm/s")
+        axf = ax.twinx()
+        axf.plot(t, sig.force_n[idx], lw=0.7, color="tab:gray")
+        axf.set_ylabel("force [N]")
+    fig.suptitle("Response at each indentation speed (cf. Fig. 9)")
+    return _save(fig, path, top=0.8)
+
+
+def all_figures(ch: Characterisation, out_dir: Path) -> dict[str, Path]:
+    """Write every figure; returns name -> file."""
+    makers = {
+        "force_vs_indentation": force_vs_indentation,
+        "output_vs_indentation": output_vs_indentation,
+        "output_vs_force": output_vs_force,
+        "cycles": cycles_over_time,
+        "speeds": speeds,
+    }
+    return {name: make(ch, out_dir / f"{name}.png") for name, make in makers.items()}

@@ -1,0 +1,101 @@
+"""The bench and gripper configurations, defined once for launch files and the bringup.
+
+Pure data, no rclpy and no launch imports: ``launch/*.launch.py`` turn these into
+``LifecycleNode``/``Node`` actions on a robot with a full ROS 2 install, and
+``tactile-sensor bringup`` composes the same node classes in one executor where
+``launch`` is not installed. Change a configuration here and both follow.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+PACKAGE = "tactile_sensor"
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of a configuration."""
+
+    name: str
+    executable: str  # console script installed in lib/tactile_sensor (for ros2 run/launch)
+    module: str  # python module holding the node class (for the in-process bringup)
+    node_class: str
+    config_files: tuple[str, ...]  # files under config/, applied in order
+    lifecycle: bool = True
+    mock_only: bool = False  # started only with use_mock_hardware
+    remappings: tuple[tuple[str, str], ...] = ()
+    # (parameter, launch argument): the node's device path parameters take the port arguments
+    port_parameters: tuple[tuple[str, str], ...] = ()
+
+
+@dataclass(frozen=True)
+class Configuration:
+    name: str
+    description: str
+    nodes: tuple[NodeSpec, ...]
+    # launch argument -> (default with mock hardware, description)
+    ports: dict[str, tuple[str, str]] = field(default_factory=dict)
+    record_topics: tuple[str, ...] = ()
+
+
+SENSOR_FILES = ("sensor.yaml",)
+
+_MODEL = NodeSpec("model", "model_node", "tactile_sensor.nodes.model", "ModelNode",
+                  ("physics.yaml", "model.yaml"))
+_DRIVER = NodeSpec("driver", "driver_node", "tactile_sensor.nodes.driver", "DriverNode",
+                   SENSOR_FILES, port_parameters=(("port", "adc_port"),))
+
+BENCH = Configuration(
+    name="bench",
+    description="The paper's compression bench: stage, force gauge and the tactile module.",
+    nodes=(
+        NodeSpec("bench", "mock_hardware_node", "tactile_sensor.nodes.mock_hardware",
+                 "MockHardwareNode", ("physics.yaml", "bench.yaml"), lifecycle=False,
+                 mock_only=True, port_parameters=(("adc_link", "adc_port"),)),
+        _MODEL,
+        _DRIVER,
+    ),
+    ports={"adc_port": ("/tmp/tactile_sensor/bench_adc",
+                        "serial device of the photoreflector ADC")},
+    record_topics=("/driver/reading", "/driver/wrench", "/bench/stage/joint_states",
+                   "/bench/gauge/wrench", "/diagnostics", "/calibration_curve"),
+)
+
+GRIPPER = Configuration(
+    name="gripper",
+    description="The paper's soft gripper: XM430 on a rack, tactile module on a fingertip.",
+    nodes=(
+        NodeSpec("gripper_world", "mock_hardware_node", "tactile_sensor.nodes.mock_hardware",
+                 "MockHardwareNode", ("physics.yaml", "gripper.yaml"), lifecycle=False,
+                 mock_only=True,
+                 port_parameters=(("adc_link", "adc_port"), ("servo_link", "servo_port"))),
+        _MODEL,
+        _DRIVER,
+        NodeSpec("gripper", "gripper_node", "tactile_sensor.nodes.gripper", "GripperNode",
+                 ("gripper.yaml",), remappings=(("tactile_wrench", "driver/wrench"),),
+                 port_parameters=(("port", "servo_port"),)),
+    ),
+    ports={"adc_port": ("/tmp/tactile_sensor/gripper_adc",
+                        "serial device of the photoreflector ADC"),
+           "servo_port": ("/tmp/tactile_sensor/gripper_xm430",
+                          "serial device of the U2D2 (Dynamixel bus)")},
+    record_topics=("/driver/reading", "/driver/wrench", "/gripper/joint_states",
+                   "/gripper_world/ground_truth", "/diagnostics"),
+)
+
+CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER)}
+
+
+def config_dir() -> Path:
+    """config/ of the source tree, or of the installed share folder on a robot."""
+    source = Path(__file__).resolve().parents[1] / "config"
+    if source.is_dir():
+        return source
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        candidate = Path(prefix) / "share" / PACKAGE / "config"
+        if candidate.is_dir():
+            return candidate
+    return source

@@ -1,0 +1,303 @@
+"""Grasp and release as pure state machines: inputs each tick, servo commands out.
+
+No I/O and no clock of their own, so the same logic runs in the ROS gripper node, in the
+benchmark and under hypothesis. The caller owns the loop:
+
+1. put the servo in current-based position mode with torque on;
+2. ``step = controller.start(request, now_s, servo_state)`` and send ``step.command``;
+3. every tick: read the servo, take the latest tactile force and its stamp, call
+   ``controller.tick(...)``, send ``step.command`` when it is not None, stop when
+   ``step.finished``; ``cancel()`` at any time stops the fingers where they are.
+
+Grasp: close at the requested finger speed (mapped to Profile Velocity through the pinion's
+pitch radius) toward the closed limit with ``closing_current_a`` as the torque budget; as
+the tactile force passes ``slowdown_from_fraction`` of the target the speed falls in
+proportion to the force still missing (limits overshoot from sensing delay); at the target,
+hold the present position with ``hold_current_a``. Abort with a reason on timeout, on
+reaching the closed limit without contact, on a hardware error, or when the tactile force
+goes stale.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Protocol
+
+from tactile_sensor.control.errors import InvalidRequest
+from tactile_sensor.control.geometry import GripperGeometry
+
+
+class Outcome(StrEnum):
+    """Why a grasp or release finished (the action result's reason)."""
+
+    CONTACT = "contact"
+    OPENED = "opened"
+    TIMEOUT = "timeout"
+    CLOSED_LIMIT_WITHOUT_CONTACT = "closed_limit_without_contact"
+    HARDWARE_ERROR = "hardware_error"
+    TACTILE_STALE = "tactile_stale"
+    CANCELED = "canceled"
+
+    @property
+    def succeeded(self) -> bool:
+        return self in (Outcome.CONTACT, Outcome.OPENED)
+
+
+class Phase(StrEnum):
+    IDLE = "idle"
+    CLOSING = "closing"
+    OPENING = "opening"
+    HOLDING = "holding"
+    ABORTED = "aborted"
+    DONE = "done"
+
+
+class ServoReading(Protocol):
+    """What the controllers need from a servo sample (hardware.xm430.ServoState fits)."""
+
+    @property
+    def position_rad(self) -> float: ...
+
+    @property
+    def moving(self) -> bool: ...
+
+    @property
+    def hardware_error(self) -> frozenset[str]: ...
+
+
+@dataclass(frozen=True)
+class ServoCommand:
+    """Write Goal Current, Profile Velocity and Goal Position (one transaction)."""
+
+    goal_position_rad: float
+    profile_velocity_rad_s: float
+    goal_current_a: float
+
+
+@dataclass(frozen=True)
+class Step:
+    """The controller's answer to one input."""
+
+    phase: Phase
+    command: ServoCommand | None
+    outcome: Outcome | None
+    message: str
+    opening_m: float
+    force_n: float | None = None
+
+    @property
+    def finished(self) -> bool:
+        return self.outcome is not None
+
+
+@dataclass(frozen=True)
+class GraspConfig:
+    geometry: GripperGeometry = field(default_factory=GripperGeometry)
+    #: Goal Current while closing: the most the fingers may push before contact [A].
+    closing_current_a: float = 0.6
+    #: Goal Current while holding the object [A].
+    hold_current_a: float = 0.6
+    #: A tactile force older than this aborts the grasp [s].
+    stale_after_s: float = 0.1
+    #: Start slowing down at this fraction of the target force (1 disables slowing).
+    slowdown_from_fraction: float = 0.5
+    #: Never slower than this fraction of the requested speed while closing.
+    min_speed_fraction: float = 0.1
+    #: Re-command the speed only when it changed by more than this fraction.
+    resend_speed_change: float = 0.2
+    #: Within this of the closed limit counts as "reached the limit" [m].
+    limit_tolerance_m: float = 0.0005
+    #: Within this of the requested opening counts as "opened" [m].
+    open_tolerance_m: float = 0.0005
+    #: Speed used to stop and hold (a fast profile so the stop is immediate) [rad/s].
+    stop_velocity_rad_s: float = 6.0
+
+    def __post_init__(self) -> None:
+        for name in ("closing_current_a", "hold_current_a", "stale_after_s",
+                     "min_speed_fraction", "stop_velocity_rad_s"):
+            if not getattr(self, name) > 0:
+                raise InvalidRequest(f"GraspConfig.{name} must be positive; fix the "
+                                     "gripper configuration.")
+        if not 0 < self.slowdown_from_fraction <= 1:
+            raise InvalidRequest("GraspConfig.slowdown_from_fraction must be in (0, 1]; "
+                                 "use 1 to disable slowing down.")
+
+
+@dataclass(frozen=True)
+class GraspRequest:
+    target_force_n: float
+    #: Linear speed of each finger while closing [m/s].
+    speed_m_s: float
+    timeout_s: float
+
+    def validate(self, max_speed_m_s: float) -> None:
+        if not (math.isfinite(self.target_force_n) and self.target_force_n > 0):
+            raise InvalidRequest(f"Grasp target force {self.target_force_n} N must be "
+                                 "positive; request e.g. 2 N.")
+        if not (math.isfinite(self.speed_m_s) and 0 < self.speed_m_s <= max_speed_m_s):
+            raise InvalidRequest(f"Grasp speed {self.speed_m_s} m/s must be in "
+                                 f"(0, {max_speed_m_s:.3f}] m/s; request a slower speed.")
+        if not (math.isfinite(self.timeout_s) and self.timeout_s > 0):
+            raise InvalidRequest(f"Grasp timeout {self.timeout_s} s must be positive; "
+                                 "request e.g. 10 s.")
+
+
+#: XM430-W210 no-load speed at 12 V (77 rpm) bounds the profile velocity [rad/s].
+MAX_SERVO_SPEED_RAD_S = 77.0 * 2.0 * math.pi / 60.0
+
+
+class _Base:
+    def __init__(self, config: GraspConfig) -> None:
+        self.config = config
+        self.phase = Phase.IDLE
+        self._started_s = 0.0
+        self._timeout_s = 0.0
+
+    @property
+    def max_speed_m_s(self) -> float:
+        return MAX_SERVO_SPEED_RAD_S * self.config.geometry.pitch_radius_m
+
+    def _opening(self, servo: ServoReading) -> float:
+        return self.config.geometry.opening_m(servo.position_rad)
+
+    def _stop_command(self, servo: ServoReading, current_a: float) -> ServoCommand:
+        return ServoCommand(servo.position_rad, self.config.stop_velocity_rad_s, current_a)
+
+    def _finish(self, outcome: Outcome, message: str, servo: ServoReading,
+                force_n: float | None = None, hold: bool = False) -> Step:
+        self.phase = Phase.DONE if outcome.succeeded else Phase.ABORTED
+        command = None if outcome is Outcome.HARDWARE_ERROR else self._stop_command(
+            servo, self.config.hold_current_a if hold else self.config.closing_current_a)
+        return Step(self.phase, command, outcome, message, self._opening(servo), force_n)
+
+    def _check_common(self, now_s: float, servo: ServoReading,
+                      force_n: float | None) -> Step | None:
+        if servo.hardware_error:
+            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
+                                + ", ".join(sorted(servo.hardware_error)), servo, force_n)
+        if now_s - self._started_s > self._timeout_s:
+            return self._finish(Outcome.TIMEOUT, f"no result within {self._timeout_s:g} s",
+                                servo, force_n)
+        return None
+
+    def cancel(self, now_s: float, servo: ServoReading) -> Step:
+        """Stop the fingers where they are."""
+        del now_s
+        if self.phase not in (Phase.CLOSING, Phase.OPENING):
+            return Step(self.phase, None, None, "nothing to cancel", self._opening(servo))
+        return self._finish(Outcome.CANCELED, "canceled", servo)
+
+
+class GraspController(_Base):
+    """Close until the tactile force reaches the target, then hold."""
+
+    def __init__(self, config: GraspConfig | None = None) -> None:
+        super().__init__(config or GraspConfig())
+        self.request: GraspRequest | None = None
+        self._speed_rad_s = 0.0
+
+    def start(self, request: GraspRequest, now_s: float, servo: ServoReading) -> Step:
+        request.validate(self.max_speed_m_s)
+        self.request = request
+        self._started_s, self._timeout_s = now_s, request.timeout_s
+        self.phase = Phase.CLOSING
+        if servo.hardware_error:
+            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
+                                + ", ".join(sorted(servo.hardware_error)), servo)
+        self._speed_rad_s = self.config.geometry.finger_speed_to_rad_s(request.speed_m_s)
+        return Step(self.phase, self._closing_command(), None, "closing", self._opening(servo))
+
+    def _closing_command(self) -> ServoCommand:
+        return ServoCommand(self.config.geometry.closed_position_rad, self._speed_rad_s,
+                            self.config.closing_current_a)
+
+    def tick(self, now_s: float, force_n: float | None, force_stamp_s: float | None,
+             servo: ServoReading) -> Step:
+        if self.phase is not Phase.CLOSING or self.request is None:
+            return Step(self.phase, None, None, "not closing", self._opening(servo), force_n)
+        cfg, request = self.config, self.request
+        done = self._check_common(now_s, servo, force_n)
+        if done is not None:
+            return done
+        fresh = force_n is not None and force_stamp_s is not None
+        age = now_s - (force_stamp_s if fresh else self._started_s)  # type: ignore[operator]
+        if age > cfg.stale_after_s:
+            return self._finish(Outcome.TACTILE_STALE, f"no tactile force for {age:.3f} s",
+                                servo, force_n)
+        if not fresh:
+            return Step(self.phase, None, None, "waiting for tactile force",
+                        self._opening(servo), force_n)
+        assert force_n is not None
+        if force_n >= request.target_force_n:
+            return self._finish(Outcome.CONTACT, f"reached {force_n:.2f} N", servo, force_n,
+                                hold=True)
+        opening = self._opening(servo)
+        if opening <= cfg.geometry.closed_opening_m + cfg.limit_tolerance_m:
+            return self._finish(Outcome.CLOSED_LIMIT_WITHOUT_CONTACT,
+                                f"closed to {opening * 1e3:.1f} mm at {force_n:.2f} N",
+                                servo, force_n)
+        speed = self._scheduled_speed(force_n)
+        command = None
+        if abs(speed - self._speed_rad_s) > cfg.resend_speed_change * self._speed_rad_s:
+            self._speed_rad_s = speed
+            command = self._closing_command()
+        return Step(self.phase, command, None, "closing", opening, force_n)
+
+    def _scheduled_speed(self, force_n: float) -> float:
+        """Requested speed, reduced in proportion to the force still missing."""
+        assert self.request is not None
+        cfg, target = self.config, self.request.target_force_n
+        full = cfg.geometry.finger_speed_to_rad_s(self.request.speed_m_s)
+        start = cfg.slowdown_from_fraction * target
+        if force_n <= start or cfg.slowdown_from_fraction >= 1.0:
+            return full
+        fraction = (target - force_n) / (target - start)
+        return full * max(cfg.min_speed_fraction, min(1.0, fraction))
+
+
+class ReleaseController(_Base):
+    """Open to a requested opening."""
+
+    def __init__(self, config: GraspConfig | None = None) -> None:
+        super().__init__(config or GraspConfig())
+        self.target_opening_m = 0.0
+
+    def start(self, opening_m: float, speed_m_s: float, timeout_s: float, now_s: float,
+              servo: ServoReading) -> Step:
+        g = self.config.geometry
+        if not (math.isfinite(opening_m) and g.closed_opening_m <= opening_m
+                <= g.open_opening_m):
+            raise InvalidRequest(f"Release opening {opening_m} m is outside the travel "
+                                 f"{g.closed_opening_m}..{g.open_opening_m} m; request one "
+                                 "inside it.")
+        if not (math.isfinite(speed_m_s) and 0 < speed_m_s <= self.max_speed_m_s):
+            raise InvalidRequest(f"Release speed {speed_m_s} m/s must be in "
+                                 f"(0, {self.max_speed_m_s:.3f}] m/s; request a slower speed.")
+        if not (math.isfinite(timeout_s) and timeout_s > 0):
+            raise InvalidRequest(f"Release timeout {timeout_s} s must be positive; request "
+                                 "e.g. 10 s.")
+        self.target_opening_m = opening_m
+        self._started_s, self._timeout_s = now_s, timeout_s
+        self.phase = Phase.OPENING
+        if servo.hardware_error:
+            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
+                                + ", ".join(sorted(servo.hardware_error)), servo)
+        command = ServoCommand(g.position_rad(opening_m), g.finger_speed_to_rad_s(speed_m_s),
+                               self.config.closing_current_a)
+        return Step(self.phase, command, None, "opening", self._opening(servo))
+
+    def tick(self, now_s: float, servo: ServoReading) -> Step:
+        if self.phase is not Phase.OPENING:
+            return Step(self.phase, None, None, "not opening", self._opening(servo))
+        done = self._check_common(now_s, servo, None)
+        if done is not None:
+            return done
+        opening = self._opening(servo)
+        if abs(opening - self.target_opening_m) <= self.config.open_tolerance_m and not (
+                servo.moving):
+            self.phase = Phase.DONE
+            return Step(self.phase, None, Outcome.OPENED, f"opened to {opening * 1e3:.1f} mm",
+                        opening)
+        return Step(self.phase, None, None, "opening", opening)

@@ -1,0 +1,108 @@
+"""Build a launch description from a configuration (robots with a full ROS 2 install).
+
+``launch/bench.launch.py`` and ``launch/gripper.launch.py`` call :func:`build`; the
+in-process bringup reads the same :mod:`tactile_sensor.configurations`, so the two never
+drift apart. ``launch`` and ``launch_ros`` are imported here only.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+from launch import LaunchContext, LaunchDescription
+from launch.actions import (
+    DeclareLaunchArgument,
+    EmitEvent,
+    LogInfo,
+    OpaqueFunction,
+    RegisterEventHandler,
+)
+from launch.events import matches_action
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import LifecycleNode, Node
+from launch_ros.event_handlers import OnStateTransition
+from launch_ros.events.lifecycle import ChangeState
+from lifecycle_msgs.msg import Transition
+
+from tactile_sensor.configurations import PACKAGE, Configuration, config_dir
+
+
+def _truthy(text: str) -> bool:
+    return text.strip().lower() in ("true", "1", "yes", "on")
+
+
+def _protocols(configuration: Configuration) -> dict[str, dict[str, Any]]:
+    table = yaml.safe_load((config_dir() / "protocols.yaml").read_text()) or {}
+    return table.get(configuration.name, {}) or {}
+
+
+def build(configuration: Configuration) -> LaunchDescription:
+    protocols = _protocols(configuration)
+    arguments = [
+        DeclareLaunchArgument("use_mock_hardware", default_value="true",
+                              description="start mock devices on pseudo-terminals"),
+        DeclareLaunchArgument("config", default_value="",
+                              description="extra ROS parameter file applied after the defaults"),
+        DeclareLaunchArgument("namespace", default_value="",
+                              description="namespace of every node"),
+        DeclareLaunchArgument("record", default_value="",
+                              description="rosbag2 (MCAP) folder to record into; empty = none"),
+        DeclareLaunchArgument("protocol", default_value=next(iter(protocols), ""),
+                              description="protocol of the mock rig: " + ", ".join(protocols)),
+    ]
+    arguments += [DeclareLaunchArgument(name, default_value=default, description=text)
+                  for name, (default, text) in configuration.ports.items()]
+    return LaunchDescription([*arguments, OpaqueFunction(
+        function=_nodes, args=[configuration, protocols])])
+
+
+def _nodes(context: LaunchContext, configuration: Configuration,
+           protocols: dict[str, dict[str, Any]]) -> list[Any]:
+    use_mock = _truthy(LaunchConfiguration("use_mock_hardware").perform(context))
+    extra = LaunchConfiguration("config").perform(context)
+    namespace = LaunchConfiguration("namespace").perform(context)
+    record = LaunchConfiguration("record").perform(context)
+    protocol = LaunchConfiguration("protocol").perform(context)
+    ports = {name: LaunchConfiguration(name).perform(context) for name in configuration.ports}
+    if protocol and protocol not in protocols:
+        raise RuntimeError(f"Unknown protocol '{protocol}'; choose one of "
+                           f"{', '.join(protocols)}.")
+    protocol_parameters = ({"protocol.name": protocol, **(protocols[protocol] or {})}
+                           if protocol else {})
+    actions: list[Any] = []
+    if record:
+        ns = f"/{namespace.strip('/')}" if namespace.strip("/") else ""
+        actions.append(Node(
+            package=PACKAGE, executable="recorder_node", name="recorder", namespace=namespace,
+            parameters=[{"path": record,
+                         "topics": [ns + t for t in configuration.record_topics]}]))
+    for spec in configuration.nodes:
+        if spec.mock_only and not use_mock:
+            continue
+        parameters: list[Any] = [str(config_dir() / f) for f in spec.config_files]
+        if extra:
+            parameters.append(str(Path(extra)))
+        parameters.append({param: ports[arg] for param, arg in spec.port_parameters})
+        if spec.mock_only:
+            parameters.append(protocol_parameters)
+        common = dict(package=PACKAGE, executable=spec.executable, name=spec.name,
+                      namespace=namespace, parameters=parameters,
+                      remappings=list(spec.remappings), output="screen")
+        if not spec.lifecycle:
+            actions.append(Node(**common))
+            continue
+        node = LifecycleNode(**common)
+        actions += [
+            node,
+            RegisterEventHandler(OnStateTransition(
+                target_lifecycle_node=node, goal_state="inactive",
+                entities=[LogInfo(msg=f"{spec.name} configured, activating"),
+                          EmitEvent(event=ChangeState(
+                              lifecycle_node_matcher=matches_action(node),
+                              transition_id=Transition.TRANSITION_ACTIVATE))])),
+            EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(node),
+                                        transition_id=Transition.TRANSITION_CONFIGURE)),
+        ]
+    return actions

@@ -1,0 +1,120 @@
+"""``tactile-sensor bringup bench|gripper``: a launch file's job for machines without launch.
+
+Composes the configuration's nodes in one process and one executor (as ros2/demos composes
+nodes), loads the same config files as ``launch/*.launch.py`` (both read
+:mod:`tactile_sensor.configurations`), drives the lifecycle transitions, optionally records
+a bag, runs the selected protocol, and shuts down cleanly at its end or on Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tactile_sensor.configurations import CONFIGURATIONS, Configuration, NodeSpec, config_dir
+
+
+class BringupError(Exception):
+    """A bringup option a user gave cannot work; the message says which and how to fix it."""
+
+
+def parse_args(argv: Sequence[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="tactile-sensor bringup",
+        description="Run the bench or gripper configuration in one process (no launch needed).")
+    parser.add_argument("configuration", choices=sorted(CONFIGURATIONS))
+    parser.add_argument("--duration", type=float, default=None,
+                        help="stop after this many seconds (default: end of the protocol; "
+                             "run until Ctrl-C when the protocol has no end)")
+    parser.add_argument("--record", type=Path, default=None,
+                        help="record the configuration's topics to this rosbag2 (MCAP) folder")
+    parser.add_argument("--protocol", default=None,
+                        help="bench: compression | repeatability | speeds "
+                             "(config/protocols.yaml); gripper: grasp | idle")
+    parser.add_argument("--namespace", default="", help="ROS namespace of every node")
+    parser.add_argument("--no-mock", action="store_true",
+                        help="use real devices at the given ports instead of mock hardware")
+    parser.add_argument("--port", action="append", default=[], metavar="NAME=PATH",
+                        help="device path, e.g. adc_port=/dev/ttyACM0 (repeatable)")
+    parser.add_argument("--config", type=Path, default=None,
+                        help="extra ROS parameter file applied after the defaults")
+    return parser.parse_args(list(argv))
+
+
+def protocol_parameters(configuration: str, protocol: str | None) -> dict[str, Any]:
+    """The parameter set a protocol name stands for (config/protocols.yaml)."""
+    table = yaml.safe_load((config_dir() / "protocols.yaml").read_text()) or {}
+    protocols = table.get(configuration, {})
+    if protocol is None:
+        protocol = next(iter(protocols), None)
+        if protocol is None:
+            return {}
+    if protocol not in protocols:
+        raise BringupError(
+            f"Unknown {configuration} protocol '{protocol}'; choose one of "
+            f"{', '.join(protocols) or 'none'} (config/protocols.yaml).")
+    return {"protocol.name": protocol, **(protocols[protocol] or {})}
+
+
+def node_arguments(spec: NodeSpec, ports: dict[str, str], extra_config: Path | None
+                   ) -> list[str]:
+    """The --ros-args a launch file would give this node."""
+    args = ["--ros-args"]
+    for name in spec.config_files:
+        args += ["--params-file", str(config_dir() / name)]
+    if extra_config is not None:
+        args += ["--params-file", str(extra_config)]
+    for parameter, argument in spec.port_parameters:
+        args += ["-p", f"{parameter}:={ports[argument]}"]
+    for source, target in spec.remappings:
+        args += ["-r", f"{source}:={target}"]
+    return args
+
+
+def resolve_ports(configuration: Configuration, given: list[str]) -> dict[str, str]:
+    ports = {name: default for name, (default, _) in configuration.ports.items()}
+    for item in given:
+        name, sep, path = item.partition("=")
+        if not sep or name not in ports:
+            raise BringupError(
+                f"--port {item!r} is not NAME=PATH with NAME one of {', '.join(ports)}.")
+        ports[name] = path
+    return ports
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    options = parse_args(sys.argv[1:] if argv is None else argv)
+    configuration = CONFIGURATIONS[options.configuration]
+    try:
+        ports = resolve_ports(configuration, options.port)
+        protocol = protocol_parameters(configuration.name, options.protocol)
+        if options.config is not None and not options.config.is_file():
+            raise BringupError(f"--config {options.config} does not exist; give a ROS "
+                               "parameter YAML file.")
+        if options.record is not None and options.record.exists():
+            raise BringupError(f"--record {options.record} already exists; choose a new "
+                               "folder (bags are never overwritten).")
+    except BringupError as exc:
+        print(f"tactile-sensor bringup: {exc}", file=sys.stderr)
+        return 2
+    if not options.no_mock:
+        for path in ports.values():
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+    # Imported late: argument errors above must not pay for rclpy.
+    from tactile_sensor.nodes.bringup_runner import BringupRunner
+
+    runner = BringupRunner(configuration, ports=ports, protocol=protocol,
+                           namespace=options.namespace, use_mock=not options.no_mock,
+                           extra_config=options.config, record=options.record)
+    previous = signal.getsignal(signal.SIGTERM)
+    signal.signal(signal.SIGTERM, lambda *_: runner.request_stop("SIGTERM"))
+    try:
+        return runner.run(options.duration)
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -1,0 +1,165 @@
+"""What the in-process bringup does once every node is up: run the selected protocol.
+
+- bench: wait until the driver streams calibrated force, start the mock rig's protocol,
+  show progress, stop at its end.
+- gripper ``grasp``: grasp the rod through the gripper's action, hold, release, and print
+  the grasp result with a summary of the force trace.
+- otherwise run until ``--duration`` or Ctrl-C.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from typing import TYPE_CHECKING, Any
+
+from geometry_msgs.msg import WrenchStamped
+from rclpy.action import ActionClient
+
+from tactile_sensor_interfaces.action import Grasp, Release
+
+if TYPE_CHECKING:
+    from tactile_sensor.nodes.bringup_runner import BringupRunner
+
+READY_TIMEOUT_S = 120.0  # a cold FEM sweep plus the driver's tare
+
+
+def run_protocol(runner: BringupRunner, duration: float | None) -> int:
+    from tactile_sensor.nodes.bringup_runner import say
+
+    driver = runner.nodes.get("driver")
+    if driver is not None and not _wait_until(runner, lambda: driver.ready, READY_TIMEOUT_S,
+                                              "driver streaming calibrated force"):
+        say("the driver did not become ready (tare and calibration); see its log above")
+        return 1
+    name = runner.protocol.get("protocol.name")
+    bench = runner.nodes.get("bench")
+    if bench is not None and name:
+        return _run_bench(runner, bench, duration)
+    if runner.configuration.name == "gripper" and name == "grasp":
+        return _run_grasp(runner, duration)
+    end = math.inf if duration is None else runner.now() + duration
+    say("running" + ("" if duration is None else f" for {duration:.1f} s")
+        + "; Ctrl-C stops")
+    while runner.now() < end and runner.wait(0.2):
+        pass
+    return 0
+
+
+def _wait_until(runner: BringupRunner, predicate: Any, timeout_s: float, what: str) -> bool:
+    from tactile_sensor.nodes.bringup_runner import say
+
+    deadline = runner.now() + timeout_s
+    said = runner.now()
+    while not predicate():
+        if runner.stopped or runner.now() > deadline:
+            return False
+        if runner.now() - said > 5.0:
+            say(f"waiting for {what} ...")
+            said = runner.now()
+        runner.wait(0.05)
+    return True
+
+
+def _run_bench(runner: BringupRunner, bench: Any, duration: float | None) -> int:
+    from tactile_sensor.nodes.bringup_runner import say
+
+    bench.start_protocol()
+    total = bench.protocol_duration_s + 0.5
+    limit = total if duration is None else min(duration, total)
+    say(f"protocol '{runner.protocol['protocol.name']}': {bench.protocol_duration_s:.1f} s")
+    shown = -1
+    while runner.wait(0.1):
+        elapsed = bench.protocol_elapsed_s or 0.0
+        percent = int(100 * min(elapsed / total, 1.0))
+        if percent // 10 != shown:
+            shown = percent // 10
+            say(f"protocol {percent:3d} % ({elapsed:5.1f} / {total:.1f} s)")
+        if elapsed >= limit:
+            break
+    return 0
+
+
+class _ForceTrace:
+    def __init__(self) -> None:
+        self.values: list[float] = []
+        self._lock = threading.Lock()
+
+    def __call__(self, msg: WrenchStamped) -> None:
+        with self._lock:
+            self.values.append(msg.wrench.force.z)
+
+    def since(self, index: int) -> list[float]:
+        with self._lock:
+            return self.values[index:]
+
+
+def _run_grasp(runner: BringupRunner, duration: float | None) -> int:
+    from tactile_sensor.nodes.bringup_runner import say
+
+    node = runner.nodes["gripper"]
+    p = runner.protocol
+    trace = _ForceTrace()
+    node.create_subscription(WrenchStamped, "driver/wrench", trace, 100)
+    grasp = ActionClient(node, Grasp, "~/grasp")
+    release = ActionClient(node, Release, "~/release")
+    if not grasp.wait_for_server(timeout_sec=10.0):
+        say("the gripper's ~/grasp action is not available")
+        return 1
+    goal = Grasp.Goal(target_force=float(p.get("protocol.target_force", 2.0)),
+                      closing_speed=float(p.get("protocol.closing_speed", 0.01)),
+                      timeout=float(p.get("protocol.timeout", 10.0)))
+    say(f"grasp: target {goal.target_force:.2f} N at {goal.closing_speed * 1e3:.1f} mm/s")
+    result = _call(runner, grasp, goal, goal.timeout + 5.0)
+    if result is None:
+        return 1
+    say(f"grasp result: contact={result.contact_detected} force={result.force:.3f} N "
+        f"opening={result.opening * 1e3:.2f} mm ({result.message})")
+    hold = float(p.get("protocol.hold", 2.0))
+    start = len(trace.values)
+    runner.wait(hold)
+    held = trace.since(start)
+    if held:
+        mean = sum(held) / len(held)
+        say(f"hold {hold:.1f} s: force mean {mean:.3f} N, min {min(held):.3f} N, "
+            f"max {max(held):.3f} N over {len(held)} samples")
+    released = _call(runner, release, Release.Goal(opening=0.0), 15.0)
+    if released is None:
+        return 1
+    say(f"release: success={released.success} opening {released.opening * 1e3:.2f} mm "
+        f"({released.message})")
+    peak = max(trace.values, default=float("nan"))
+    say(f"force trace: {len(trace.values)} samples, peak {peak:.3f} N, "
+        f"final {trace.values[-1] if trace.values else float('nan'):.3f} N")
+    return 0 if result.contact_detected and released.success else 1
+
+
+def _call(runner: BringupRunner, client: ActionClient, goal: Any, timeout_s: float) -> Any:
+    from tactile_sensor.nodes.bringup_runner import say
+
+    done = threading.Event()
+    box: dict[str, Any] = {}
+
+    def on_result(future: Any) -> None:
+        box["result"] = future.result().result
+        done.set()
+
+    def on_goal(future: Any) -> None:
+        handle = future.result()
+        if not handle.accepted:
+            box["rejected"] = True
+            done.set()
+            return
+        handle.get_result_async().add_done_callback(on_result)
+
+    client.send_goal_async(goal).add_done_callback(on_goal)
+    deadline = runner.now() + timeout_s
+    while not done.is_set():
+        if runner.stopped or runner.now() > deadline:
+            say("no action result in time" if not runner.stopped else "stopped")
+            return None
+        done.wait(0.05)
+    if box.get("rejected"):
+        say("the goal was rejected")
+        return None
+    return box["result"]

@@ -1,0 +1,140 @@
+"""The in-process bringup itself: compose, transition, run the protocol, shut down cleanly."""
+
+from __future__ import annotations
+
+import importlib
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.lifecycle import Node as LifecycleNode
+from rclpy.lifecycle import TransitionCallbackReturn
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+
+from tactile_sensor.configurations import Configuration
+from tactile_sensor.nodes.bringup import node_arguments
+
+
+def say(message: str) -> None:
+    print(f"[bringup] {message}", file=sys.stderr, flush=True)
+
+
+class BringupRunner:
+    def __init__(self, configuration: Configuration, *, ports: dict[str, str],
+                 protocol: dict[str, Any], namespace: str, use_mock: bool,
+                 extra_config: Path | None, record: Path | None) -> None:
+        self.configuration = configuration
+        self.ports = ports
+        self.protocol = protocol
+        self.namespace = namespace
+        self.use_mock = use_mock
+        self.extra_config = extra_config
+        self.record = record
+        self.nodes: dict[str, Node] = {}
+        self._states: dict[str, str] = {}  # lifecycle node -> 'inactive' | 'active'
+        self._stop = threading.Event()
+        self._stop_reason = ""
+
+    def request_stop(self, reason: str) -> None:
+        self._stop_reason = self._stop_reason or reason
+        self._stop.set()
+
+    # -- composition --------------------------------------------------------------------------
+    def _create_nodes(self) -> None:
+        if self.record is not None:
+            from tactile_sensor.nodes.recorder import RecorderNode
+
+            topics = [self._absolute(t) for t in self.configuration.record_topics]
+            self.nodes["recorder"] = RecorderNode(
+                "recorder", namespace=self.namespace,
+                parameter_overrides=[Parameter("path", value=str(self.record)),
+                                     Parameter("topics", value=topics)])
+        for spec in self.configuration.nodes:
+            if spec.mock_only and not self.use_mock:
+                continue
+            node_class = getattr(importlib.import_module(spec.module), spec.node_class)
+            overrides = []
+            if spec.mock_only:
+                # The runner starts the protocol once the driver streams force.
+                overrides = [Parameter(name, value=value)
+                             for name, value in self.protocol.items()]
+                overrides.append(Parameter("protocol.start_delay", value=-1.0))
+            self.nodes[spec.name] = node_class(
+                spec.name, namespace=self.namespace,
+                cli_args=node_arguments(spec, self.ports, self.extra_config),
+                parameter_overrides=overrides)
+
+    def _absolute(self, topic: str) -> str:
+        ns = self.namespace.strip("/")
+        return f"/{ns}{topic}" if ns else topic
+
+    def _lifecycle_up(self) -> bool:
+        for name, node in self.nodes.items():
+            if not isinstance(node, LifecycleNode):
+                continue
+            for transition in ("configure", "activate"):
+                result = getattr(node, f"trigger_{transition}")()
+                if result != TransitionCallbackReturn.SUCCESS:
+                    say(f"{name}: {transition} failed (see its log above); stopping.")
+                    return False
+                self._states[name] = "inactive" if transition == "configure" else "active"
+            say(f"{name}: active")
+        return True
+
+    def _lifecycle_down(self) -> None:
+        for name in reversed(list(self._states)):
+            node = self.nodes[name]
+            if self._states[name] == "active":
+                node.trigger_deactivate()
+            node.trigger_cleanup()
+        self._states.clear()
+        for node in reversed(list(self.nodes.values())):
+            node.destroy_node()
+
+    # -- run ------------------------------------------------------------------------------------
+    def run(self, duration: float | None) -> int:
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        previous = signal.signal(signal.SIGINT, lambda *_: self.request_stop("Ctrl-C"))
+        executor = MultiThreadedExecutor(num_threads=4)
+        spinner: threading.Thread | None = None
+        code = 0
+        try:
+            self._create_nodes()
+            for node in self.nodes.values():
+                executor.add_node(node)
+            spinner = threading.Thread(target=executor.spin, name="executor", daemon=True)
+            spinner.start()
+            if not self._lifecycle_up():
+                return 1
+            from tactile_sensor.nodes.bringup_protocols import run_protocol
+
+            code = run_protocol(self, duration)
+        finally:
+            signal.signal(signal.SIGINT, previous)
+            say(f"shutting down ({self._stop_reason or 'protocol finished'})")
+            self._lifecycle_down()
+            executor.shutdown(timeout_sec=2.0)
+            if spinner is not None:
+                spinner.join(timeout=2.0)
+            rclpy.try_shutdown()
+            if self.record is not None:
+                say(f"bag written to {self.record}")
+        return code
+
+    def wait(self, seconds: float) -> bool:
+        """Sleep unless a stop is requested; False when stopped."""
+        return not self._stop.wait(seconds)
+
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
+
+    def now(self) -> float:
+        return time.monotonic()

@@ -1,0 +1,315 @@
+"""Driver node: photoreflector ADC on a serial port -> calibrated contact force.
+
+Wiring only: parameters, the reader (hardware/), the signal chain (sensing/), topics,
+the tare service and diagnostics. Samples are processed and published from the reader's
+thread, so the executor never sits between the serial port and the force topic.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import WrenchStamped
+from rclpy.lifecycle import Node, State, TransitionCallbackReturn
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.time import Time
+from std_srvs.srv import Trigger
+
+from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState, Sample
+from tactile_sensor.hardware.errors import HardwareError
+from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
+from tactile_sensor.nodes.parameters import (
+    ParameterError,
+    ParamSpec,
+    declare_parameters,
+    read_parameters,
+)
+from tactile_sensor.sensing.calibration import Calibration
+from tactile_sensor.sensing.chain import ChainConfig, Reading, SignalChain
+from tactile_sensor.sensing.device_clock import DeviceClock
+from tactile_sensor.sensing.errors import SensingError, TareError
+from tactile_sensor.sensing.filters import FILTERS
+from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
+
+CALIBRATION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                             reliability=ReliabilityPolicy.RELIABLE)
+
+SPECS = [
+    ParamSpec("port", "/dev/ttyACM0", "serial device of the ADC (path or pyserial URL)"),
+    ParamSpec("baud_rate", 1_000_000, "serial baud rate [bit/s] the firmware uses",
+              minimum=50, maximum=12_000_000),
+    ParamSpec("channel", 0, "ADC channel wired to the photoreflector", minimum=0, maximum=7),
+    ParamSpec("adc_bits", 12, "ADC resolution [bit]", minimum=1, maximum=24),
+    ParamSpec("reference_voltage", 5.0, "ADC reference voltage [V] (full scale)",
+              minimum=0.0, exclusive_minimum=True, maximum=50.0),
+    ParamSpec("sample_rate", 1000.0, "nominal device sample rate [Hz] the filters and tare "
+              "window are designed for", minimum=0.0, exclusive_minimum=True,
+              maximum=100_000.0),
+    ParamSpec("filter_type", "savgol", "filter on every sample", choices=tuple(FILTERS)),
+    ParamSpec("filter.window", 0, "window [samples] of savgol / moving_average; 0 = the "
+              "filter's default (40 / 9)", minimum=0, maximum=100_000),
+    ParamSpec("filter.cutoff_hz", 50.0, "butterworth cutoff [Hz]", minimum=0.0,
+              exclusive_minimum=True),
+    ParamSpec("filter.order", 2, "butterworth order", minimum=1, maximum=8),
+    ParamSpec("filter.min_cutoff_hz", 10.0, "one_euro minimum cutoff [Hz]", minimum=0.0,
+              exclusive_minimum=True),
+    ParamSpec("filter.beta", 0.5, "one_euro speed coefficient [1/V]", minimum=0.0),
+    ParamSpec("publish_rate", 0.0, "rate [Hz] of ~/wrench and ~/reading; 0 = every sample "
+              "(the filter always sees every sample)", minimum=0.0, maximum=100_000.0),
+    ParamSpec("frame_id", "tactile_sensor", "frame of the wrench; +z is the skin normal "
+              "pointing into the sensor"),
+    ParamSpec("calibration_source", "model", "where output->force comes from: 'model' "
+              "(latched curve on calibration_curve) or 'file'", choices=("model", "file")),
+    ParamSpec("calibration_file", "", "calibration JSON written by 'tactile-sensor "
+              "analyze --fit-calibration' (calibration_source: file)"),
+    ParamSpec("contact_on_force", 0.5, "contact when the force rises above this [N]",
+              minimum=0.0, exclusive_minimum=True),
+    ParamSpec("contact_off_force", 0.3, "contact ends when the force falls below this [N]",
+              minimum=0.0),
+    ParamSpec("contact_debounce", 0.01, "a contact change must persist this long [s]",
+              minimum=0.0, maximum=10.0),
+    ParamSpec("tare_window", 0.5, "tare averages this much signal at rest [s]",
+              minimum=0.0, exclusive_minimum=True, maximum=60.0),
+    ParamSpec("tare_max_spread", 0.05, "tare is refused if the voltage spread in the window "
+              "exceeds this [V] (not at rest)", minimum=0.0, exclusive_minimum=True),
+    ParamSpec("auto_tare", True, "tare by itself on the first window found at rest"),
+    ParamSpec("diagnostics_period", 1.0, "period of /diagnostics [s] (also sent at once on "
+              "a connection change)", minimum=0.05, maximum=60.0),
+]
+
+FILTER_KEYS = {"savgol": ("window",), "moving_average": ("window",),
+               "butterworth": ("order", "cutoff_hz"),
+               "one_euro": ("min_cutoff_hz", "beta"), "none": ()}
+
+
+def chain_config(values: dict[str, Any]) -> ChainConfig:
+    """ROS parameter values -> the signal chain's configuration (validated there too)."""
+    name = values["filter_type"]
+    params = {key: values[f"filter.{key}"] for key in FILTER_KEYS[name]}
+    if params.get("window") == 0:
+        del params["window"]
+    if values["contact_off_force"] >= values["contact_on_force"]:
+        raise ParameterError(
+            f"Parameter 'contact_off_force' = {values['contact_off_force']} must be below "
+            f"'contact_on_force' = {values['contact_on_force']} (hysteresis).")
+    if values["calibration_source"] == "file" and not values["calibration_file"]:
+        raise ParameterError("Parameter 'calibration_file' is empty but calibration_source "
+                             "is 'file'; give the calibration JSON's path.")
+    return ChainConfig(
+        rate_hz=values["sample_rate"], adc_bits=values["adc_bits"],
+        vref_v=values["reference_voltage"], channel=values["channel"], filter_name=name,
+        filter_params=params, tare_window_s=values["tare_window"],
+        tare_max_spread_v=values["tare_max_spread"], auto_tare=values["auto_tare"],
+        contact_on_n=values["contact_on_force"], contact_off_n=values["contact_off_force"],
+        contact_debounce_s=values["contact_debounce"])
+
+
+class DriverNode(Node):
+    def __init__(self, node_name: str = "driver", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        declare_parameters(self, SPECS)
+        self._values: dict[str, Any] = {}
+        self._chain: SignalChain | None = None
+        self._reader: AdcStreamReader | None = None
+        self._clock_map = DeviceClock()
+        self._publish_every_ns = 0
+        self._next_publish_ns = 0
+        self._last_diag = (time.monotonic(), 0)  # (when, frames then) for the sample rate
+        self._lock = threading.Lock()
+        self._wrench_pub = self._reading_pub = self._diag_pub = None
+        self._tare_srv = self._calibration_sub = self._diag_timer = None
+
+    @property
+    def ready(self) -> bool:
+        """Forces are flowing: tared and calibrated."""
+        chain = self._chain
+        return chain is not None and chain.tared and chain.calibration is not None
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def on_configure(self, state: State) -> TransitionCallbackReturn:
+        try:
+            values = read_parameters(self, SPECS)
+            config = chain_config(values)
+            calibration = (Calibration.from_file(values["calibration_file"])
+                           if values["calibration_source"] == "file" else None)
+            chain = SignalChain(config, calibration)
+            reader = AdcStreamReader(values["port"], self._on_sample, self._on_state,
+                                     baudrate=values["baud_rate"])
+        except (ParameterError, SensingError, HardwareError) as exc:
+            self.get_logger().error(f"configure failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        self._values, self._chain, self._reader = values, chain, reader
+        self._clock_map = DeviceClock()
+        rate = values["publish_rate"]
+        self._publish_every_ns = int(1e9 / rate) if rate > 0 else 0
+        self._wrench_pub = self.create_lifecycle_publisher(WrenchStamped, "~/wrench", 100)
+        self._reading_pub = self.create_lifecycle_publisher(TactileReading, "~/reading", 100)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._tare_srv = self.create_service(Trigger, "~/tare", self._on_tare)
+        if values["calibration_source"] == "model":
+            self._calibration_sub = self.create_subscription(
+                CalibrationCurve, "calibration_curve", self._on_calibration, CALIBRATION_QOS)
+        self._diag_timer = self.create_timer(values["diagnostics_period"],
+                                             self._publish_diagnostics)
+        self.get_logger().info(
+            f"configured: {values['port']} at {values['baud_rate']} bit/s, filter "
+            f"{values['filter_type']}, calibration from {values['calibration_source']}")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: State) -> TransitionCallbackReturn:
+        result = super().on_activate(state)
+        assert self._reader is not None
+        self._reader.start()
+        return result
+
+    def on_deactivate(self, state: State) -> TransitionCallbackReturn:
+        if self._reader is not None:
+            self._reader.stop()
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: State) -> TransitionCallbackReturn:
+        self._teardown()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: State) -> TransitionCallbackReturn:
+        self._teardown()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _teardown(self) -> None:
+        if self._reader is not None:
+            self._reader.stop()
+        for timer in (self._diag_timer,):
+            if timer is not None:
+                self.destroy_timer(timer)
+        if self._tare_srv is not None:
+            self.destroy_service(self._tare_srv)
+        if self._calibration_sub is not None:
+            self.destroy_subscription(self._calibration_sub)
+        for pub in (self._wrench_pub, self._reading_pub):
+            if pub is not None:
+                self.destroy_lifecycle_publisher(pub)
+        if self._diag_pub is not None:
+            self.destroy_publisher(self._diag_pub)
+        self._reader = self._chain = None
+        self._wrench_pub = self._reading_pub = self._diag_pub = None
+        self._tare_srv = self._calibration_sub = self._diag_timer = None
+
+    # -- data path (reader thread) -----------------------------------------------------------
+    def _on_sample(self, sample: Sample) -> None:
+        chain = self._chain
+        if chain is None:
+            return
+        try:
+            reading = chain.process(sample)
+        except SensingError as exc:
+            self.get_logger().error(str(exc), throttle_duration_sec=5.0)
+            return
+        stamp_ns = self._clock_map.stamp_ns(sample.epoch, sample.device_time_us,
+                                            sample.host_time_ns)
+        with self._lock:
+            if stamp_ns < self._next_publish_ns:
+                return
+            self._next_publish_ns = stamp_ns + self._publish_every_ns
+        self._publish(reading, stamp_ns)
+
+    def _publish(self, reading: Reading, stamp_ns: int) -> None:
+        stamp = Time(nanoseconds=stamp_ns).to_msg()
+        frame = self._values["frame_id"]
+        msg = TactileReading(voltage=reading.voltage_v, output=reading.output_v,
+                             force=reading.force_n, contact=reading.contact)
+        msg.header.stamp, msg.header.frame_id = stamp, frame
+        if self._reading_pub is not None:
+            self._reading_pub.publish(msg)
+        if reading.force_n == reading.force_n and self._wrench_pub is not None:  # not NaN
+            wrench = WrenchStamped()
+            wrench.header.stamp, wrench.header.frame_id = stamp, frame
+            wrench.wrench.force.z = reading.force_n
+            self._wrench_pub.publish(wrench)
+
+    def _on_state(self, state: ConnectionState, reason: str) -> None:
+        log = self.get_logger()
+        if state is ConnectionState.DISCONNECTED:
+            log.error(f"ADC disconnected: {reason}")
+        else:
+            log.info(f"ADC {state.value}: {reason}")
+        if state is ConnectionState.CONNECTED and self._chain is not None:
+            self._chain.reset()
+        self._publish_diagnostics()
+
+    # -- services and subscriptions ----------------------------------------------------------
+    def _on_tare(self, request: Trigger.Request, response: Trigger.Response
+                 ) -> Trigger.Response:
+        if self._chain is None:
+            response.success, response.message = False, "driver is not configured"
+            return response
+        try:
+            result = self._chain.tare()
+        except TareError as exc:
+            response.success, response.message = False, str(exc)
+            return response
+        response.success = True
+        response.message = (f"baseline {result.baseline_v:.4f} V (spread "
+                            f"{result.spread_v * 1e3:.1f} mV)")
+        self.get_logger().info(f"tared: {response.message}")
+        return response
+
+    def _on_calibration(self, msg: CalibrationCurve) -> None:
+        if self._chain is None:
+            return
+        try:
+            calibration = Calibration.from_curve(list(msg.output), list(msg.force),
+                                                 msg.source or "model")
+        except SensingError as exc:
+            self.get_logger().error(f"ignoring calibration curve: {exc}")
+            return
+        self._chain.set_calibration(calibration)
+        self.get_logger().info(f"calibration from {calibration.source} "
+                               f"({len(msg.output)} points)")
+
+    # -- diagnostics ---------------------------------------------------------------------------
+    def _publish_diagnostics(self) -> None:
+        reader, chain, pub = self._reader, self._chain, self._diag_pub
+        if reader is None or chain is None or pub is None:
+            return
+        stats = reader.stats()
+        now = time.monotonic()
+        with self._lock:
+            then, frames_then = self._last_diag
+            self._last_diag = (now, stats.frames)
+        rate = max(0, stats.frames - frames_then) / max(now - then, 1e-3)
+        status = DiagnosticStatus(name=f"{self.get_fully_qualified_name()}: tactile ADC",
+                                  hardware_id=str(self._values["port"]))
+        if stats.state is ConnectionState.CONNECTED:
+            if not chain.tared:
+                status.level, status.message = DiagnosticStatus.WARN, "not tared yet"
+            elif chain.calibration is None:
+                status.level, status.message = DiagnosticStatus.WARN, "no calibration yet"
+            else:
+                status.level, status.message = DiagnosticStatus.OK, "streaming"
+        elif stats.state is ConnectionState.DISCONNECTED:
+            status.level, status.message = DiagnosticStatus.ERROR, stats.reason
+        else:
+            status.level, status.message = DiagnosticStatus.WARN, stats.reason
+        values = {
+            "connection": stats.state.value, "sample_rate_hz": f"{rate:.1f}",
+            "frames": stats.frames, "frames_dropped": stats.dropped_frames,
+            "sequence_gaps": stats.sequence_gaps, "crc_errors": stats.crc_errors,
+            "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
+            "calibration_source": chain.calibration_source,
+            "baseline_v": "none" if chain.baseline_v is None else f"{chain.baseline_v:.4f}",
+        }
+        status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        pub.publish(array)
+
+
+def main(args: list[str] | None = None) -> None:
+    run_lifecycle_node(DriverNode, args)
+
+
+if __name__ == "__main__":
+    main()

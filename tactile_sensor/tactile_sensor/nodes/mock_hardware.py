@@ -1,0 +1,310 @@
+"""Mock hardware node: the devices on pseudo-terminals plus the rig's ground truth.
+
+One world per process, shared by every mock device in it, so the tactile signal, the
+servo and the reference instruments agree:
+
+- ``world: bench`` — the paper's compression rig. The mock ADC streams the module's
+  signal; ``~/stage/joint_states`` (``position[0]``: indentation [m], positive into the
+  sensor) and ``~/gauge/wrench`` (``force.z`` [N], with the viscoelastic rate effect) are
+  published at the gauge rate with the sample times. The protocol (config/protocols.yaml)
+  starts ``protocol.start_delay`` s after start-up, or on ``~/start``.
+- ``world: gripper`` — the soft gripper: an emulated XM430 moves the fingers, the rod
+  indents the fingertip skin, the mock ADC streams finger A's signal, and
+  ``~/ground_truth`` carries finger A's true skin force.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import WrenchStamped
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.time import Time
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from tactile_sensor.nodes.parameters import (
+    ParameterError,
+    ParamSpec,
+    declare_parameters,
+    read_parameters,
+)
+from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
+from tactile_sensor.physics.errors import PhysicsError
+from tactile_sensor.physics.prediction import load_or_compute_curve
+from tactile_sensor.physics.viscoelastic import RateDependentForce
+from tactile_sensor.sim.adc_device import AdcNoise, MockAdcDevice
+from tactile_sensor.sim.bench_world import BenchWorld
+from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.profiles import LoadProfile
+from tactile_sensor.sim.skin_response import TabulatedSkin
+
+SPECS = [
+    ParamSpec("world", "bench", "which rig to simulate", choices=("bench", "gripper")),
+    ParamSpec("adc_link", "/tmp/tactile_sensor/adc", "path of the mock ADC's serial device"),
+    ParamSpec("adc_rate", 1000.0, "mock ADC sample rate [Hz] (paper: 1 kHz)", minimum=1.0,
+              maximum=200_000.0),
+    ParamSpec("noise.white", -1.0, "white noise sigma [V] before quantisation; < 0 = the "
+              "value that gives the paper's 31.5 dB with the 9-point average", maximum=10.0),
+    ParamSpec("noise.drift", 0.001, "ambient-light drift sigma [V]", minimum=0.0,
+              maximum=10.0),
+    ParamSpec("noise.drift_tau", 120.0, "ambient-light drift correlation time [s]",
+              minimum=0.0, exclusive_minimum=True),
+    ParamSpec("seed", -1, "random seed of the noise; < 0 = different every run"),
+    ParamSpec("cache_dir", "", "prediction cache folder; empty = default"),
+    # bench
+    ParamSpec("gauge_rate", 1000.0, "stage and gauge publishing rate [Hz] (paper: 1 kHz)",
+              minimum=1.0, maximum=10_000.0),
+    ParamSpec("protocol.name", "compression", "protocol name (for the log and the bag)"),
+    ParamSpec("protocol.depth", 0.003, "indentation at the bottom of each stroke [m]",
+              minimum=0.0, exclusive_minimum=True, maximum=0.02),
+    ParamSpec("protocol.speeds", [0.001], "probe speeds [m/s], run in order"),
+    ParamSpec("protocol.cycles", 1, "load/unload cycles per speed", minimum=1,
+              maximum=100_000),
+    ParamSpec("protocol.hold", 0.0, "hold at depth between loading and unloading [s]",
+              minimum=0.0),
+    ParamSpec("protocol.rest", 1.0, "rest before the first and after each cycle [s]",
+              minimum=0.0),
+    ParamSpec("protocol.start_delay", 5.0, "start the protocol this long after start-up "
+              "[s] (time for the driver to tare); < 0 = wait for ~/start"),
+    # gripper
+    ParamSpec("servo_link", "/tmp/tactile_sensor/xm430", "path of the emulated XM430"),
+    ParamSpec("servo_id", 1, "Dynamixel id of the emulated servo", minimum=0, maximum=252),
+    ParamSpec("servo_baud_rate", 1_000_000, "baud rate [bit/s] the emulator models",
+              minimum=9600, maximum=4_500_000),
+    ParamSpec("geometry.pitch_radius", 0.014, "pinion pitch radius [m]", minimum=0.0,
+              exclusive_minimum=True),
+    ParamSpec("geometry.open_opening", 0.060, "finger opening at the open end [m]",
+              minimum=0.0, exclusive_minimum=True),
+    ParamSpec("geometry.closed_opening", 0.002, "finger opening at the closed end [m]",
+              minimum=0.0),
+    ParamSpec("rod.diameter", 0.020, "diameter of the rod between the fingers [m]; 0 = none",
+              minimum=0.0),
+    ParamSpec("rod.offset", 0.0, "rod centre offset from the gripper axis [m]"),
+    ParamSpec("ground_truth_rate", 200.0, "rate of ~/ground_truth [Hz]", minimum=1.0,
+              maximum=2000.0),
+]
+
+
+class MockHardwareError(Exception):
+    """The mock rig cannot start; the message names the parameter or file to fix."""
+
+
+class ProtocolSource:
+    """The ADC's voltage source: the world at rest until the protocol starts, then its run.
+
+    The ADC asks in device seconds; the protocol starts at a device time set by
+    :meth:`start`, so the gauge (stamped in host time from the same instant) and the
+    module stay aligned to the ADC's clock.
+    """
+
+    def __init__(self, world: BenchWorld) -> None:
+        self.world = world
+        self.start_device_s: float | None = None
+
+    def __call__(self, t: Any) -> Any:
+        start = self.start_device_s
+        if start is None:
+            return self.world.photoreflector_voltage(np.zeros_like(np.asarray(t, float)))
+        return self.world.photoreflector_voltage(np.maximum(np.asarray(t, float) - start, 0.0))
+
+
+class MockHardwareNode(Node):
+    def __init__(self, node_name: str = "mock_hardware", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        specs = physics_specs() + SPECS
+        declare_parameters(self, specs)
+        try:
+            values = read_parameters(self, specs)
+            physics = physics_from_values(values)
+            noise = AdcNoise(drift_v=values["noise.drift"],
+                             drift_tau_s=values["noise.drift_tau"],
+                             **({"white_v": values["noise.white"]}
+                                if values["noise.white"] >= 0 else {}))
+        except (ParameterError, PhysicsError, SimError) as exc:
+            raise MockHardwareError(str(exc)) from None
+        self.values = values
+        cache = Path(values["cache_dir"]) if values["cache_dir"] else None
+        self.get_logger().info("loading the skin model (a first run computes the FEM sweep)")
+        try:
+            self.curve = load_or_compute_curve(physics, cache, self._progress)
+        except PhysicsError as exc:
+            raise MockHardwareError(str(exc)) from None
+        skin = TabulatedSkin.from_prediction_curve(self.curve)
+        seed = values["seed"] if values["seed"] >= 0 else None
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self.emulator = None
+        self.source: Any
+        try:
+            if values["world"] == "bench":
+                self._build_bench(skin, physics)
+            else:
+                self._build_gripper(skin)
+            for path in self._links():
+                Path(path).parent.mkdir(parents=True, exist_ok=True)
+            self.adc = MockAdcDevice(values["adc_link"], self.source,
+                                     rate_hz=values["adc_rate"], noise=noise, seed=seed)
+            self.adc.start()
+            if self.emulator is not None:
+                self.emulator.start()
+        except (SimError, OSError, ValueError) as exc:
+            self._close_devices()
+            raise MockHardwareError(f"Cannot start the mock devices: {exc}") from None
+        self.get_logger().info(
+            f"mock {values['world']} ready: ADC at {values['adc_link']}"
+            + (f", XM430 at {values['servo_link']}" if self.emulator is not None else ""))
+
+    def _links(self) -> list[str]:
+        return [self.values["adc_link"]] + (
+            [self.values["servo_link"]] if self.emulator is not None else [])
+
+    def _progress(self, fraction: float, message: str) -> None:
+        self.get_logger().info(f"FEM sweep {fraction:4.0%}: {message}",
+                               throttle_duration_sec=2.0)
+
+    # -- bench ---------------------------------------------------------------------------------
+    def _build_bench(self, skin: TabulatedSkin, physics: Any) -> None:
+        v = self.values
+        profile = LoadProfile(depth_m=v["protocol.depth"],
+                              speeds_m_s=tuple(v["protocol.speeds"]),
+                              cycles=v["protocol.cycles"], hold_s=v["protocol.hold"],
+                              rest_s=v["protocol.rest"])
+        self.world = BenchWorld(profile, skin, RateDependentForce.from_params(physics))
+        self.source = ProtocolSource(self.world)
+        self._start_host_ns: int | None = None
+        self._stage_pub = self.create_publisher(JointState, "~/stage/joint_states", 1000)
+        self._gauge_pub = self.create_publisher(WrenchStamped, "~/gauge/wrench", 1000)
+        self.create_service(Trigger, "~/start", self._on_start)
+        delay = v["protocol.start_delay"]
+        if delay >= 0:
+            self._delay_timer = self.create_timer(delay, self._start_after_delay)
+        thread = threading.Thread(target=self._publish_gauge, name="bench-gauge", daemon=True)
+        self._threads.append(thread)
+        thread.start()
+
+    @property
+    def protocol_duration_s(self) -> float:
+        return self.world.duration_s
+
+    @property
+    def protocol_elapsed_s(self) -> float | None:
+        if self._start_host_ns is None:
+            return None
+        return (time.time_ns() - self._start_host_ns) * 1e-9
+
+    def start_protocol(self) -> bool:
+        """Start the protocol now; False when it already runs."""
+        if self._start_host_ns is not None:
+            return False
+        self.source.start_device_s = self.adc.elapsed_s()
+        self._start_host_ns = time.time_ns()
+        self.get_logger().info(
+            f"protocol '{self.values['protocol.name']}' started "
+            f"({self.world.duration_s:.1f} s)")
+        return True
+
+    def _start_after_delay(self) -> None:
+        self.destroy_timer(self._delay_timer)
+        self.start_protocol()
+
+    def _on_start(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        response.success = self.start_protocol()
+        response.message = ("started" if response.success else "the protocol is already "
+                            "running; restart the node to run it again")
+        return response
+
+    def _publish_gauge(self) -> None:
+        """Stage and gauge at ``gauge_rate``, each sample stamped with its own time."""
+        period_ns = int(1e9 / self.values["gauge_rate"])
+        next_ns = time.time_ns()
+        while not self._stop.is_set():
+            now = time.time_ns()
+            if now < next_ns:
+                self._stop.wait(min((next_ns - now) * 1e-9, 0.01))
+                continue
+            start = self._start_host_ns
+            while next_ns <= now:
+                t = 0.0 if start is None else max(0.0, (next_ns - start) * 1e-9)
+                stamp = Time(nanoseconds=next_ns).to_msg()
+                stage = JointState(name=["stage_z"],
+                                   position=[float(self.world.indentation_m(t))])
+                stage.header.stamp = stamp
+                gauge = WrenchStamped()
+                gauge.header.stamp, gauge.header.frame_id = stamp, "force_gauge"
+                gauge.wrench.force.z = float(self.world.force_n(t))
+                self._stage_pub.publish(stage)
+                self._gauge_pub.publish(gauge)
+                next_ns += period_ns
+
+    # -- gripper -------------------------------------------------------------------------------
+    def _build_gripper(self, skin: TabulatedSkin) -> None:
+        from tactile_sensor.control.geometry import GripperGeometry
+        from tactile_sensor.sim.gripper_world import GripperWorld
+        from tactile_sensor.sim.xm430_emulator import Xm430Emulator
+
+        v = self.values
+        try:
+            geometry = GripperGeometry(pitch_radius_m=v["geometry.pitch_radius"],
+                                       open_opening_m=v["geometry.open_opening"],
+                                       closed_opening_m=v["geometry.closed_opening"])
+        except ValueError as exc:
+            raise MockHardwareError(f"Gripper geometry parameters are inconsistent: {exc}."
+                                    ) from None
+        self.world = GripperWorld(skin, geometry, rod_diameter_m=v["rod.diameter"] or None,
+                                  rod_offset_m=v["rod.offset"])
+        self.source = self.world.photoreflector_voltage
+        self.emulator = Xm430Emulator(v["servo_link"], servo_id=v["servo_id"],
+                                      baudrate=v["servo_baud_rate"], world=self.world)
+        self._truth_pub = self.create_publisher(WrenchStamped, "~/ground_truth", 100)
+        self.create_timer(1.0 / v["ground_truth_rate"], self._publish_truth)
+
+    def _publish_truth(self) -> None:
+        sample = self.world.latest
+        msg = WrenchStamped()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = "finger_a"
+        msg.wrench.force.z = float(sample.force_a_n)
+        self._truth_pub.publish(msg)
+
+    # -- shutdown ------------------------------------------------------------------------------
+    def _close_devices(self) -> None:
+        self._stop.set()
+        for thread in self._threads:
+            thread.join(timeout=1.0)
+        for device in (getattr(self, "adc", None), self.emulator):
+            if device is not None:
+                device.stop()
+
+    def destroy_node(self) -> None:
+        self._close_devices()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    try:
+        with rclpy.init(args=args):
+            try:
+                node = MockHardwareNode()
+            except MockHardwareError as exc:
+                print(f"mock_hardware: {exc}", file=sys.stderr)
+                return 2
+            try:
+                rclpy.spin(node)
+            finally:
+                node.destroy_node()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,155 @@
+"""Model node: serves FEM predictions of the module and publishes the calibration curve.
+
+Wiring only: physics parameters become ROS parameters, a background thread loads or
+computes the prediction curve (so a cold FEM sweep never blocks the executor), ``~/predict``
+answers from it, and the output -> force curve goes out latched on ``calibration_curve``.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Any
+
+from rclpy.lifecycle import Node, State, TransitionCallbackReturn
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
+from tactile_sensor.nodes.parameters import (
+    ParameterError,
+    ParamSpec,
+    declare_parameters,
+    read_parameters,
+)
+from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
+from tactile_sensor.physics.errors import OutOfRangeError, PhysicsError
+from tactile_sensor.physics.params import PhysicsParams
+from tactile_sensor.physics.prediction import PredictionCurve, load_or_compute_curve
+from tactile_sensor_interfaces.msg import CalibrationCurve
+from tactile_sensor_interfaces.srv import PredictOutput
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                     reliability=ReliabilityPolicy.RELIABLE)
+
+
+NODE_SPECS = [
+    ParamSpec("cache_dir", "", "folder of the prediction cache; empty = "
+              "$XDG_CACHE_HOME/tactile_sensor"),
+]
+
+
+class ModelNode(Node):
+    def __init__(self, node_name: str = "model", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self._specs = physics_specs() + NODE_SPECS
+        declare_parameters(self, self._specs)
+        self._curve: PredictionCurve | None = None
+        self._progress = 0.0
+        self._failure: str | None = None
+        self._worker: threading.Thread | None = None
+        self._publisher = None
+        self._service = None
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def on_configure(self, state: State) -> TransitionCallbackReturn:
+        try:
+            values = read_parameters(self, self._specs)
+            cache_dir = values["cache_dir"] or None
+            params = physics_from_values(values)
+        except (ParameterError, PhysicsError) as exc:
+            self.get_logger().error(f"configure failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        self._curve, self._failure, self._progress = None, None, 0.0
+        self._publisher = self.create_lifecycle_publisher(
+            CalibrationCurve, "calibration_curve", LATCHED)
+        self._service = self.create_service(PredictOutput, "~/predict", self._on_predict)
+        self._worker = threading.Thread(
+            target=self._compute, args=(params, cache_dir), name="fem-sweep", daemon=True)
+        self._worker.start()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: State) -> TransitionCallbackReturn:
+        result = super().on_activate(state)
+        if self._curve is not None:
+            self._publish_curve()
+        return result
+
+    def on_cleanup(self, state: State) -> TransitionCallbackReturn:
+        if self._worker is not None:
+            self._worker.join()
+        self._destroy_interfaces()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: State) -> TransitionCallbackReturn:
+        self._destroy_interfaces()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _destroy_interfaces(self) -> None:
+        if self._service is not None:
+            self.destroy_service(self._service)
+        if self._publisher is not None:
+            self.destroy_lifecycle_publisher(self._publisher)
+        self._service = self._publisher = None
+        self._curve = None
+
+    # -- work --------------------------------------------------------------------------------
+    def _compute(self, params: PhysicsParams, cache_dir: str | None) -> None:
+        def progress(fraction: float, message: str) -> None:
+            self._progress = fraction
+            self.get_logger().info(f"FEM sweep {fraction:4.0%}: {message}",
+                                   throttle_duration_sec=2.0)
+
+        try:
+            curve = load_or_compute_curve(
+                params, Path(cache_dir) if cache_dir else None, progress)
+        except PhysicsError as exc:
+            self._failure = str(exc)
+            self.get_logger().error(f"prediction failed: {exc}")
+            return
+        self._curve = curve
+        self._progress = 1.0
+        self.get_logger().info(
+            f"prediction ready: {len(curve.indentation_m)} steps to "
+            f"{curve.indentation_m[-1] * 1e3:.2f} mm, {curve.force_n[-1]:.2f} N, "
+            f"output {curve.output_v[-1]:.3f} V ({curve.nodes} nodes, {curve.seconds:.1f} s)")
+        if self._publisher is not None and self._publisher.is_activated:
+            self._publish_curve()
+
+    def _publish_curve(self) -> None:
+        assert self._curve is not None and self._publisher is not None
+        output, force = self._curve.calibration()
+        msg = CalibrationCurve(output=[float(v) for v in output],
+                               force=[float(v) for v in force],
+                               source=f"fem:{self._curve.digest}")
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._publisher.publish(msg)
+
+    def _on_predict(self, request: PredictOutput.Request,
+                    response: PredictOutput.Response) -> PredictOutput.Response:
+        curve = self._curve
+        if curve is None:
+            response.success = False
+            response.message = (self._failure if self._failure is not None
+                                else f"not ready, {self._progress:.0%} done")
+            return response
+        try:
+            points = curve.at(list(request.indentation))
+        except OutOfRangeError as exc:
+            response.success = False
+            response.message = str(exc)
+            return response
+        response.force = points.force_n.tolist()
+        response.distance = points.distance_m.tolist()
+        response.voltage = points.voltage_v.tolist()
+        response.output = points.output_v.tolist()
+        response.success = True
+        response.message = f"fem:{curve.digest}"
+        return response
+
+
+def main(args: list[str] | None = None) -> None:
+    run_lifecycle_node(ModelNode, args)
+
+
+if __name__ == "__main__":
+    main()

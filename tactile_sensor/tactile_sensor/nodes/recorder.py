@@ -1,0 +1,291 @@
+"""Recorder node: chosen topics into a rosbag2 folder (MCAP by default), losing nothing.
+
+The node is the ROS half of :mod:`tactile_sensor.recording`: it learns each requested
+topic's type and offered QoS from the graph, subscribes raw (serialized CDR goes into the
+bag untouched), stamps each message with its reception time from the middleware, and on
+shutdown takes whatever is still waiting in the subscriptions before closing the bag.
+
+Run: ``python -m tactile_sensor.nodes.recorder --ros-args -p path:=run1
+-p topics:="['/driver/wrench', '/driver/reading']"``
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import signal
+import sys
+import time
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.exceptions import InvalidHandle
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+from rclpy.subscription import MessageInfo, RCLError, Subscription
+from rclpy.topic_endpoint_info import TopicEndpointInfo
+
+from tactile_sensor.nodes.parameters import (
+    ParameterError,
+    ParamSpec,
+    declare_parameters,
+    read_parameters,
+)
+from tactile_sensor.recording import STORAGES, BagRecorder, RecordingError
+
+QUEUE_DEPTH = 10_000  # messages the middleware may hold per topic while the executor is busy
+DISCOVERY_PERIOD_S = 0.2
+PROGRESS_PERIOD_S = 10.0
+
+
+def _check_topics(value: list[Any]) -> str | None:
+    if not value:
+        return "give at least one topic, e.g. \"['/driver/wrench']\"."
+    if not all(isinstance(t, str) and t.strip() for t in value):
+        return "expected a list of non-empty topic names."
+    return None
+
+
+def parse_topic_type(entry: str) -> tuple[str, str]:
+    """``'/topic=pkg/msg/Type'`` -> ``('/topic', 'pkg/msg/Type')``; ValueError when malformed."""
+    topic, sep, msgtype = entry.partition("=")
+    parts = msgtype.strip().split("/")
+    if not sep or not topic.strip() or len(parts) not in (2, 3) or not all(parts):
+        raise ValueError(entry)
+    if len(parts) == 2:
+        parts.insert(1, "msg")
+    return topic.strip(), "/".join(parts)
+
+
+def _check_topic_types(value: list[Any]) -> str | None:
+    for entry in value:
+        try:
+            parse_topic_type(entry)
+        except (ValueError, AttributeError):
+            return f"entry {entry!r} should look like '/topic=pkg/msg/Type'."
+    return None
+
+
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec("path", "", "Bag folder to create (must not exist); empty = "
+              "recorder_<YYYYmmdd_HHMMSS> in the working directory."),
+    ParamSpec("topics", [], "Topics to record (string list).", check=_check_topics),
+    ParamSpec("storage", "mcap", "rosbag2 storage plugin.", choices=tuple(STORAGES)),
+    ParamSpec("topic_types", [], "Optional '/topic=pkg/msg/Type' entries: subscribe to these "
+              "at once (reliable, volatile) instead of waiting for a publisher to appear.",
+              check=_check_topic_types),
+)
+
+
+def _duration(d: Any) -> dict[str, int]:
+    sec, nsec = divmod(int(d.nanoseconds), 1_000_000_000)
+    return {"sec": sec, "nsec": nsec}
+
+
+def offered_qos_yaml(profiles: list[QoSProfile]) -> str:
+    """Publishers' QoS in rosbag2's offered_qos_profiles form (JSON is valid YAML)."""
+    return json.dumps([
+        {
+            "history": p.history.name.lower(),
+            "depth": p.depth,
+            "reliability": p.reliability.name.lower(),
+            "durability": p.durability.name.lower(),
+            "deadline": _duration(p.deadline),
+            "lifespan": _duration(p.lifespan),
+            "liveliness": p.liveliness.name.lower(),
+            "liveliness_lease_duration": _duration(p.liveliness_lease_duration),
+            "avoid_ros_namespace_conventions": p.avoid_ros_namespace_conventions,
+        }
+        for p in profiles
+    ])
+
+
+def subscription_qos(publishers: list[TopicEndpointInfo]) -> QoSProfile:
+    """Deep reliable queue, downgraded only where a publisher would not match otherwise.
+
+    Reliable unless some publisher is best-effort; transient-local (to receive latched
+    samples such as a calibration curve) when every publisher offers it.
+    """
+    offered = [p.qos_profile for p in publishers]
+    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+    latched = bool(offered) and all(
+        q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=QUEUE_DEPTH,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+
+
+def message_class(msgtype: str) -> type:
+    """The generated Python class for ``pkg/msg/Type``; ImportError/AttributeError if absent."""
+    package, kind, name = msgtype.split("/")
+    return getattr(importlib.import_module(f"{package}.{kind}"), name)
+
+
+class RecorderNode(Node):
+    """Records ``topics`` into the bag at ``path``; the bag is complete after destroy_node()."""
+
+    def __init__(self, node_name: str = "recorder", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        self._bag: BagRecorder | None = None
+        self._subscriptions_by_topic: dict[str, Subscription[Any]] = {}
+        declare_parameters(self, PARAMETERS)
+        params = read_parameters(self, PARAMETERS)
+        self._pending = {self.resolve_topic_name(t.strip()) for t in params["topics"]}
+        path = params["path"] or time.strftime("recorder_%Y%m%d_%H%M%S")
+        self._bag = BagRecorder(
+            Path(path), params["storage"], custom_data={"recorder": "tactile_sensor.recorder"})
+        self._bag.open()
+        self.path = self._bag.path
+        self._last_total = 0
+        for entry in params["topic_types"]:
+            topic, msgtype = parse_topic_type(entry)
+            topic = self.resolve_topic_name(topic)
+            self._pending.add(topic)
+            self._subscribe(topic, msgtype, [])
+        self.get_logger().info(
+            f"Recording to {self.path} ({params['storage']}); waiting for "
+            f"{', '.join(sorted(self._pending - set(self._subscriptions_by_topic))) or 'nothing'}")
+        self._discovery = self.create_timer(DISCOVERY_PERIOD_S, self._discover)
+        self._progress = self.create_timer(PROGRESS_PERIOD_S, self._report_progress)
+        self._discover()
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages written to the bag so far, per topic."""
+        return self._bag.counts if self._bag is not None else {}
+
+    def _discover(self) -> None:
+        """Subscribe to every requested topic that now has a publisher (and so a type)."""
+        waiting = self._pending - set(self._subscriptions_by_topic)
+        if not waiting:
+            self._discovery.cancel()
+            return
+        types = dict(self.get_topic_names_and_types())
+        for topic in sorted(waiting):
+            publishers = self.get_publishers_info_by_topic(topic)
+            if topic not in types or not publishers:
+                continue
+            msgtypes = sorted({p.topic_type for p in publishers})
+            if len(msgtypes) > 1:
+                self.get_logger().warning(
+                    f"{topic} is published with several types {msgtypes}; recording "
+                    f"{msgtypes[0]} only.")
+            self._subscribe(topic, msgtypes[0], publishers)
+
+    def _subscribe(self, topic: str, msgtype: str, publishers: list[TopicEndpointInfo]) -> None:
+        assert self._bag is not None
+        try:
+            cls = message_class(msgtype)
+            self._bag.add_topic(topic, msgtype, offered_qos_yaml(
+                [p.qos_profile for p in publishers]))
+        except (ImportError, AttributeError, ValueError):
+            self.get_logger().error(
+                f"Cannot record {topic}: type {msgtype} is not installed here; source the "
+                "workspace that defines it and restart the recorder.")
+            self._pending.discard(topic)
+            return
+        except RecordingError as exc:
+            self.get_logger().error(f"Cannot record {topic}: {exc}")
+            self._pending.discard(topic)
+            return
+        qos = subscription_qos(publishers) if publishers else QoSProfile(
+            depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
+        self._subscriptions_by_topic[topic] = self.create_subscription(
+            cls, topic, partial(self._on_message, topic), qos, raw=True)
+        self.get_logger().info(
+            f"Recording {topic} [{msgtype}] ({qos.reliability.name.lower()}, "
+            f"{qos.durability.name.lower()})")
+
+    def _stamp_ns(self, info: MessageInfo) -> int:
+        """Reception time from the middleware (system clock), or the node clock under sim time."""
+        received = info.get("received_timestamp", 0)
+        if received and not self.get_clock().ros_time_is_active:
+            return int(received)
+        return self.get_clock().now().nanoseconds
+
+    def _on_message(self, topic: str, cdr: bytes, info: MessageInfo) -> None:
+        if self._bag is not None:
+            self._bag.write(topic, self._stamp_ns(info), cdr)
+
+    def _report_progress(self) -> None:
+        counts = self.counts
+        total = sum(counts.values())
+        if total != self._last_total:
+            self._last_total = total
+            detail = ", ".join(f"{t}: {n}" for t, n in sorted(counts.items()))
+            self.get_logger().info(f"Recorded {total} messages ({detail})")
+
+    def _take_waiting(self, bag: BagRecorder) -> int:
+        """Take what the middleware still holds for us, so a shutdown loses no message."""
+        taken = 0
+        for topic, sub in self._subscriptions_by_topic.items():
+            with sub.handle:
+                while (item := sub.handle.take_message(sub.msg_type, True)) is not None:
+                    cdr, info = item
+                    bag.write(topic, self._stamp_ns(info), cdr)
+                    taken += 1
+        return taken
+
+    def close_bag(self) -> None:
+        """Finish the bag (metadata included); later messages are not recorded."""
+        bag = self._bag
+        if bag is None:
+            return
+        try:
+            taken = self._take_waiting(bag)
+        except (InvalidHandle, RCLError) as exc:
+            taken = 0
+            self.get_logger().warning(f"Could not take the last queued messages: {exc}")
+        self._bag = None
+        bag.close()
+        counts = bag.counts
+        detail = ", ".join(f"{t}: {n}" for t, n in sorted(counts.items()))
+        self.get_logger().info(
+            f"Closed {bag.path} with {sum(counts.values())} messages ({detail}; "
+            f"{taken} taken at shutdown)")
+
+    def destroy_node(self) -> None:
+        self.close_bag()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Record until Ctrl-C; a bad parameter or path prints one sentence and exits 1."""
+    try:
+        with rclpy.init(args=args):
+            try:
+                node = RecorderNode()
+            except (ParameterError, RecordingError) as exc:
+                print(f"recorder: {exc}", file=sys.stderr)
+                return 1
+            try:
+                if os.environ.get("RECORDER_EXECUTOR") == "events":
+                    from rclpy.experimental import EventsExecutor
+                    ex = EventsExecutor()
+                    ex.add_node(node)
+                    ex.spin()
+                else:
+                    rclpy.spin(node)
+            finally:
+                # A second Ctrl-C must not interrupt writing the bag's index and metadata.
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+                node.destroy_node()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

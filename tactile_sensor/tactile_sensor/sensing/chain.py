@@ -1,0 +1,205 @@
+"""The signal chain: ADC counts → volts → filter → module output → force → contact.
+
+The filter runs on the voltage, and the module output is ``baseline − filtered voltage``
+(the paper's inverted output, Sec. III-A). For the linear filters this equals filtering
+the output, and it lets the filter run from the first sample on, so a tare never disturbs
+its state. Feed every sample to ``process`` (even when publishing fewer): the filter's
+behaviour is defined per sample.
+
+Threading: ``process`` runs in one thread (the reader's); ``tare``, ``set_calibration``
+and the properties may be called from another (a service callback). A lock guards the
+shared state.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any, NamedTuple, Protocol
+
+from tactile_sensor.sensing.calibration import Calibration
+from tactile_sensor.sensing.contact import ContactDetector
+from tactile_sensor.sensing.conversion import AdcConversion
+from tactile_sensor.sensing.errors import SensingError, TareError
+from tactile_sensor.sensing.filters import DEFAULT_FILTER, make_filter
+from tactile_sensor.sensing.tare import TareResult, TareWindow
+
+NAN = float("nan")
+
+
+class SampleLike(Protocol):
+    """What the chain needs of ``hardware.adc_reader.Sample``."""
+
+    @property
+    def device_time_us(self) -> int: ...
+
+    @property
+    def host_time_ns(self) -> int: ...
+
+    @property
+    def counts(self) -> tuple[int, ...]: ...
+
+
+class Reading(NamedTuple):
+    """One processed sample. ``output_v``/``force_n`` are NaN until the first tare,
+    ``force_n`` is NaN while no calibration is set.
+    """
+
+    voltage_v: float  # photoreflector voltage after the ADC, unfiltered
+    output_v: float  # baseline − filtered voltage
+    force_n: float
+    contact: bool
+    saturated: bool  # output beyond the calibration's last point (force clamped)
+    device_time_us: int
+    host_time_ns: int
+
+
+@dataclass(frozen=True)
+class ChainConfig:
+    """Everything the chain needs; ``from_mapping`` validates (e.g. ROS parameters)."""
+
+    rate_hz: float = 1000.0
+    adc_bits: int = 12
+    vref_v: float = 5.0
+    channel: int = 0
+    filter_name: str = DEFAULT_FILTER
+    filter_params: Mapping[str, float] = field(default_factory=dict)
+    tare_window_s: float = 0.5
+    tare_max_spread_v: float = 0.05
+    auto_tare: bool = True  # tare by itself on the first window found at rest
+    contact_on_n: float = 0.5
+    contact_off_n: float = 0.3
+    contact_debounce_s: float = 0.01
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, Any]) -> ChainConfig:
+        known = {f.name for f in fields(cls)}
+        unknown = sorted(set(values) - known)
+        if unknown:
+            raise SensingError(f"Unknown signal-chain setting(s) {', '.join(unknown)}; "
+                               f"known: {', '.join(sorted(known))}.")
+        config = cls(**values)
+        config.validate()
+        return config
+
+    def validate(self) -> None:
+        """Build every part once; each part raises ``SensingError`` naming its parameter."""
+        if not isinstance(self.channel, int) or not 0 <= self.channel < 8:
+            raise SensingError(f"channel must be 0..7, got {self.channel!r}.")
+        if not isinstance(self.auto_tare, bool):
+            raise SensingError(f"auto_tare must be true or false, got {self.auto_tare!r}.")
+        _Parts(self)
+
+
+class _Parts:
+    def __init__(self, config: ChainConfig) -> None:
+        self.adc = AdcConversion(config.adc_bits, config.vref_v)
+        self.filter = make_filter(config.filter_name, config.rate_hz, config.filter_params)
+        self.tare = TareWindow(config.rate_hz, config.tare_window_s, config.tare_max_spread_v)
+        self.contact = ContactDetector(config.contact_on_n, config.contact_off_n,
+                                       config.contact_debounce_s)
+
+
+class SignalChain:
+    """Stateful per-sample processing for one sensor channel."""
+
+    def __init__(self, config: ChainConfig | None = None,
+                 calibration: Calibration | None = None) -> None:
+        self.config = config or ChainConfig()
+        self.config.validate()
+        parts = _Parts(self.config)
+        self._volts_per_count = parts.adc.volts_per_count
+        self._filter = parts.filter
+        self._tare = parts.tare
+        self._contact = parts.contact
+        self._calibration = calibration
+        self._baseline_v: float | None = None
+        # A refused auto-tare is retried every tenth of a window, not on every sample.
+        self._auto_tare_every = max(1, self._tare.size // 10)
+        self._auto_tare_countdown = 0
+        self._lock = threading.Lock()
+        self.last: Reading | None = None
+
+    # -- state others read or set ----------------------------------------------------------
+
+    @property
+    def baseline_v(self) -> float | None:
+        return self._baseline_v
+
+    @property
+    def tared(self) -> bool:
+        return self._baseline_v is not None
+
+    @property
+    def calibration(self) -> Calibration | None:
+        return self._calibration
+
+    @property
+    def calibration_source(self) -> str:
+        """Where forces come from: 'fem:<digest>', 'file:<path>', ... or 'none'."""
+        cal = self._calibration
+        return cal.source if cal is not None else "none"
+
+    def set_calibration(self, calibration: Calibration | None) -> None:
+        with self._lock:
+            self._calibration = calibration
+
+    def tare(self) -> TareResult:
+        """Set the baseline from the last ``tare_window_s`` at rest, or raise ``TareError``."""
+        with self._lock:
+            result = self._tare.evaluate()
+            self._baseline_v = result.baseline_v
+            self._contact.reset()
+            return result
+
+    def set_baseline(self, baseline_v: float) -> None:
+        """Use a known baseline (e.g. restored after a restart)."""
+        if not math.isfinite(baseline_v):
+            raise TareError(f"A baseline must be a finite voltage, got {baseline_v!r}.")
+        with self._lock:
+            self._baseline_v = float(baseline_v)
+
+    def reset(self) -> None:
+        """Forget filter, tare window and contact state (after a reconnect), keep baseline."""
+        with self._lock:
+            self._filter.reset()
+            self._tare.clear()
+            self._contact.reset()
+
+    # -- per sample ------------------------------------------------------------------------
+
+    def process(self, sample: SampleLike) -> Reading:
+        """Run one sample through the chain; ``SensingError`` if it lacks our channel."""
+        try:
+            volts = sample.counts[self.config.channel] * self._volts_per_count
+        except IndexError:
+            raise SensingError(
+                f"The sample has {len(sample.counts)} channel(s) but the chain reads channel "
+                f"{self.config.channel}; set the channel parameter to match the firmware."
+            ) from None
+        t_us = sample.device_time_us
+        with self._lock:
+            filtered = self._filter.update(volts)
+            tare = self._tare
+            tare.add(volts)
+            if self._baseline_v is None and self.config.auto_tare and tare.ready:
+                self._auto_tare_countdown -= 1
+                if self._auto_tare_countdown <= 0:
+                    self._auto_tare_countdown = self._auto_tare_every
+                    with contextlib.suppress(TareError):  # not at rest yet: retry later
+                        self._baseline_v = tare.evaluate().baseline_v
+            baseline = self._baseline_v
+            if baseline is None:
+                reading = Reading(volts, NAN, NAN, False, False, t_us, sample.host_time_ns)
+            else:
+                output = baseline - filtered
+                cal = self._calibration
+                force, saturated = cal.evaluate(output) if cal is not None else (NAN, False)
+                contact = self._contact.update(force, t_us * 1e-6)
+                reading = Reading(volts, output, force, contact, saturated, t_us,
+                                  sample.host_time_ns)
+        self.last = reading
+        return reading

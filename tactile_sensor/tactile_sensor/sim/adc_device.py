@@ -1,0 +1,569 @@
+"""Mock photoreflector ADC: streams framed samples on a pseudo-terminal in real time.
+
+The device samples ``voltage_source(t)`` (t = seconds since ``start()``), adds white noise
+and a slow ambient drift, quantises like a ``adc_bits`` ADC referenced to ``vref_v`` and
+writes frames (``hardware.adc_frame``) at ``rate_hz``, paced by the monotonic clock and
+written in batches of at most ~1 ms so it holds 1 kHz and reaches tens of kHz.
+
+Like the firmware it never blocks on a slow host: bytes the pseudo-terminal has no room
+for are lost (the reader sees the gap). Faults on command: ``unplug`` (the link
+disappears, the device keeps its clock and sequence running, the link returns),
+``inject_garbage`` (random bytes spliced into the stream, possibly mid-frame) and
+``drop_frames``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import errno
+import math
+import os
+import select
+import signal
+import stat
+import struct
+import sys
+import threading
+import time
+from binascii import crc_hqx
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+
+from tactile_sensor.hardware.adc_frame import CRC_INIT, MAX_CHANNELS, PROTOCOL_VERSION, SYNC
+from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.pty_link import PtyLink
+
+VoltageSource = Callable[[float], float]
+
+# The paper's figures behind the default noise (Sec. III-B): full scale 7 N at 3 mm,
+# sensitivity 0.07 V/N, dynamic range 31.49 dB with a 9-point moving average at 1 kHz.
+PAPER_FULL_SCALE_N = 7.0
+PAPER_SENSITIVITY_V_PER_N = 0.07
+PAPER_DYNAMIC_RANGE_DB = 31.5
+PAPER_AVERAGE_POINTS = 9
+
+
+def white_noise_for_dynamic_range(
+    dynamic_range_db: float = PAPER_DYNAMIC_RANGE_DB,
+    full_scale_n: float = PAPER_FULL_SCALE_N,
+    sensitivity_v_per_n: float = PAPER_SENSITIVITY_V_PER_N,
+    average_points: int = PAPER_AVERAGE_POINTS,
+    adc_bits: int = 12,
+    vref_v: float = 5.0,
+) -> float:
+    """White-noise σ [V] at the ADC input that yields ``dynamic_range_db``.
+
+    Derivation (resolution = 1σ of the output after the N-point average):
+
+    - DR = 20·log10(FS / resolution) → resolution = 7 N / 10^(31.5/20) = 0.186 N,
+      i.e. 0.186 N × 0.07 V/N = 13.0 mV of module output.
+    - An N-point average of white noise divides σ by √N, so the raw σ is
+      √9 × 13.0 mV = 39.1 mV in total.
+    - Quantisation contributes LSB/√12 (5 V / 4095 / √12 = 0.35 mV, white because the
+      noise dithers it); the analogue white noise is the rest:
+      σ_white = √(39.1² − 0.35²) mV ≈ 39.1 mV.
+
+    The slow drift (``AdcNoise.drift_v``) is excluded: over the short windows in which a
+    noise floor is measured it is a constant offset, which the tare removes.
+    """
+    resolution_v = full_scale_n / 10.0 ** (dynamic_range_db / 20.0) * sensitivity_v_per_n
+    raw_v = resolution_v * math.sqrt(average_points)
+    quantisation_v = vref_v / ((1 << adc_bits) - 1) / math.sqrt(12.0)
+    if raw_v <= quantisation_v:
+        raise SimError("The requested dynamic range is finer than the ADC's quantisation; "
+                       "use more ADC bits or a smaller dynamic range.")
+    return math.sqrt(raw_v**2 - quantisation_v**2)
+
+
+@dataclass(frozen=True)
+class AdcNoise:
+    """Analogue imperfections added before quantisation.
+
+    ``white_v``: white Gaussian σ [V] (default: the paper's 31.5 dB, see
+    ``white_noise_for_dynamic_range``). ``drift_v``/``drift_tau_s``: ambient-light drift
+    as an Ornstein–Uhlenbeck process (stationary σ, correlation time); 1 mV over minutes
+    is well under the 13 mV resolution, matching the paper's "no drift over 100 cycles".
+    """
+
+    white_v: float = white_noise_for_dynamic_range()
+    drift_v: float = 0.001
+    drift_tau_s: float = 120.0
+
+    def __post_init__(self) -> None:
+        for name, value in (("white_v", self.white_v), ("drift_v", self.drift_v)):
+            if not isinstance(value, int | float) or not 0.0 <= value <= 10.0:
+                raise SimError(f"Noise {name} must be in [0, 10] V, got {value!r}.")
+        if not isinstance(self.drift_tau_s, int | float) or not self.drift_tau_s > 0:
+            raise SimError(f"Noise drift_tau_s must be > 0 s, got {self.drift_tau_s!r}.")
+
+
+QUIET = AdcNoise(white_v=0.0, drift_v=0.0)
+
+
+class AdcSampler:
+    """The analogue front end and converter: voltages in, noisy quantised counts out.
+
+    Stateful (the drift carries over between calls), so feed consecutive blocks of one
+    stream. The mock device uses it per batch; benchmarks use it offline on whole runs.
+    """
+
+    def __init__(self, rate_hz: float, noise: AdcNoise | None = None, adc_bits: int = 12,
+                 vref_v: float = 5.0, channels: int = 1,
+                 rng: np.random.Generator | int | None = None) -> None:
+        self.noise = noise if noise is not None else AdcNoise()
+        self.channels = channels
+        self._rng = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(rng)
+        self._scale = ((1 << adc_bits) - 1) / vref_v
+        self._full_scale = (1 << adc_bits) - 1
+        self._a = math.exp(-1.0 / (rate_hz * self.noise.drift_tau_s))
+        self._drift = np.zeros(channels)
+
+    def counts(self, voltages_v: np.ndarray) -> np.ndarray:
+        """Codes (shape ``(n, channels)``) for noise-free voltages of shape ``(n,)``."""
+        v = np.asarray(voltages_v, dtype=float).reshape(-1, 1) + np.zeros((1, self.channels))
+        noise = self.noise
+        if noise.white_v > 0:
+            v = v + self._rng.normal(0.0, noise.white_v, v.shape)
+        if noise.drift_v > 0:  # Ornstein–Uhlenbeck, exact AR(1) discretisation
+            a = self._a
+            innov = self._rng.normal(0.0, noise.drift_v * math.sqrt(1 - a * a), v.shape)
+            drift = _ar1(a, self._drift, innov)
+            self._drift = drift[-1].copy()
+            v = v + drift
+        return np.clip(np.rint(v * self._scale), 0, self._full_scale).astype(np.int64)
+
+
+def _ar1(a: float, start: np.ndarray, innov: np.ndarray) -> np.ndarray:
+    """d_i = a·d_{i−1} + e_i, vectorised in blocks: d_i = a^i·(a·d_{−1} + Σ_{j≤i} a^{−j}·e_j).
+
+    Blocks keep a^{−j} ≤ 1e6, so the sums stay accurate for any 0 < a < 1.
+    """
+    out = np.empty_like(innov)
+    block = max(1, int(math.log(1e6) / -math.log(a))) if a < 1.0 else len(innov)
+    d = start
+    for s in range(0, len(innov), block):
+        e = innov[s:s + block]
+        j = np.arange(len(e))[:, None]
+        out[s:s + block] = a**j * (a * d + np.cumsum(e * a ** (-j), axis=0))
+        d = out[s + len(e) - 1]
+    return out
+
+
+@dataclass(frozen=True)
+class DeviceStats:
+    frames_generated: int
+    frames_written: int  # handed to the link in full (the host may still lose them)
+    frames_dropped: int  # by drop_frames()
+    frames_unplugged: int  # generated while the cable was out
+    bytes_lost: int  # the pseudo-terminal had no room (host not reading fast enough)
+    garbage_bytes: int
+    unplugs: int
+    plugged: bool
+
+
+class MockAdcDevice:
+    """A microcontroller ADC streaming frames on a pseudo-terminal at ``link_path``."""
+
+    GARBAGE_CHUNK = 1024  # bytes of injected garbage per batch (~1 MB/s at most)
+
+    def __init__(
+        self,
+        link_path: Path | str,
+        voltage_source: VoltageSource,
+        rate_hz: float = 1000.0,
+        noise: AdcNoise | None = None,
+        adc_bits: int = 12,
+        vref_v: float = 5.0,
+        channels: int = 1,
+        clock_offset_us: int = 0,
+        seed: int | None = None,
+    ) -> None:
+        if not isinstance(rate_hz, int | float) or not 1.0 <= rate_hz <= 200_000.0:
+            raise SimError(f"The ADC rate must be in [1, 200000] Hz, got {rate_hz!r}.")
+        if isinstance(adc_bits, bool) or not isinstance(adc_bits, int) or not (
+                1 <= adc_bits <= 16):
+            raise SimError(f"adc_bits must be an integer 1..16, got {adc_bits!r}.")
+        if not isinstance(vref_v, int | float) or not 0.0 < vref_v <= 100.0:
+            raise SimError(f"vref_v must be a positive voltage, got {vref_v!r}.")
+        if isinstance(channels, bool) or not isinstance(channels, int) or not (
+                1 <= channels <= MAX_CHANNELS):
+            raise SimError(f"channels must be 1..{MAX_CHANNELS}, got {channels!r}.")
+        if not callable(voltage_source):
+            raise SimError("voltage_source must be a callable t [s] -> V.")
+        self.link = PtyLink(link_path)
+        self.rate_hz = float(rate_hz)
+        self.noise = noise if noise is not None else AdcNoise()
+        self.adc_bits = adc_bits
+        self.vref_v = float(vref_v)
+        self.channels = channels
+        self.clock_offset_us = int(clock_offset_us)
+        self._source = voltage_source
+        self._vectorised = _is_vectorised(voltage_source)
+        self._rng = np.random.default_rng(seed)
+        self._sampler = AdcSampler(rate_hz, self.noise, adc_bits, vref_v, channels, self._rng)
+        self._frame = struct.Struct(f"<2sBHI{channels}H")
+        self._header = (PROTOCOL_VERSION << 4) | channels
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._t0 = 0.0
+        # fault requests (set from any thread, served by the writer thread)
+        self._unplug_s: float | None = None
+        self._replug_at: float | None = None
+        self._garbage_pending = 0
+        self._drop_pending = 0
+        # counters
+        self._generated = self._written = self._dropped = self._unplugged = 0
+        self._bytes_lost = self._garbage = self._unplugs = 0
+
+    # -- lifecycle -------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Create the link and start streaming (raises ``SimError`` if the link cannot be)."""
+        if self._thread is not None:
+            return
+        self.link.open()
+        self._stop.clear()
+        self._t0 = time.monotonic()
+        self._thread = threading.Thread(target=self._run, name="mock-adc", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            thread.join(2.0)
+        self.link.close()
+
+    def __enter__(self) -> MockAdcDevice:
+        self.start()
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.stop()
+
+    @property
+    def elapsed_s(self) -> float:
+        """Device time [s] since start (the argument the voltage source receives)."""
+        return time.monotonic() - self._t0
+
+    # -- faults ----------------------------------------------------------------------------
+
+    def unplug(self, duration_s: float = 1.0) -> None:
+        """Pull the cable for ``duration_s``: the link disappears, then comes back."""
+        if not isinstance(duration_s, int | float) or not 0.0 <= duration_s <= 3600.0:
+            raise SimError(f"unplug duration must be in [0, 3600] s, got {duration_s!r}.")
+        with self._lock:
+            self._unplug_s = float(duration_s)
+
+    def inject_garbage(self, n_bytes: int) -> None:
+        """Splice ``n_bytes`` random bytes into the stream (spread over ~1 KB per batch)."""
+        if isinstance(n_bytes, bool) or not isinstance(n_bytes, int) or not (
+                0 <= n_bytes <= 100_000_000):
+            raise SimError(f"garbage size must be 0..1e8 bytes, got {n_bytes!r}.")
+        with self._lock:
+            self._garbage_pending += n_bytes
+
+    def drop_frames(self, n: int) -> None:
+        """Skip the next ``n`` frames (their sequence numbers are never sent)."""
+        if isinstance(n, bool) or not isinstance(n, int) or not 0 <= n <= 10_000_000:
+            raise SimError(f"frames to drop must be 0..1e7, got {n!r}.")
+        with self._lock:
+            self._drop_pending += n
+
+    @property
+    def busy(self) -> bool:
+        """True while an injected fault is still being served."""
+        with self._lock:
+            return bool(self._garbage_pending or self._drop_pending
+                        or self._unplug_s is not None or self._replug_at is not None)
+
+    def stats(self) -> DeviceStats:
+        with self._lock:
+            return DeviceStats(self._generated, self._written, self._dropped, self._unplugged,
+                               self._bytes_lost, self._garbage, self._unplugs,
+                               self.link.is_open)
+
+    def command(self, line: str) -> str:
+        """Run one control command (see ``--help``); returns a one-line answer."""
+        words = line.split()
+        if not words:
+            return ""
+        name, args = words[0].lower(), words[1:]
+        try:
+            if name == "unplug" and len(args) <= 1:
+                seconds = float(args[0]) if args else 1.0
+                self.unplug(seconds)
+                return f"ok unplug {seconds:g} s"
+            if name == "garbage" and len(args) == 1:
+                self.inject_garbage(int(args[0]))
+                return f"ok garbage {int(args[0])} bytes"
+            if name == "drop" and len(args) == 1:
+                self.drop_frames(int(args[0]))
+                return f"ok drop {int(args[0])} frames"
+            if name == "stats" and not args:
+                return f"ok {self.stats()}"
+        except (ValueError, SimError) as exc:
+            return f"error {exc}"
+        return (f"error unknown command '{line.strip()}'; use: unplug [SECONDS], garbage N, "
+                "drop N, stats")
+
+    # -- writer thread ---------------------------------------------------------------------
+
+    def _run(self) -> None:
+        rate = self.rate_hz
+        max_batch = max(1, int(rate * 0.05))
+        min_gap_s = 0.001  # at most ~1000 writes/s; higher rates go in batches
+        k = 0
+        last_write = 0.0
+        while not self._stop.is_set():
+            now = time.monotonic()
+            self._serve_link(now)
+            due = int((now - self._t0) * rate) + 1 - k
+            if due <= 0:
+                wake = max(self._t0 + k / rate, last_write + min_gap_s)
+                self._stop.wait(max(0.0, wake - now))
+                continue
+            n = min(due, max_batch)
+            self._emit(k, n)
+            k += n
+            last_write = now
+
+    def _serve_link(self, now: float) -> None:
+        with self._lock:
+            unplug_s, self._unplug_s = self._unplug_s, None
+            replug_at = self._replug_at
+        if unplug_s is not None:
+            if self.link.is_open:
+                self.link.close()
+                with self._lock:
+                    self._unplugs += 1
+            with self._lock:
+                self._replug_at = now + unplug_s
+            return
+        if replug_at is not None and now >= replug_at:
+            try:
+                self.link.open()
+            except (SimError, OSError):
+                return  # e.g. the folder vanished; retry on the next batch
+            with self._lock:
+                self._replug_at = None
+
+    def _voltages(self, times: np.ndarray) -> np.ndarray:
+        if self._vectorised:
+            v = np.asarray(self._source(times), dtype=float).reshape(-1)
+        else:
+            v = np.fromiter((self._source(float(t)) for t in times), float, len(times))
+        return v
+
+    def _counts(self, k: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+        times = (k + np.arange(n)) / self.rate_hz
+        return times, self._sampler.counts(self._voltages(times))
+
+    def _emit(self, k: int, n: int) -> None:
+        times, counts = self._counts(k, n)
+        t_us = (np.rint(times * 1e6).astype(np.int64) + self.clock_offset_us) % (1 << 32)
+        with self._lock:
+            drop = min(self._drop_pending, n)
+            self._drop_pending -= drop
+            garbage = min(self._garbage_pending, self.GARBAGE_CHUNK)
+            self._garbage_pending -= garbage
+            self._generated += n
+            self._dropped += drop
+        pack, sync, header = self._frame.pack, SYNC, self._header
+        parts = []
+        for i in range(drop, n):
+            body = pack(sync, header, (k + i) & 0xFFFF, int(t_us[i]), *counts[i].tolist())
+            parts.append(body + (crc_hqx(body[2:], CRC_INIT)).to_bytes(2, "little"))
+        data = b"".join(parts)
+        if garbage:
+            cut = int(self._rng.integers(0, len(data) + 1))
+            data = data[:cut] + self._rng.bytes(garbage) + data[cut:]
+        if not self.link.is_open:
+            with self._lock:
+                self._unplugged += n - drop
+                self._garbage += garbage
+            return
+        written = self.link.write(data)
+        with self._lock:
+            self._garbage += garbage
+            self._bytes_lost += len(data) - written
+            if written == len(data):
+                self._written += n - drop
+
+
+def _is_vectorised(source: VoltageSource) -> bool:
+    """Whether ``source`` maps an array of times to an array of voltages (much faster)."""
+    probe = np.array([0.0, 1e-3])
+    try:
+        out = np.asarray(source(probe), dtype=float)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+    return out.shape == probe.shape
+
+
+# -- command line --------------------------------------------------------------------------
+
+CONTROL_HELP = """\
+control commands (one per line, written to the --control FIFO, e.g.
+  echo 'unplug 1.5' > /tmp/adc.ctl):
+  unplug [SECONDS]   remove the link for SECONDS (default 1), then bring it back
+  garbage N          splice N random bytes into the stream
+  drop N             skip the next N frames (sequence gap)
+  stats              print the device's counters
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="tactile-sensor mock adc",
+        description="Mock photoreflector ADC: streams framed samples (docs/serial-frame.md) "
+                    "on a pseudo-terminal whose symlink is --link, following the physics "
+                    "chain for an indentation profile.",
+        epilog=CONTROL_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--link", required=True, type=Path,
+                        help="symlink to create for the device, e.g. /tmp/tactile_adc")
+    parser.add_argument("--rate", type=float, default=1000.0, help="frames per second "
+                        "(default 1000)")
+    parser.add_argument("--profile", default="compression",
+                        help="indentation profile: compression, repeatability, speeds, rest, "
+                             "NAME:key=value,... or ramp:depth=0.003,speed=0.001,cycles=2,"
+                             "hold=1 (SI units; default compression)")
+    parser.add_argument("--loop", action="store_true", help="repeat the profile forever")
+    parser.add_argument("--skin-table", type=Path, default=None,
+                        help="JSON with arrays indentation_m, force_n, voltage_v to use "
+                             "instead of the FEM prediction")
+    parser.add_argument("--channels", type=int, default=1, help="channels per frame (1..8)")
+    parser.add_argument("--adc-bits", type=int, default=12)
+    parser.add_argument("--vref", type=float, default=5.0, help="ADC reference [V]")
+    parser.add_argument("--noise", type=float, default=AdcNoise().white_v,
+                        help="white noise sigma [V] (default: the paper's 31.5 dB, %(default).4f)")
+    parser.add_argument("--drift", type=float, default=AdcNoise().drift_v,
+                        help="ambient drift sigma [V] (default %(default)g)")
+    parser.add_argument("--drift-tau", type=float, default=AdcNoise().drift_tau_s,
+                        help="ambient drift correlation time [s] (default %(default)g)")
+    parser.add_argument("--seed", type=int, default=None, help="noise seed (reproducible runs)")
+    parser.add_argument("--duration", type=float, default=None,
+                        help="stop after this many seconds (default: until Ctrl-C)")
+    parser.add_argument("--control", type=Path, default=None,
+                        help="create a FIFO here that accepts control commands (below)")
+    return parser
+
+
+def _load_skin(path: Path | None) -> Any:
+    from tactile_sensor.sim.skin_response import TabulatedSkin, default_skin
+
+    if path is None:
+        def progress(fraction: float, message: str) -> None:
+            print(f"mock adc: FEM prediction {fraction * 100:5.1f} % {message}",
+                  file=sys.stderr, flush=True)
+
+        return default_skin(progress)
+    import json
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return TabulatedSkin(data["indentation_m"], data["force_n"], data["voltage_v"],
+                             source=f"file:{path}")
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SimError(f"Cannot use skin table {path} ({exc.__class__.__name__}: {exc}); it "
+                       "must be JSON with arrays indentation_m, force_n, voltage_v.") from None
+
+
+class _ControlFifo:
+    """A named pipe at ``path``; each line written to it runs ``device.command``."""
+
+    def __init__(self, path: Path, device: MockAdcDevice) -> None:
+        if path.exists() and not stat.S_ISFIFO(path.stat().st_mode):
+            raise SimError(f"--control {path} exists and is not a FIFO; remove it or choose "
+                           "another path.")
+        try:
+            if not path.exists():
+                os.mkfifo(path)
+            # Opened read-write so the pipe never reports EOF between writers.
+            self._fd = os.open(path, os.O_RDWR | os.O_NONBLOCK)
+        except OSError as exc:
+            raise SimError(f"Cannot create the control FIFO {path} ({exc.strerror}); choose "
+                           "a writable --control path.") from None
+        self.path = path
+        self._device = device
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="mock-adc-control", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        pending = b""
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self._fd], [], [], 0.1)
+            if not ready:
+                continue
+            try:
+                pending += os.read(self._fd, 4096)
+            except OSError as exc:
+                if exc.errno in (errno.EAGAIN, errno.EINTR):
+                    continue
+                raise
+            *lines, pending = pending.split(b"\n")
+            for raw in lines:
+                answer = self._device.command(raw.decode("utf-8", "replace"))
+                if answer:
+                    print(f"mock adc: {answer}", flush=True)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(1.0)
+        os.close(self._fd)
+        with contextlib.suppress(OSError):
+            self.path.unlink()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        from tactile_sensor.sim.bench_world import BenchWorld
+        from tactile_sensor.sim.profiles import parse_profile
+
+        profile = parse_profile(args.profile)
+        noise = AdcNoise(white_v=args.noise, drift_v=args.drift, drift_tau_s=args.drift_tau)
+        skin = _load_skin(args.skin_table)
+        world = BenchWorld(profile, skin, loop=args.loop)
+        device = MockAdcDevice(args.link, world.photoreflector_voltage, rate_hz=args.rate,
+                               noise=noise, adc_bits=args.adc_bits, vref_v=args.vref,
+                               channels=args.channels, seed=args.seed)
+        device.start()
+    except SimError as exc:
+        print(f"tactile-sensor mock adc: {exc}", file=sys.stderr)
+        return 1
+    control = None
+    stop = threading.Event()
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, lambda *_: stop.set())
+    try:
+        if args.control is not None:
+            control = _ControlFifo(args.control, device)
+        print(f"mock adc: {device.rate_hz:g} Hz on {args.link} -> {device.link.slave_name}; "
+              f"profile {args.profile} ({profile.duration_s:g} s{', looping' if args.loop else ''})"
+              f"; skin {skin.source}"
+              + (f"; control FIFO {args.control}" if control else ""), flush=True)
+        stop.wait(args.duration)
+    except SimError as exc:
+        print(f"tactile-sensor mock adc: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        if control is not None:
+            control.close()
+        device.stop()
+    print(f"mock adc: stopped; {device.stats()}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

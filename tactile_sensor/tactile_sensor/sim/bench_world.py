@@ -1,0 +1,88 @@
+"""The bench rig as a pure function of time: stage indentation, gauge force, sensor voltage.
+
+Everything is precomputed on a regular grid (1 kHz by default) over the protocol and
+linearly interpolated, so any thread may ask for any time (or array of times) without
+shared state: the bench node reads stage and gauge from it, and the mock ADC in the same
+process streams ``photoreflector_voltage`` from the same object. The gauge force
+includes the viscoelastic rate effect (faster pressing → more force at the same
+indentation); the voltage follows the skin's bulge, which is quasi-static, so the peak
+output does not depend on speed (paper Sec. III-D).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.profiles import LoadProfile
+from tactile_sensor.sim.skin_response import SkinResponse
+
+TimeLike = float | npt.ArrayLike
+
+
+class ViscoelasticModel(Protocol):
+    """Streaming rate effect, as physics' ``RateDependentForce`` provides."""
+
+    def step(self, elastic_force_n: float, dt: float) -> float: ...
+
+    def reset(self) -> None: ...
+
+
+class BenchWorld:
+    """Ground truth of one bench run; time ``t`` [s] counts from the protocol's start."""
+
+    def __init__(self, profile: LoadProfile, skin: SkinResponse,
+                 viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
+                 loop: bool = False) -> None:
+        if not 1.0 <= grid_hz <= 100_000.0:
+            raise SimError(f"grid_hz must be in [1, 100000] Hz, got {grid_hz!r}.")
+        self.profile = profile
+        self.loop = loop
+        self.duration_s = profile.duration_s
+        n = max(2, int(np.ceil(self.duration_s * grid_hz)) + 1)
+        self._t = np.linspace(0.0, self.duration_s, n)
+        self._d = np.asarray(profile.indentation(self._t), dtype=float)
+        self._f_el = np.asarray(skin.force_n(self._d), dtype=float)
+        self._v = np.asarray(skin.voltage_v(self._d), dtype=float)
+        self._f = self._f_el if viscoelastic is None else self._rate_force(viscoelastic)
+
+    def _rate_force(self, model: ViscoelasticModel) -> npt.NDArray[np.float64]:
+        batch = getattr(model, "force_history", None)
+        if callable(batch):
+            return np.asarray(batch(self._t, self._f_el), dtype=float)
+        model.reset()
+        dt = float(self._t[1] - self._t[0])
+        out = np.empty_like(self._f_el)
+        step = model.step
+        for k, f in enumerate(self._f_el.tolist()):
+            out[k] = step(f, dt)
+        return out
+
+    def _time(self, t: TimeLike) -> Any:
+        t = np.asarray(t, dtype=float)
+        if self.loop and self.duration_s > 0:
+            t = np.mod(t, self.duration_s)
+        return t
+
+    def _at(self, t: TimeLike, values: npt.NDArray[np.float64]) -> Any:
+        out = np.interp(self._time(t), self._t, values)
+        return float(out) if np.ndim(out) == 0 else out
+
+    def indentation_m(self, t: TimeLike) -> Any:
+        """Stage indentation [m] (0 = probe just touching)."""
+        return self._at(t, self._d)
+
+    def force_n(self, t: TimeLike) -> Any:
+        """Force-gauge reading [N], including the viscoelastic rate effect."""
+        return self._at(t, self._f)
+
+    def elastic_force_n(self, t: TimeLike) -> Any:
+        """Quasi-static (hyperelastic) force [N] at the same indentation."""
+        return self._at(t, self._f_el)
+
+    def photoreflector_voltage(self, t: TimeLike) -> Any:
+        """Noise-free photoreflector voltage [V]; the mock ADC adds noise and quantisation."""
+        return self._at(t, self._v)

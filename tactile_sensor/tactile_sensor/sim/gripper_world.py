@@ -1,0 +1,219 @@
+"""The gripper of the paper's section III-E as a small 1-D world the servo emulator drives.
+
+Geometry (documented in docs/gripper.md): one XM430 turns a spur gear (module 1, 28 teeth,
+pitch radius 14 mm) between two racks, so both fingers move symmetrically along the linear
+guide. Servo angle ``theta`` is measured from ``open_position_rad`` (fingers fully open);
+**positive rotation closes**: ``opening = open_opening_m - 2 * pitch_radius_m * theta``.
+``opening`` is the distance between the two skin surfaces. A rod of ``rod_diameter_m`` is held
+fixed at ``rod_offset_m`` from the gripper centre (positive towards finger B). Finger A carries
+the tactile module under its skin; finger B has the same skin without a module.
+
+Contact: a finger's skin indentation is how far its surface has passed the rod's edge; the
+skin's response (force and photoreflector voltage against indentation) comes from the physics
+layer through :class:`TabulatedSkin`. Beyond the table the skin bottoms out on the resin
+frame, modelled as a stiff spring. The motor must supply ``pitch_radius_m * (F_A + F_B)`` to
+hold a position; hard stops at both ends of the travel do the same with a stiff spring.
+
+Threads: the emulator thread calls :meth:`GripperWorld.update`; the mock ADC thread calls
+:meth:`GripperWorld.photoreflector_voltage`; a lock guards the shared state.
+"""
+
+from __future__ import annotations
+
+import bisect
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from tactile_sensor.control.geometry import GripperGeometry
+
+#: Stiffness of the resin frame / hard stops once skin or travel is used up [N/m].
+RIGID_STIFFNESS_N_PER_M = 2.0e5
+
+
+class SkinResponse(Protocol):
+    """Force and photoreflector voltage of the skin at an indentation (both monotonic)."""
+
+    def force_n(self, indentation_m: float) -> float: ...
+
+    def voltage_v(self, indentation_m: float) -> float: ...
+
+
+class TabulatedSkin:
+    """Skin response by linear interpolation of a table (e.g. a physics PredictionCurve).
+
+    Force beyond the table continues with the last slope, and past ``thickness_m`` the resin
+    frame adds a stiff spring; voltage holds its last value (the module saturates).
+    """
+
+    def __init__(self, indentation_m: Sequence[float], force_n: Sequence[float],
+                 voltage_v: Sequence[float], thickness_m: float | None = None) -> None:
+        d = np.asarray(indentation_m, dtype=float)
+        f = np.asarray(force_n, dtype=float)
+        v = np.asarray(voltage_v, dtype=float)
+        if d.ndim != 1 or len(d) < 2 or d.shape != f.shape or d.shape != v.shape:
+            raise ValueError("skin table needs three equal-length 1-D arrays of 2+ points")
+        if np.any(np.diff(d) <= 0) or d[0] < 0:
+            raise ValueError("skin table indentations must start at >= 0 and increase")
+        if np.any(np.diff(f) < 0):
+            raise ValueError("skin table force must not decrease with indentation")
+        self._d, self._f, self._v = d, f, v
+        # plain lists: scalar lookups in the emulator's inner loop are ~10x faster than np
+        self._dl, self._fl, self._vl = d.tolist(), f.tolist(), v.tolist()
+        self._slope = float((f[-1] - f[-2]) / (d[-1] - d[-2]))
+        self.thickness_m = float(thickness_m) if thickness_m is not None else float(d[-1]) * 1.5
+
+    @classmethod
+    def from_curve(cls, curve: object, thickness_m: float | None = None) -> TabulatedSkin:
+        """Adapt a physics ``PredictionCurve`` (arrays indentation_m, force_n, voltage_v)."""
+        return cls(curve.indentation_m, curve.force_n, curve.voltage_v,  # type: ignore[attr-defined]
+                   thickness_m)
+
+    @property
+    def max_table_indentation_m(self) -> float:
+        return float(self._d[-1])
+
+    def force_n(self, indentation_m: float) -> float:
+        d = max(0.0, indentation_m)
+        if d <= self._dl[-1]:
+            force = self._interp(d, self._fl)
+        else:
+            force = float(self._f[-1] + self._slope * (d - self._d[-1]))
+        if d > self.thickness_m:
+            force += RIGID_STIFFNESS_N_PER_M * (d - self.thickness_m)
+        return force
+
+    def voltage_v(self, indentation_m: float) -> float:
+        return self._interp(min(max(0.0, indentation_m), self._dl[-1]), self._vl)
+
+    def _interp(self, d: float, values: list[float]) -> float:
+        xs = self._dl
+        if d <= xs[0]:
+            return values[0]
+        i = min(bisect.bisect_right(xs, d), len(xs) - 1)
+        x0, x1 = xs[i - 1], xs[i]
+        return values[i - 1] + (values[i] - values[i - 1]) * (d - x0) / (x1 - x0)
+
+
+@dataclass(frozen=True)
+class WorldSample:
+    """Ground truth at one instant."""
+
+    t_s: float
+    position_rad: float
+    opening_m: float
+    indentation_a_m: float
+    indentation_b_m: float
+    force_a_n: float
+    force_b_n: float
+    voltage_v: float
+
+
+class GripperWorld:
+    """Fingers, skins and the rod; feeds load torque to the motor and voltage to the ADC."""
+
+    def __init__(self, skin: SkinResponse, geometry: GripperGeometry | None = None,
+                 rod_diameter_m: float | None = 0.020, rod_offset_m: float = 0.0,
+                 history_s: float = 5.0) -> None:
+        self.geometry = geometry or GripperGeometry()
+        if rod_diameter_m is not None and rod_diameter_m <= 0:
+            raise ValueError("rod_diameter_m must be positive (or None for no rod)")
+        self.skin = skin
+        self._lock = threading.Lock()
+        self._rod: tuple[float, float] | None = None
+        self.set_rod(rod_diameter_m, rod_offset_m)
+        self._times: list[float] = []
+        self._forces: list[float] = []
+        self._history_s = history_s
+        self._latest = self._sample(0.0, self.geometry.open_position_rad)
+
+    # -- configuration ---------------------------------------------------------------------
+
+    def set_rod(self, diameter_m: float | None, offset_m: float = 0.0) -> None:
+        """Place (or remove, with None) the rod between the fingers."""
+        with self._lock:
+            self._rod = None if diameter_m is None else (float(diameter_m), float(offset_m))
+
+    @property
+    def initial_position_rad(self) -> float:
+        return self.geometry.open_position_rad
+
+    # -- physics ---------------------------------------------------------------------------
+
+    def indentations_m(self, position_rad: float) -> tuple[float, float]:
+        """Skin indentation of finger A (at -opening/2) and finger B (at +opening/2)."""
+        rod = self._rod
+        if rod is None:
+            return 0.0, 0.0
+        diameter, offset = rod
+        half = 0.5 * self.geometry.opening_m(position_rad)
+        # surfaces are at -half and +half; the rod spans offset +- diameter/2
+        d_a = max(0.0, -half - (offset - 0.5 * diameter))
+        d_b = max(0.0, (offset + 0.5 * diameter) - half)
+        return d_a, d_b
+
+    def load_torque_nm(self, position_rad: float) -> float:
+        """Torque the servo must supply to hold ``position_rad`` (positive resists closing)."""
+        g = self.geometry
+        d_a, d_b = self.indentations_m(position_rad)
+        force = (self.skin.force_n(d_a) if d_a else 0.0) + (
+            self.skin.force_n(d_b) if d_b else 0.0)
+        opening = g.opening_m(position_rad)
+        if opening < g.closed_opening_m:
+            force += RIGID_STIFFNESS_N_PER_M * (g.closed_opening_m - opening)
+        if opening > g.open_opening_m:
+            force -= RIGID_STIFFNESS_N_PER_M * (opening - g.open_opening_m)
+        # each rack pushes its finger with the skin force; the pinion feels both
+        return g.pitch_radius_m * force
+
+    def _sample(self, t_s: float, position_rad: float) -> WorldSample:
+        d_a, d_b = self.indentations_m(position_rad)
+        return WorldSample(t_s, position_rad, self.geometry.opening_m(position_rad), d_a, d_b,
+                           self.skin.force_n(d_a) if d_a else 0.0,
+                           self.skin.force_n(d_b) if d_b else 0.0,
+                           self.skin.voltage_v(d_a))
+
+    def update(self, t_s: float, position_rad: float) -> WorldSample:
+        """Record the fingers at ``position_rad`` at time ``t_s`` (emulator thread)."""
+        sample = self._sample(t_s, position_rad)
+        with self._lock:
+            self._latest = sample
+            self._times.append(t_s)
+            self._forces.append(sample.force_a_n)
+            if self._times[0] < t_s - 2.0 * self._history_s:
+                cut = bisect.bisect_left(self._times, t_s - self._history_s)
+                del self._times[:cut], self._forces[:cut]
+        return sample
+
+    # -- readers (any thread) ----------------------------------------------------------------
+
+    @property
+    def latest(self) -> WorldSample:
+        with self._lock:
+            return self._latest
+
+    def photoreflector_voltage(self, t: float) -> float:
+        """Voltage of finger A's photoreflector now (``t`` is the ADC's clock; the world
+        answers with its latest state, which the emulator keeps within a millisecond)."""
+        del t
+        with self._lock:
+            return self._latest.voltage_v
+
+    def force_at(self, t_s: float) -> float:
+        """Finger A's skin force at time ``t_s`` from the recorded history (interpolated;
+        the first/last sample outside it)."""
+        with self._lock:
+            times, forces = self._times, self._forces
+            if not times:
+                return self._latest.force_a_n
+            i = bisect.bisect_left(times, t_s)
+            if i <= 0:
+                return forces[0]
+            if i >= len(times):
+                return forces[-1]
+            t0, t1, f0, f1 = times[i - 1], times[i], forces[i - 1], forces[i]
+        w = (t_s - t0) / (t1 - t0) if t1 > t0 else 1.0
+        return f0 + w * (f1 - f0)

@@ -1,0 +1,177 @@
+"""A quasi-static model of the XM430-W210 in (current-based) position control.
+
+Why quasi-static: the servo's 212.6:1 gearbox and its position loop make the output follow
+the profile trajectory closely until the load needs more torque than the current limit
+allows; then the output stalls where the load torque equals the available torque. Modelling
+exactly that (instead of a stiff second-order plant) stays stable at any step size against
+a stiff rod, and gives the two things the gripper cares about: where the fingers stop and
+what Present Current reads while they press.
+
+Sign convention: positive angle closes the gripper; ``load_torque(position)`` is the torque
+the motor must supply to hold that position (positive when the load pushes back against
+closing).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+#: Torque constant at the output shaft [N m/A] (3.0 N m stall at 2.3 A, 12 V datasheet).
+TORQUE_CONSTANT_NM_PER_A = 3.0 / 2.3
+#: Winding resistance so that 12 V drives 2.3 A at stall [ohm].
+WINDING_RESISTANCE_OHM = 12.0 / 2.3
+#: No-load speed at 12 V (77 rpm) [rad/s].
+NO_LOAD_SPEED_RAD_S_AT_12V = 77.0 * 2.0 * math.pi / 60.0
+#: Torque that back-drives the gearbox with the torque off [N m].
+BACKDRIVE_TORQUE_NM = 0.15
+#: Coulomb friction of gearbox and guide seen as current [A].
+FRICTION_CURRENT_A = 0.02
+
+
+@dataclass(frozen=True)
+class MotorCommand:
+    """What the control table asks of the motor this step (SI units)."""
+
+    torque_on: bool
+    goal_position_rad: float
+    #: 0 means "no profile" (as Profile Velocity 0 on the servo): run at the no-load speed.
+    profile_velocity_rad_s: float
+    #: 0 means an infinite acceleration (as Profile Acceleration 0).
+    profile_acceleration_rad_s2: float
+    #: Magnitude of the available current (Goal Current in current-based position mode,
+    #: Current Limit in position mode).
+    current_limit_a: float
+    input_voltage_v: float = 12.0
+
+
+@dataclass
+class MotorState:
+    position_rad: float
+    velocity_rad_s: float = 0.0
+    current_a: float = 0.0
+    trajectory_position_rad: float = 0.0
+    trajectory_velocity_rad_s: float = 0.0
+    stalled: bool = False
+
+
+class MotorModel:
+    """Profile generator + torque-limited quasi-static output stage + thermal model."""
+
+    def __init__(self, position_rad: float = 0.0,
+                 load_torque: Callable[[float], float] | None = None,
+                 ambient_temperature_c: float = 30.0) -> None:
+        self.load_torque = load_torque or (lambda _p: 0.0)
+        self.state = MotorState(position_rad, trajectory_position_rad=position_rad)
+        self.temperature_c = ambient_temperature_c
+        self.ambient_temperature_c = ambient_temperature_c
+        #: Seconds the current has been at the stall value (drives the overload flag).
+        self.overload_time_s = 0.0
+
+    def reset_trajectory(self) -> None:
+        """Restart the profile from where the output is (torque on, mode change, reboot)."""
+        self.state.trajectory_position_rad = self.state.position_rad
+        self.state.trajectory_velocity_rad_s = 0.0
+
+    def step(self, dt: float, command: MotorCommand) -> MotorState:
+        """Advance by ``dt`` seconds (sub-stepped at 1 ms)."""
+        steps = max(1, math.ceil(dt / 1e-3))
+        for _ in range(steps):
+            self._step(dt / steps, command)
+        return self.state
+
+    # -- internals -------------------------------------------------------------------------
+
+    def _speed_limit(self, voltage_v: float) -> float:
+        return NO_LOAD_SPEED_RAD_S_AT_12V * max(voltage_v, 0.0) / 12.0
+
+    def _advance_profile(self, dt: float, command: MotorCommand) -> None:
+        s = self.state
+        v_max = command.profile_velocity_rad_s or self._speed_limit(command.input_voltage_v)
+        v_max = min(v_max, self._speed_limit(command.input_voltage_v))
+        a_max = command.profile_acceleration_rad_s2 or math.inf
+        error = command.goal_position_rad - s.trajectory_position_rad
+        direction = math.copysign(1.0, error) if error else 0.0
+        # fastest speed from which we can still stop at the goal
+        v_stop = math.sqrt(2.0 * a_max * abs(error)) if math.isfinite(a_max) else math.inf
+        v_target = direction * min(v_max, v_stop)
+        if math.isfinite(a_max):
+            dv = max(-a_max * dt, min(a_max * dt, v_target - s.trajectory_velocity_rad_s))
+            v = s.trajectory_velocity_rad_s + dv
+        else:
+            v = v_target
+        step = v * dt
+        if abs(step) >= abs(error) or direction == 0.0:
+            s.trajectory_position_rad = command.goal_position_rad
+            s.trajectory_velocity_rad_s = 0.0
+        else:
+            s.trajectory_position_rad += step
+            s.trajectory_velocity_rad_s = v
+
+    def _capacity_nm(self, command: MotorCommand) -> float:
+        if not command.torque_on:
+            return BACKDRIVE_TORQUE_NM
+        stall_a = max(command.input_voltage_v, 0.0) / WINDING_RESISTANCE_OHM
+        return TORQUE_CONSTANT_NM_PER_A * min(abs(command.current_limit_a), stall_a)
+
+    def _solve(self, inside: float, outside: float, capacity: float) -> float:
+        """Bisect for the position between ``inside`` (load within capacity) and ``outside``."""
+        for _ in range(40):
+            mid = 0.5 * (inside + outside)
+            if abs(self.load_torque(mid)) <= capacity:
+                inside = mid
+            else:
+                outside = mid
+            if abs(outside - inside) < 1e-7:
+                break
+        return inside
+
+    def _step(self, dt: float, command: MotorCommand) -> None:
+        s = self.state
+        capacity = self._capacity_nm(command)
+        p0 = s.position_rad
+        if command.torque_on:
+            self._advance_profile(dt, command)
+            wanted = s.trajectory_position_rad
+        else:
+            wanted = p0
+            self.reset_trajectory()
+        max_move = self._speed_limit(command.input_voltage_v) * dt
+        p1 = p0 + max(-max_move, min(max_move, wanted - p0))
+        within = abs(self.load_torque(p1)) <= capacity
+        s.stalled = False
+        if not within:
+            s.stalled = True
+            load0 = abs(self.load_torque(p0))
+            if capacity - load0 <= 1e-6 * capacity:
+                p1 = p0  # already pressing with everything allowed: stay
+            elif load0 <= capacity:
+                p1 = self._solve(p0, p1, capacity)
+            else:
+                # back-driven: yield in the direction that relieves the load
+                back = p0 - math.copysign(max_move, self.load_torque(p0))
+                p1 = self._solve(back, p0, capacity) if abs(
+                    self.load_torque(back)) <= capacity else back
+        velocity = (p1 - p0) / dt
+        load = self.load_torque(p1)
+        current = load / TORQUE_CONSTANT_NM_PER_A
+        if command.torque_on:
+            if velocity:
+                current += math.copysign(FRICTION_CURRENT_A, velocity)
+            if s.stalled:
+                # the position loop saturates: it pushes with everything it is allowed
+                current = math.copysign(capacity / TORQUE_CONSTANT_NM_PER_A,
+                                        load if load else wanted - p1)
+        else:
+            current = 0.0
+        s.position_rad, s.velocity_rad_s, s.current_a = p1, velocity, current
+        # first-order thermal model: ~10 K/W, 60 s time constant
+        heat_w = current * current * WINDING_RESISTANCE_OHM
+        target = self.ambient_temperature_c + 10.0 * heat_w
+        self.temperature_c += (target - self.temperature_c) * min(1.0, dt / 60.0)
+        stall_a = max(command.input_voltage_v, 0.0) / WINDING_RESISTANCE_OHM
+        if command.torque_on and abs(current) >= 0.9 * stall_a > 0.0:
+            self.overload_time_s += dt
+        else:
+            self.overload_time_s = 0.0

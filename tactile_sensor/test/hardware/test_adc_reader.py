@@ -1,0 +1,170 @@
+"""The reader against the mock ADC on real pseudo-terminals (no mocks of our own code)."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from tactile_sensor.hardware.adc_frame import encode_frame
+from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState, Sample
+from tactile_sensor.hardware.errors import SerialPortError
+from tactile_sensor.sim.adc_device import QUIET, MockAdcDevice
+from tactile_sensor.sim.pty_link import PtyLink
+
+RATE = 1000.0
+
+
+def code_ramp(t):
+    """Voltage whose 12-bit code is the frame index mod 4096: every frame is checkable."""
+    return (np.rint(np.asarray(t) * RATE) % 4096) * (5.0 / 4095)
+
+
+class Recorder:
+    def __init__(self) -> None:
+        self.samples: list[Sample] = []
+        self.states: list[tuple[float, ConnectionState, str]] = []
+        self.lock = threading.Lock()
+
+    def on_sample(self, sample: Sample) -> None:
+        with self.lock:
+            self.samples.append(sample)
+
+    def on_state(self, state: ConnectionState, reason: str) -> None:
+        with self.lock:
+            self.states.append((time.monotonic(), state, reason))
+
+    def count(self) -> int:
+        with self.lock:
+            return len(self.samples)
+
+    def first_state_after(self, t0: float, state: ConnectionState) -> float | None:
+        with self.lock:
+            return next((t for t, s, _ in self.states if t >= t0 and s is state), None)
+
+
+def wait_until(predicate: Callable[[], object], timeout_s: float) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return bool(predicate())
+
+
+def reader_for(path, rec: Recorder, **kw) -> AdcStreamReader:
+    return AdcStreamReader(str(path), rec.on_sample, rec.on_state, **kw)
+
+
+def test_missing_port_is_a_state_and_the_reader_connects_when_it_appears(tmp_path):
+    path = tmp_path / "adc"
+    rec = Recorder()
+    with reader_for(path, rec) as reader:
+        assert wait_until(lambda: reader.state is ConnectionState.DISCONNECTED, 0.5)
+        assert "does not exist" in reader.reason
+        with MockAdcDevice(path, code_ramp, noise=QUIET):
+            assert wait_until(lambda: rec.count() > 50, 2.0)
+            assert reader.state is ConnectionState.CONNECTED
+    assert reader.state is ConnectionState.STOPPED
+
+
+def test_unplug_is_reported_fast_and_data_resumes_without_restart(tmp_path):
+    path = tmp_path / "adc"
+    rec = Recorder()
+    with MockAdcDevice(path, code_ramp, noise=QUIET) as device, reader_for(path, rec) as reader:
+        assert wait_until(lambda: rec.count() > 100, 2.0)
+        t_unplug = time.monotonic()
+        device.unplug(0.8)
+        assert wait_until(lambda: rec.first_state_after(t_unplug, ConnectionState.DISCONNECTED),
+                          0.5)
+        t_disc = rec.first_state_after(t_unplug, ConnectionState.DISCONNECTED)
+        assert t_disc - t_unplug < 0.5
+        assert wait_until(lambda: not device.busy, 2.0)  # link is back
+        t_back = time.monotonic()
+        before = rec.count()
+        assert wait_until(lambda: rec.count() > before + 50, 2.0)
+        assert time.monotonic() - t_back < 2.0
+        stats = reader.stats()
+        assert stats.connections == 2
+        assert stats.state is ConnectionState.CONNECTED
+        with rec.lock:
+            epochs = {s.epoch for s in rec.samples}
+        assert epochs == {1, 2}
+
+
+def test_random_bytes_in_the_stream_yield_no_bad_sample(tmp_path):
+    path = tmp_path / "adc"
+    rec = Recorder()
+    with MockAdcDevice(path, code_ramp, noise=QUIET, seed=3) as device, \
+            reader_for(path, rec, channels=1) as reader:
+        assert wait_until(lambda: rec.count() > 20, 2.0)
+        device.inject_garbage(100_000)
+        assert wait_until(lambda: not device.busy, 5.0)
+        time.sleep(0.1)
+        stats = reader.stats()
+    assert device.stats().garbage_bytes == 100_000
+    assert stats.bytes_discarded >= 90_000
+    assert stats.resyncs > 10
+    with rec.lock:
+        samples = list(rec.samples)
+    for s in samples:  # each accepted frame is exactly what the device sent
+        k, rem = divmod(s.device_time_us, 1000)
+        assert rem == 0
+        assert s.seq == k % 65536
+        assert s.counts == (k % 4096,)
+    assert stats.frames == len(samples)
+
+
+def test_dropped_frames_are_counted(tmp_path):
+    path = tmp_path / "adc"
+    rec = Recorder()
+    with MockAdcDevice(path, code_ramp, noise=QUIET) as device, reader_for(path, rec) as reader:
+        assert wait_until(lambda: rec.count() > 20, 2.0)
+        device.drop_frames(7)
+        assert wait_until(lambda: not device.busy, 1.0)
+        assert wait_until(lambda: reader.stats().dropped_frames == 7, 1.0)
+        assert reader.stats().sequence_gaps == 1
+
+
+def test_device_time_is_unwrapped_past_32_bits(tmp_path):
+    path = tmp_path / "adc"
+    rec = Recorder()
+    offset = (1 << 32) - 150_000  # the device clock wraps 0.15 s after start
+    with MockAdcDevice(path, code_ramp, noise=QUIET, clock_offset_us=offset), \
+            reader_for(path, rec):
+        assert wait_until(lambda: rec.count() > 400, 3.0)
+    with rec.lock:
+        times = np.array([s.device_time_us for s in rec.samples])
+    assert times[-1] > 1 << 32
+    assert np.all(np.diff(times) == 1000)
+
+
+def test_silence_sends_the_state_back_to_connecting(tmp_path):
+    path = tmp_path / "adc"
+    rec = Recorder()
+    with PtyLink(path) as link, reader_for(path, rec, silence_timeout_s=0.2) as reader:
+        assert wait_until(lambda: reader.state is ConnectionState.CONNECTING, 1.0)
+        time.sleep(0.2)  # let the reader open the port before writing
+        assert link.write_all(b"".join(encode_frame(k, k * 1000, [k]) for k in range(5)))
+        assert wait_until(lambda: reader.state is ConnectionState.CONNECTED, 1.0)
+        assert wait_until(lambda: reader.state is ConnectionState.CONNECTING, 1.0)
+        assert "no valid frame" in reader.reason
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"baudrate": 0}, "baudrate"),
+    ({"baudrate": 115200.5}, "baudrate"),
+    ({"baudrate": True}, "baudrate"),
+    ({"reopen_interval_s": 0}, "reopen_interval_s"),
+    ({"read_timeout_s": -1}, "read_timeout_s"),
+    ({"silence_timeout_s": float("nan")}, "silence_timeout_s"),
+    ({"channels": 0}, "channels"),
+    ({"port": ""}, "port"),
+    ({"on_sample": None}, "callable"),
+])
+def test_bad_configuration_is_refused_at_construction(kwargs, match):
+    args = {"port": "/dev/ttyACM0", "on_sample": print, **kwargs}
+    with pytest.raises(SerialPortError, match=match):
+        AdcStreamReader(**args)

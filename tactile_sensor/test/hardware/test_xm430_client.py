@@ -1,0 +1,162 @@
+"""Xm430Client against the emulator over a real pseudo-terminal: typed values and errors."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from tactile_sensor.hardware.errors import (
+    CommunicationTimeout,
+    DynamixelError,
+    InvalidServoValue,
+    ModelMismatch,
+    PortOpenError,
+    ServoHardwareError,
+    ServoRejected,
+)
+from tactile_sensor.hardware.xm430 import Xm430Client
+from tactile_sensor.hardware.xm430_table import OperatingMode
+from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin
+from tactile_sensor.sim.xm430_emulator import Xm430Emulator
+
+BAUD = 1_000_000
+
+
+@pytest.fixture(autouse=True)
+def _share_the_gil_fairly():
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(2e-4)
+    yield
+    sys.setswitchinterval(before)
+
+
+@pytest.fixture
+def world():
+    d = np.linspace(0.0, 0.003, 31)
+    force = 7.0 * d / 0.003
+    return GripperWorld(TabulatedSkin(d, force, 2.0 - 0.07 * force, thickness_m=0.005))
+
+
+@pytest.fixture
+def emulator(tmp_path, world):
+    with Xm430Emulator(tmp_path / "xm430", baudrate=BAUD, world=world) as emu:
+        yield emu
+
+
+@pytest.fixture
+def client(emulator):
+    with Xm430Client(str(emulator.link.link_path), BAUD, 1, timeout_s=0.1) as c:
+        yield c
+
+
+def test_connect_reads_model_and_state_in_si(client):
+    assert client.firmware_version == 46
+    state = client.read_state()
+    assert state.position_rad == pytest.approx(math.pi)
+    assert state.input_voltage_v == pytest.approx(12.0)
+    assert state.hardware_error == frozenset() and not state.moving
+
+
+def test_closing_on_the_rod_raises_current_and_stalls(client, world):
+    client.set_operating_mode(OperatingMode.CURRENT_BASED_POSITION)
+    client.set_torque(True)
+    g = world.geometry
+    client.command_position(g.closed_position_rad, 2.0, goal_current_a=0.1)
+    deadline = time.monotonic() + 5.0
+    while world.latest.force_a_n == 0.0 or client.read_state().moving:
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    state = client.read_state()
+    assert state.current_a == pytest.approx(0.1, abs=0.005)   # pushing at its budget
+    assert 0.015 < g.opening_m(state.position_rad) < 0.020    # pressed into the 20 mm rod
+    # the skin force balances the torque: r * (F_a + F_b) = kt * I
+    assert world.latest.force_a_n == pytest.approx(0.1 * (3.0 / 2.3) / 0.014 / 2, rel=0.03)
+
+
+def test_one_write_per_command(client, emulator):
+    before = emulator.counters["packets"]
+    client.command_position(math.pi + 0.1, 1.0, 10.0, goal_current_a=0.2)
+    assert emulator.counters["packets"] == before + 1
+    assert emulator.item("Goal Current") == round(0.2 / 2.69e-3)
+    assert emulator.item("Profile Velocity") == round(1.0 / (0.229 * 2 * math.pi / 60))
+
+
+def test_small_profile_never_becomes_unlimited(client, emulator):
+    client.set_profile(1e-4, 1e-4)
+    assert emulator.item("Profile Velocity") == 1
+    assert emulator.item("Profile Acceleration") == 1
+    client.set_profile(math.inf)
+    assert emulator.item("Profile Velocity") == 0
+
+
+@pytest.mark.parametrize("call", [
+    lambda c: c.set_goal_position_rad(float("nan")),
+    lambda c: c.set_goal_position_rad(1e6),
+    lambda c: c.set_current_limit_a(5.0),
+    lambda c: c.set_profile(-1.0),
+    lambda c: c.write_items({"Goal Current": 0, "Goal Position": 0}),
+])
+def test_invalid_values_are_refused_before_sending(client, call):
+    with pytest.raises(InvalidServoValue):
+        call(client)
+
+
+def test_servo_rejections_are_typed(client):
+    client.set_current_limit_a(0.5)
+    with pytest.raises(ServoRejected, match="beyond a limit") as info:
+        client.set_goal_current_a(1.0)
+    assert info.value.code == 6
+    client.set_torque(True)
+    with pytest.raises(ServoRejected, match="turn torque off") as info:
+        client.set_operating_mode(OperatingMode.POSITION)
+    assert info.value.code == 7
+
+
+def test_hardware_error_reported_in_state_raised_on_command_cleared_by_reboot(
+        client, emulator):
+    client.set_torque(True)
+    emulator.inject_hardware_error("overload")
+    assert client.read_state().hardware_error == {"overload"}
+    with pytest.raises(ServoHardwareError, match="overload") as info:
+        client.set_goal_current_a(0.1)
+    assert info.value.bits == {"overload"}
+    client.set_torque(False)                   # allowed while the error is latched
+    client.reboot()
+    assert client.read_state().hardware_error == frozenset()
+    assert not client.torque_enabled()
+
+
+def test_timeout_is_typed_and_names_the_fix(client, emulator):
+    emulator.set_no_response(True)
+    with pytest.raises(CommunicationTimeout, match="check power, id and baud rate"):
+        client.read_state()
+    emulator.set_no_response(False)
+    assert client.read_state().position_rad == pytest.approx(math.pi)
+
+
+def test_model_mismatch(emulator):
+    emulator.table.set("Model Number", 1020)
+    with pytest.raises(ModelMismatch, match="not the XM430-W210"):
+        Xm430Client(str(emulator.link.link_path), BAUD, 1).connect()
+
+
+def test_wrong_id_times_out_and_port_is_released(emulator):
+    client = Xm430Client(str(emulator.link.link_path), BAUD, 7)
+    with pytest.raises(CommunicationTimeout):
+        client.connect()
+    assert not client.is_connected
+
+
+def test_port_and_argument_errors(tmp_path):
+    with pytest.raises(PortOpenError, match="Cannot open"):
+        Xm430Client(str(tmp_path / "missing"), BAUD, 1).connect()
+    with pytest.raises(PortOpenError, match="not an XM430 baud rate"):
+        Xm430Client(str(tmp_path / "missing"), 12345, 1).connect()
+    with pytest.raises(InvalidServoValue, match="outside 0..252"):
+        Xm430Client("x", BAUD, 300)
+    with pytest.raises(DynamixelError, match="not connected"):
+        Xm430Client("x", BAUD, 1).read_state()

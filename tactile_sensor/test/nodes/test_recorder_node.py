@@ -1,0 +1,147 @@
+"""The recorder node in its own process loses nothing a 1 kHz publisher sends it."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+pytest.importorskip("tactile_sensor_interfaces.msg")
+
+from geometry_msgs.msg import WrenchStamped  # noqa: E402
+from rclpy.duration import Duration  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
+from rosbags.interfaces import QosDurability  # noqa: E402
+
+from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading  # noqa: E402
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+N_WRENCH = 3000
+READING_EVERY = 100
+RECORDER = "tactile_sensor.nodes.recorder"
+
+
+@pytest.fixture
+def node(ros_domain: int) -> Iterator[Node]:
+    """A test-side node in its own context (so the test's domain id applies)."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    test_node = Node("recorder_test", context=context)
+    yield test_node
+    test_node.destroy_node()
+    context.try_shutdown()
+
+
+def wait_until(predicate, timeout_s: float = 20.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.02)
+    return False
+
+
+def test_records_every_message_published_at_1khz(node, spawn, tmp_path: Path):
+    reliable = QoSProfile(depth=N_WRENCH, reliability=ReliabilityPolicy.RELIABLE)
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    curve_pub = node.create_publisher(CalibrationCurve, "/test/curve", latched)
+    curve = CalibrationCurve(output=[0.0, 0.1, 0.2], force=[0.0, 1.0, 3.0], source="test")
+    curve_pub.publish(curve)  # before the recorder exists: only a latched match records it
+    wrench_pub = node.create_publisher(WrenchStamped, "/test/wrench", reliable)
+    bag_path = tmp_path / "bag"
+    recorder = spawn(
+        "--ros-args", "-p", f"path:={bag_path}",
+        "-p", "topics:=['/test/wrench', '/test/reading', '/test/curve']",
+        # No publisher of /test/reading exists yet: the recorder subscribes from the type given.
+        "-p", "topic_types:=['/test/reading=tactile_sensor_interfaces/msg/TactileReading']",
+        module=RECORDER)
+    assert wait_until(lambda: wrench_pub.get_subscription_count() > 0
+                      and curve_pub.get_subscription_count() > 0
+                      and node.count_subscribers("/test/reading") > 0), recorder.output()
+    reading_pub = node.create_publisher(TactileReading, "/test/reading", reliable)
+    assert wait_until(lambda: reading_pub.get_subscription_count() > 0), recorder.output()
+
+    wrench = WrenchStamped()
+    wrench.header.frame_id = "skin"
+    reading = TactileReading()
+    period_s = 1e-3
+    start = time.monotonic()
+    for i in range(N_WRENCH):
+        stamp = node.get_clock().now().to_msg()
+        wrench.header.stamp = stamp
+        wrench.wrench.force.z = float(i)
+        wrench_pub.publish(wrench)
+        if i % READING_EVERY == 0:
+            reading.header.stamp = stamp
+            reading.force = float(i)
+            reading_pub.publish(reading)
+        delay = start + (i + 1) * period_s - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+    elapsed_s = time.monotonic() - start
+    assert elapsed_s < 2 * N_WRENCH * period_s, f"publisher too slow: {elapsed_s:.2f} s"
+    assert wrench_pub.wait_for_all_acked(Duration(seconds=10))
+    assert reading_pub.wait_for_all_acked(Duration(seconds=10))
+    wrench_hash = str(node.get_publishers_info_by_topic("/test/wrench")[0].topic_type_hash)
+
+    returncode = recorder.stop()  # SIGINT, as Ctrl-C
+    log = recorder.log.read_text(errors="replace")  # output() needs the open log file
+    assert returncode == 0 and "Traceback" not in log, log
+    assert f"Closed {bag_path} with {N_WRENCH + N_WRENCH // READING_EVERY + 1} messages" in log
+
+    with AnyReader([bag_path]) as reader:
+        conns = {c.topic: c for c in reader.connections}
+        assert set(conns) == {"/test/wrench", "/test/reading", "/test/curve"}
+        assert conns["/test/wrench"].digest == wrench_hash
+        assert (conns["/test/curve"].ext.offered_qos_profiles[0].durability
+                == QosDurability.TRANSIENT_LOCAL)
+        rows = [(t, reader.deserialize(raw, c.msgtype))
+                for c, t, raw in reader.messages(connections=[conns["/test/wrench"]])]
+        readings = [reader.deserialize(raw, c.msgtype)
+                    for c, _, raw in reader.messages(connections=[conns["/test/reading"]])]
+        curves = [reader.deserialize(raw, c.msgtype)
+                  for c, _, raw in reader.messages(connections=[conns["/test/curve"]])]
+
+    assert [m.wrench.force.z for _, m in rows] == [float(i) for i in range(N_WRENCH)]
+    bag_stamps = [t for t, _ in rows]
+    header_ns = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in rows]
+    assert bag_stamps == sorted(bag_stamps)
+    assert header_ns == sorted(header_ns)
+    # Reception stamps follow the send stamps (same host clock) by well under a second.
+    lags_s = [(b - h) / 1e9 for b, h in zip(bag_stamps, header_ns, strict=True)]
+    assert min(lags_s) >= 0.0 and max(lags_s) < 1.0
+    assert [r.force for r in readings] == [float(i) for i in range(0, N_WRENCH, READING_EVERY)]
+    assert len(curves) == 1 and list(curves[0].force) == [0.0, 1.0, 3.0]
+
+
+def test_bad_storage_exits_with_one_sentence(ros_domain, spawn, tmp_path: Path):
+    recorder = spawn("--ros-args", "-p", f"path:={tmp_path / 'bag'}", "-p", "topics:=['/a']",
+                     "-p", "storage:=hdf5", module=RECORDER)
+    assert recorder.proc.wait(30) == 1
+    out = recorder.output()
+    assert "Parameter 'storage' = 'hdf5' is invalid" in out and "Traceback" not in out
+    assert not (tmp_path / "bag").exists()
+
+
+def test_existing_bag_folder_exits_with_one_sentence(ros_domain, spawn, tmp_path: Path):
+    (tmp_path / "bag").mkdir()
+    recorder = spawn("--ros-args", "-p", f"path:={tmp_path / 'bag'}", "-p", "topics:=['/a']",
+                     module=RECORDER)
+    assert recorder.proc.wait(30) == 1
+    out = recorder.output()
+    assert "exists already; choose a new path" in out and "Traceback" not in out
+
+
+def test_missing_topics_exits_with_one_sentence(ros_domain, spawn, tmp_path: Path):
+    recorder = spawn("--ros-args", "-p", f"path:={tmp_path / 'bag'}", module=RECORDER)
+    assert recorder.proc.wait(30) == 1
+    out = recorder.output()
+    assert "Parameter 'topics'" in out and "give at least one topic" in out
+    assert "Traceback" not in out

@@ -1,0 +1,160 @@
+"""The mock ADC through the real reader on real pseudo-terminals, in and out of process."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
+from tactile_sensor.sensing.conversion import AdcConversion
+from tactile_sensor.sensing.filters import make_filter
+from tactile_sensor.sim.adc_device import (
+    QUIET,
+    AdcNoise,
+    MockAdcDevice,
+    white_noise_for_dynamic_range,
+)
+from tactile_sensor.sim.errors import SimError
+
+SOURCE_DIR = Path(__file__).resolve().parents[2]
+
+
+def collect(path, n, timeout_s=5.0, **reader_kw):
+    got, done = [], threading.Event()
+
+    def on_sample(s):
+        got.append(s)
+        if len(got) >= n:
+            done.set()
+
+    with AdcStreamReader(str(path), on_sample, **reader_kw):
+        assert done.wait(timeout_s), f"only {len(got)} samples"
+    return got
+
+
+def test_default_noise_gives_the_papers_dynamic_range(tmp_path):
+    path = tmp_path / "adc"
+    # the rate does not change per-sample noise; 10 kHz just keeps the test short
+    with MockAdcDevice(path, lambda t: 1.98, rate_hz=10_000.0, seed=7):
+        samples = collect(path, 20_000)
+    volts = np.array([s.counts[0] for s in samples]) * AdcConversion().volts_per_count
+    ma9 = make_filter("moving_average", 1000.0)
+    filtered = np.array([ma9.update(v) for v in volts])[9:]
+    resolution_n = filtered.std() / 0.07
+    dynamic_range_db = 20 * math.log10(7.0 / resolution_n)
+    assert dynamic_range_db == pytest.approx(31.5, abs=0.4)
+    assert volts.mean() == pytest.approx(1.98, abs=0.005)
+
+
+def test_noise_derivation():
+    # 7 N / 10^(31.5/20) × 0.07 V/N × √9, minus a negligible quantisation share
+    assert white_noise_for_dynamic_range() == pytest.approx(0.0391, abs=1e-4)
+    with pytest.raises(SimError, match="quantisation"):
+        white_noise_for_dynamic_range(dynamic_range_db=80.0, adc_bits=8)
+
+
+def test_quiet_device_streams_the_source_exactly_at_its_rate(tmp_path):
+    path = tmp_path / "adc"
+    with MockAdcDevice(path, lambda t: 2.5, noise=QUIET, channels=3) as device:
+        t0 = time.monotonic()
+        samples = collect(path, 300)
+        elapsed = time.monotonic() - t0
+        assert device.stats().frames_generated >= 300
+    assert {s.counts for s in samples} == {(2048, 2048, 2048)}
+    assert elapsed > 0.25  # paced in real time, not as fast as possible
+
+
+def test_commands_and_their_errors(tmp_path):
+    device = MockAdcDevice(tmp_path / "adc", lambda t: 1.0)
+    assert device.command("drop 3") == "ok drop 3 frames"
+    assert device.command("garbage 10") == "ok garbage 10 bytes"
+    assert device.command("unplug 0.5") == "ok unplug 0.5 s"
+    assert device.busy
+    assert device.command("unplug -1").startswith("error unplug duration")
+    assert device.command("drop x").startswith("error")
+    assert "unknown command" in device.command("explode")
+    assert device.command("") == ""
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"rate_hz": 0.0}, "rate"), ({"adc_bits": 20}, "adc_bits"), ({"vref_v": 0}, "vref_v"),
+    ({"channels": 9}, "channels"), ({"voltage_source": 3.0}, "callable"),
+    ({"noise": None, "link_path": "/nonexistent-dir/adc"}, "does not exist"),
+])
+def test_bad_device_settings(tmp_path, kwargs, match):
+    args = {"link_path": tmp_path / "adc", "voltage_source": lambda t: 1.0, **kwargs}
+    with pytest.raises(SimError, match=match):
+        MockAdcDevice(**args).start()
+
+
+def test_bad_noise_settings():
+    with pytest.raises(SimError, match="white_v"):
+        AdcNoise(white_v=-1.0)
+    with pytest.raises(SimError, match="drift_tau_s"):
+        AdcNoise(drift_tau_s=0.0)
+
+
+def _cli(args, **kw):
+    env = {**os.environ, "PYTHONPATH": str(SOURCE_DIR)}
+    return subprocess.Popen([sys.executable, "-m", "tactile_sensor.sim.adc_device", *args],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            **kw)
+
+
+def _skin_table(tmp_path):
+    path = tmp_path / "skin.json"
+    d = np.linspace(0.0, 0.003, 7)
+    path.write_text(json.dumps({"indentation_m": d.tolist(), "force_n": (d * 2333).tolist(),
+                                "voltage_v": (1.98 - d * 163).tolist()}))
+    return path
+
+
+def test_cli_streams_and_obeys_the_control_fifo(tmp_path):
+    link, control = tmp_path / "adc", tmp_path / "adc.ctl"
+    proc = _cli(["--link", str(link), "--skin-table", str(_skin_table(tmp_path)),
+                 "--profile", "compression", "--control", str(control), "--duration", "30"])
+    states, got = [], []
+    try:
+        deadline = time.monotonic() + 5.0
+        while not (link.exists() and control.exists()) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        reader = AdcStreamReader(str(link), got.append, lambda s, r: states.append(s))
+        with reader:
+            while len(got) < 100 and time.monotonic() < deadline:
+                time.sleep(0.02)
+            with open(control, "w") as fifo:
+                fifo.write("drop 5\n")
+            time.sleep(0.3)
+            assert reader.stats().dropped_frames == 5
+            with open(control, "w") as fifo:
+                fifo.write("unplug 0.3\n")
+            time.sleep(1.0)
+            assert ConnectionState.DISCONNECTED in states
+            assert reader.state is ConnectionState.CONNECTED
+        proc.terminate()  # SIGTERM: a clean stop, link and FIFO removed
+        out, err = proc.communicate(timeout=10)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    assert "ok drop 5 frames" in out and "ok unplug 0.3 s" in out
+    assert not link.exists() and not control.exists()
+
+
+@pytest.mark.parametrize(("args", "match"), [
+    (["--profile", "squeeze"], "Unknown profile"),
+    (["--skin-table", "/nonexistent.json"], "skin table"),
+])
+def test_cli_errors_are_one_sentence_not_a_traceback(tmp_path, args, match):
+    table = ["--skin-table", str(_skin_table(tmp_path))] if "--skin-table" not in args else []
+    proc = _cli(["--link", str(tmp_path / "adc"), *table, *args, "--duration", "0.1"])
+    _, err = proc.communicate(timeout=20)
+    assert proc.returncode == 1
+    assert match in err and "Traceback" not in err

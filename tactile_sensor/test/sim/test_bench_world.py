@@ -1,0 +1,69 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from tactile_sensor.sim.bench_world import BenchWorld
+from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.profiles import parse_profile
+from tactile_sensor.sim.skin_response import TabulatedSkin
+
+D = np.linspace(0.0, 0.003, 31)
+# a monotone test curve: stiffening force, falling voltage (test input, not physics)
+SKIN = TabulatedSkin(D, 7.0 * (D / 0.003) ** 1.3, 1.98 - 0.49 * D / 0.003)
+
+
+class RateStiffening:
+    """Test viscoelastic model: adds c·dF/dt (more force when pressing faster)."""
+
+    def __init__(self, c_s: float = 0.05) -> None:
+        self.c_s = c_s
+        self.reset()
+
+    def reset(self) -> None:
+        self._last = None
+
+    def step(self, elastic_force_n: float, dt: float) -> float:
+        rate = 0.0 if self._last is None else (elastic_force_n - self._last) / dt
+        self._last = elastic_force_n
+        return elastic_force_n + self.c_s * max(rate, 0.0)
+
+
+def test_world_follows_the_profile_and_the_skin():
+    world = BenchWorld(parse_profile("compression"), SKIN)
+    assert world.indentation_m(4.0) == pytest.approx(0.003)
+    assert world.force_n(4.0) == pytest.approx(7.0)
+    assert world.photoreflector_voltage(0.5) == pytest.approx(1.98)
+    assert world.photoreflector_voltage(4.0) == pytest.approx(1.49)
+    t = np.linspace(0, world.duration_s, 50)
+    assert world.photoreflector_voltage(t).shape == (50,)
+    assert isinstance(world.force_n(1.0), float)
+
+
+def test_faster_pressing_raises_force_but_not_voltage():
+    forces, volts = [], []
+    for speed in (0.0001, 0.001, 0.01):
+        world = BenchWorld(parse_profile(f"ramp:speed={speed}"), SKIN, RateStiffening())
+        t = np.linspace(0, world.duration_s, 20001)
+        forces.append(world.force_n(t).max())
+        volts.append(world.photoreflector_voltage(t).min())
+    assert forces[0] < forces[1] < forces[2]
+    assert volts == pytest.approx([volts[0]] * 3)
+
+
+def test_loop_repeats_and_plain_worlds_rest_after_the_end():
+    profile = parse_profile("compression")
+    looped = BenchWorld(profile, SKIN, loop=True)
+    once = BenchWorld(profile, SKIN)
+    assert looped.indentation_m(4.0 + profile.duration_s) == pytest.approx(0.003)
+    assert once.indentation_m(4.0 + profile.duration_s) == 0.0
+
+
+def test_bad_grid_and_bad_table():
+    with pytest.raises(SimError, match="grid_hz"):
+        BenchWorld(parse_profile("compression"), SKIN, grid_hz=0.0)
+    with pytest.raises(SimError, match="strictly increasing"):
+        TabulatedSkin([0.0, 0.0], [0.0, 1.0], [2.0, 1.0])
+    with pytest.raises(SimError, match="equal length"):
+        TabulatedSkin([0.0, 1.0], [0.0], [2.0, 1.0])
+    with pytest.raises(SimError, match="NaN"):
+        TabulatedSkin([0.0, 1.0], [0.0, np.nan], [2.0, 1.0])
