@@ -35,7 +35,7 @@ class TopicSpec:
 
     role: str
     topic: str
-    fields: dict[str, str]  # our name -> field path in the message, e.g. "force_n": "wrench.force.z"
+    fields: dict[str, str]  # our name -> field path, e.g. "force_n": "wrench.force.z"
     option: str  # the CLI option that sets the topic, for error messages
     expected_type: str  # what the user should point the option at
 

@@ -45,6 +45,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--prediction", default="auto", metavar="FILE|auto|none",
                    help="model output vs indentation: a 'model sweep --json' file, 'auto' "
                         "(physics layer, default parameters, cached) or 'none'")
+    p.add_argument("--no-figures", action="store_true",
+                   help="skip the PNG figures (metrics and report only; faster)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return p
 
@@ -100,10 +102,13 @@ def run(args: argparse.Namespace) -> int:
                       fit_calibration=args.fit_calibration, prediction=prediction,
                       prediction_note=note)
     result = analyse_bag(args.bag, options, _Progress(verbose))
-    from .plots import all_figures  # matplotlib only once there is something to draw
     from .report import write_report
 
-    figures = all_figures(result, args.out)
+    figures = {}
+    if not args.no_figures:
+        from .plots import all_figures  # matplotlib only once there is something to draw
+
+        figures = all_figures(result, args.out)
     (args.out / "metrics.json").write_text(json.dumps(result.metrics, indent=2) + "\n",
                                            encoding="utf-8")
     if result.fitted is not None:

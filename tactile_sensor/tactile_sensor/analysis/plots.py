@@ -11,12 +11,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
 
-from .characterise import Characterisation  # noqa: E402
-from .metrics import ramp_indices  # noqa: E402
+from .characterise import Characterisation
+from .metrics import ramp_indices
 
 MAX_POINTS = 4_000
 

@@ -63,7 +63,7 @@ def physics_prediction(verbose: bool = True) -> tuple[Prediction | None, str]:
     try:
         from tactile_sensor.physics.errors import PhysicsError
     except ImportError:  # pragma: no cover - depends on the physics layer's state
-        PhysicsError = RuntimeError  # noqa: N806
+        PhysicsError = RuntimeError
 
     def progress(fraction: float, message: str) -> None:
         if verbose:

@@ -95,7 +95,7 @@ def press_signals(protocol: PressProtocol, truth: SensorTruth, seed: int = 0) ->
                             protocol.rest_s + ramp + protocol.hold_s,
                             protocol.rest_s + 2 * ramp + protocol.hold_s])
         knots_d = np.array([0.0, 0.0, depth, depth, 0.0])
-        n = int(round(knots_t[-1] / dt))
+        n = round(knots_t[-1] / dt)
         t = np.arange(n) * dt
         d = np.interp(t, knots_t, knots_d)
         lag = float(truth.lag_s.get(v, 0.0))

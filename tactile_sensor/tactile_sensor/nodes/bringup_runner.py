@@ -102,7 +102,7 @@ class BringupRunner:
     def run(self, duration: float | None) -> int:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         previous = signal.signal(signal.SIGINT, lambda *_: self.request_stop("Ctrl-C"))
-        executor = MultiThreadedExecutor(num_threads=4)
+        executor = MultiThreadedExecutor(num_threads=6)
         spinner: threading.Thread | None = None
         code = 0
         try:

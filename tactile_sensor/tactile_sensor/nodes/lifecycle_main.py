@@ -41,7 +41,7 @@ def run_lifecycle_node(factory: Callable[[], Node], args: list[str] | None = Non
             node = factory()
             if declare_autostart(node):
                 autostart(node)
-            executor = MultiThreadedExecutor(num_threads=2)
+            executor = MultiThreadedExecutor(num_threads=4)
             executor.add_node(node)
             try:
                 executor.spin()

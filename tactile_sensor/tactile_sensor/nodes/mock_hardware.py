@@ -76,6 +76,9 @@ SPECS = [
               "[s] (time for the driver to tare); < 0 = wait for ~/start"),
     # gripper
     ParamSpec("servo_link", "/tmp/tactile_sensor/xm430", "path of the emulated XM430"),
+    ParamSpec("servo_control", "", "FIFO accepting the emulator's fault-injection commands "
+              "('fault overload', 'no-response on', ...; see tactile-sensor mock xm430 "
+              "--help); empty = none"),
     ParamSpec("servo_id", 1, "Dynamixel id of the emulated servo", minimum=0, maximum=252),
     ParamSpec("servo_baud_rate", 1_000_000, "baud rate [bit/s] the emulator models",
               minimum=9600, maximum=4_500_000),
@@ -263,7 +266,8 @@ class MockHardwareNode(Node):
                                   rod_offset_m=v["rod.offset"])
         self.source = self.world.photoreflector_voltage
         self.emulator = Xm430Emulator(v["servo_link"], servo_id=v["servo_id"],
-                                      baudrate=v["servo_baud_rate"], world=self.world)
+                                      baudrate=v["servo_baud_rate"], world=self.world,
+                                      control_path=v["servo_control"] or None)
         self._truth_pub = self.create_publisher(WrenchStamped, "~/ground_truth", 100)
         self.create_timer(1.0 / v["ground_truth_rate"], self._publish_truth)
 

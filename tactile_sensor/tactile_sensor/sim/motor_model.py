@@ -144,7 +144,7 @@ class MotorModel:
         if not within:
             s.stalled = True
             load0 = abs(self.load_torque(p0))
-            if capacity - load0 <= 1e-6 * capacity:
+            if abs(capacity - load0) <= 1e-6 * capacity:
                 p1 = p0  # already pressing with everything allowed: stay
             elif load0 <= capacity:
                 p1 = self._solve(p0, p1, capacity)

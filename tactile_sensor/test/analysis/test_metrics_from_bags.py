@@ -42,7 +42,8 @@ def true_hysteresis_pct(truth: SensorTruth, speed_mm_s: float, depth_m: float) -
     s, fs_out = truth.sensitivity_v_per_n, truth.sensitivity_v_per_n * truth.force_at_depth_n
     load = s * truth.elastic_force_n(d - shift, depth_m)
     x = truth.elastic_force_n(d + shift, depth_m) / truth.force_at_depth_n
-    unload = s * truth.elastic_force_n(d + shift, depth_m) + truth.hysteresis_frac * fs_out * 4 * x * (1 - x)
+    bump = truth.hysteresis_frac * fs_out * 4 * x * (1 - x)
+    unload = s * truth.elastic_force_n(d + shift, depth_m) + bump
     return 100 * float(np.max(np.abs(unload - load))) / fs_out
 
 

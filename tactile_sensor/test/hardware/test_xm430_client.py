@@ -8,7 +8,6 @@ import time
 
 import numpy as np
 import pytest
-
 from tactile_sensor.hardware.errors import (
     CommunicationTimeout,
     DynamixelError,
@@ -156,7 +155,7 @@ def test_port_and_argument_errors(tmp_path):
         Xm430Client(str(tmp_path / "missing"), BAUD, 1).connect()
     with pytest.raises(PortOpenError, match="not an XM430 baud rate"):
         Xm430Client(str(tmp_path / "missing"), 12345, 1).connect()
-    with pytest.raises(InvalidServoValue, match="outside 0..252"):
+    with pytest.raises(InvalidServoValue, match=r"outside 0\.\.252"):
         Xm430Client("x", BAUD, 300)
     with pytest.raises(DynamixelError, match="not connected"):
         Xm430Client("x", BAUD, 1).read_state()

@@ -8,7 +8,6 @@ import dynamixel_easy_sdk
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-
 from tactile_sensor.hardware import xm430_table as table
 
 
@@ -39,9 +38,9 @@ def test_items_do_not_overlap_and_initials_are_in_range():
 
 
 def test_units():
-    assert table.RAD_PER_PULSE * 4096 == pytest.approx(2 * 3.141592653589793)
-    assert table.RAD_S_PER_VELOCITY_UNIT == pytest.approx(0.229 * 0.10471975511965977)
-    assert table.A_PER_CURRENT_UNIT == pytest.approx(2.69e-3)
+    assert pytest.approx(2 * 3.141592653589793) == table.RAD_PER_PULSE * 4096
+    assert pytest.approx(0.229 * 0.10471975511965977) == table.RAD_S_PER_VELOCITY_UNIT
+    assert pytest.approx(2.69e-3) == table.A_PER_CURRENT_UNIT
 
 
 @given(st.integers(0, 255))

@@ -16,7 +16,6 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
-from rclpy.qos import qos_profile_sensor_data
 from std_srvs.srv import Trigger
 
 from tactile_sensor.sensing.calibration import Calibration
@@ -98,7 +97,7 @@ class Listener:
         self.node.destroy_node()
 
 
-def _stamp(msg) -> float:  # noqa: ANN001
+def _stamp(msg) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 

@@ -19,6 +19,7 @@ from tactile_sensor.sensing.filters import make_filter
 from tactile_sensor.sim.adc_device import (
     QUIET,
     AdcNoise,
+    AdcSampler,
     MockAdcDevice,
     white_noise_for_dynamic_range,
 )
@@ -158,3 +159,14 @@ def test_cli_errors_are_one_sentence_not_a_traceback(tmp_path, args, match):
     _, err = proc.communicate(timeout=20)
     assert proc.returncode == 1
     assert match in err and "Traceback" not in err
+
+
+def test_sampler_drift_is_an_ornstein_uhlenbeck_process():
+    sampler = AdcSampler(1000.0, AdcNoise(white_v=0.0, drift_v=0.05, drift_tau_s=0.01),
+                         adc_bits=16, vref_v=5.0, rng=0)
+    # in blocks, as the device calls it: the drift carries over between calls
+    counts = np.concatenate([sampler.counts(np.full(n, 2.5)) for n in [1, 7, 500] * 60])
+    drift = counts[:, 0] * (5.0 / 65535) - 2.5
+    assert drift.std() == pytest.approx(0.05, rel=0.1)
+    lag1 = np.corrcoef(drift[:-1], drift[1:])[0, 1]
+    assert lag1 == pytest.approx(math.exp(-0.1), abs=0.02)

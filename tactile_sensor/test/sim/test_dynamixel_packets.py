@@ -6,7 +6,6 @@ import pytest
 from dynamixel_sdk import PacketHandler
 from hypothesis import assume, given
 from hypothesis import strategies as st
-
 from tactile_sensor.sim.dynamixel_packets import (
     BadCrc,
     Instruction,
@@ -30,10 +29,10 @@ def sdk_frame(servo_id: int, instruction: int, params: bytes) -> bytes:
     class Port:
         is_using = False
 
-        def clearPort(self):  # noqa: N802
+        def clearPort(self):
             pass
 
-        def writePort(self, packet):  # noqa: N802
+        def writePort(self, packet):
             sent.append(bytes(packet))
             return len(packet)
 

@@ -22,7 +22,6 @@ from dynamixel_sdk import (
     PacketHandler,
     PortHandler,
 )
-
 from tactile_sensor.sim.dynamixel_packets import Instruction, build_instruction, parse_one
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin
@@ -101,7 +100,7 @@ def test_limits_and_eeprom_lock(port):
 
 
 def test_unknown_instruction_gets_instruction_error(port):
-    rx, result, error = PH.txRxPacket(port, [0, 0, 0, 0, 1, 3, 0, 0x30, 0, 0])
+    _rx, result, error = PH.txRxPacket(port, [0, 0, 0, 0, 1, 3, 0, 0x30, 0, 0])
     assert (result, error) == (COMM_SUCCESS, 2)
 
 
@@ -253,7 +252,7 @@ def test_control_commands_and_errors(emulator):
 def test_bad_constructor_arguments(tmp_path):
     with pytest.raises(SimError, match="no 12345 bps"):
         Xm430Emulator(tmp_path / "x", baudrate=12345)
-    with pytest.raises(SimError, match="outside 0..252"):
+    with pytest.raises(SimError, match=r"outside 0\.\.252"):
         Xm430Emulator(tmp_path / "x", servo_id=300)
 
 

@@ -1,0 +1,86 @@
+"""Analysis time for a 100-cycle 1 kHz recording against rosbags' own read + deserialize.
+
+Usage: .venv/bin/python benchmarks/bench_analysis.py [--cycles 100] [--rate 1000]
+       [--storage sqlite3 mcap] [--keep DIR]
+Goal: full analysis (read, decode, metrics, calibration fit, figures, report) within
+1.5x of the baseline, which reads the same three topics with rosbags and runs
+deserialize_cdr on every message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
+
+from rosbags.rosbag2 import Reader
+from tactile_sensor.analysis import cli
+from tactile_sensor.analysis.synthetic import (
+    BagTopics,
+    PressProtocol,
+    SensorTruth,
+    press_signals,
+    write_press_bag,
+    writer_typestore,
+)
+
+
+def baseline_s(bag: Path) -> tuple[float, int]:
+    """rosbags alone: read the three topics and deserialize every message."""
+    store = writer_typestore()
+    topics = BagTopics()
+    wanted = {topics.reading, topics.reference, topics.position}
+    start = time.perf_counter()
+    n = 0
+    with Reader(bag) as reader:
+        conns = [c for c in reader.connections if c.topic in wanted]
+        deserialize = store.deserialize_cdr
+        for conn, _, raw in reader.messages(connections=conns):
+            deserialize(raw, conn.msgtype)
+            n += 1
+    return time.perf_counter() - start, n
+
+
+def analysis_s(bag: Path, out: Path) -> float:
+    start = time.perf_counter()
+    code = cli.main([str(bag), "--out", str(out), "--fit-calibration", "--prediction",
+                     "none", "--quiet"])
+    if code != 0:
+        raise SystemExit(f"analysis failed with exit code {code}")
+    return time.perf_counter() - start
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--cycles", type=int, default=100)
+    p.add_argument("--rate", type=float, default=1000.0)
+    p.add_argument("--storage", nargs="+", default=["sqlite3", "mcap"])
+    p.add_argument("--keep", type=Path, help="write/reuse bags in this directory")
+    args = p.parse_args()
+    protocol = PressProtocol(speeds_mm_s=(1.0,), cycles=(args.cycles,), rate_hz=args.rate)
+    with contextlib.ExitStack() as stack:
+        root = args.keep or Path(stack.enter_context(tempfile.TemporaryDirectory()))
+        root.mkdir(parents=True, exist_ok=True)
+        signals = None
+        print(f"{args.cycles} cycles at 1 mm/s, 3 mm, {args.rate:g} Hz, three topics")
+        for storage in args.storage:
+            bag = root / f"press_{args.cycles}_{int(args.rate)}_{storage}"
+            if not bag.exists():
+                if signals is None:
+                    signals = press_signals(protocol, SensorTruth(), seed=0)
+                t = time.perf_counter()
+                write_press_bag(bag, signals, storage)
+                print(f"  wrote {storage} bag in {time.perf_counter() - t:.1f} s")
+            base, n = baseline_s(bag)
+            full = analysis_s(bag, root / f"out_{storage}")
+            print(f"{storage:8s} messages {n:9d}  rosbags read+deserialize {base:7.2f} s  "
+                  f"analysis {full:7.2f} s  ratio {full / base:5.2f}x (goal <= 1.5x)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,466 @@
+"""Gripper node: an XM430 on a rack and pinion, closed until the tactile force says contact.
+
+Wiring only: parameters, the XM430 client (hardware/), the grasp and release state
+machines (control/), the tactile force subscription, actions, joint states, diagnostics.
+
+Goal policy: a new Grasp or Release goal *preempts* the running one (the running goal
+ends aborted with "preempted by a newer goal"); a manipulation stack can always release
+what it is grasping without canceling first.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import WrenchStamped
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.lifecycle import Node, State, TransitionCallbackReturn
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from tactile_sensor.control.errors import ControlError
+from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.control.grasp import (
+    GraspConfig,
+    GraspController,
+    GraspRequest,
+    Outcome,
+    ReleaseController,
+    ServoCommand,
+    Step,
+)
+from tactile_sensor.hardware.errors import DynamixelError, ServoHardwareError
+from tactile_sensor.hardware.xm430 import ServoState, Xm430Client
+from tactile_sensor.hardware.xm430_table import OperatingMode
+from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
+from tactile_sensor.nodes.parameters import (
+    ParameterError,
+    ParamSpec,
+    declare_parameters,
+    read_parameters,
+)
+from tactile_sensor_interfaces.action import Grasp, Release
+
+SPECS = [
+    ParamSpec("port", "/dev/ttyUSB0", "serial device of the Dynamixel bus (U2D2)"),
+    ParamSpec("baud_rate", 1_000_000, "Dynamixel bus baud rate [bit/s]", minimum=9600,
+              maximum=4_500_000),
+    ParamSpec("servo_id", 1, "Dynamixel id of the XM430", minimum=0, maximum=252),
+    ParamSpec("geometry.pitch_radius", 0.014, "pinion pitch radius [m] (servo angle -> "
+              "finger travel)", minimum=0.0, exclusive_minimum=True, maximum=0.2),
+    ParamSpec("geometry.open_opening", 0.060, "finger opening at the open limit [m]",
+              minimum=0.0, exclusive_minimum=True, maximum=1.0),
+    ParamSpec("geometry.closed_opening", 0.002, "finger opening at the closed limit [m]",
+              minimum=0.0, maximum=1.0),
+    ParamSpec("current_limit", 1.0, "servo current limit and holding current cap [A]",
+              minimum=0.0, exclusive_minimum=True, maximum=3.2),
+    ParamSpec("closing_current", 0.6, "goal current while closing and holding [A] (<= "
+              "current_limit)", minimum=0.0, exclusive_minimum=True, maximum=3.2),
+    ParamSpec("default_closing_speed", 0.01, "finger speed when a goal gives 0 [m/s]",
+              minimum=0.0, exclusive_minimum=True, maximum=0.2),
+    ParamSpec("release_speed", 0.02, "finger speed while releasing [m/s]", minimum=0.0,
+              exclusive_minimum=True, maximum=0.2),
+    ParamSpec("default_timeout", 10.0, "grasp/release timeout when a goal gives 0 [s]",
+              minimum=0.0, exclusive_minimum=True),
+    ParamSpec("control_rate", 100.0, "servo sync-read and control loop rate [Hz]",
+              minimum=1.0, maximum=1000.0),
+    ParamSpec("tactile_timeout", 0.2, "abort a grasp when the tactile force is older "
+              "than this [s]", minimum=0.0, exclusive_minimum=True),
+    ParamSpec("feedback_rate", 50.0, "action feedback rate [Hz]", minimum=1.0,
+              maximum=1000.0),
+    ParamSpec("auto_reboot", False, "reboot the servo by itself after a hardware error"),
+]
+
+
+class GripperNode(Node):
+    def __init__(self, node_name: str = "gripper", **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        declare_parameters(self, SPECS)
+        self._values: dict[str, Any] = {}
+        self._client: Xm430Client | None = None
+        self._config: GraspConfig | None = None
+        self._state: ServoState | None = None
+        self._comm_error = ""
+        self._hw_error: frozenset[str] = frozenset()
+        self._force: tuple[float, float] | None = None  # (force [N], stamp [s])
+        self._goal_lock = threading.Lock()
+        self._active_goal: ServerGoalHandle | None = None
+        self._abort_reason = "preempted by a newer goal"
+        self._last_diag = 0.0
+        self._state_event = threading.Event()
+        self._group = ReentrantCallbackGroup()
+        self._loop_group = MutuallyExclusiveCallbackGroup()
+        self._entities: list[Any] = []
+        self._joint_pub = self._diag_pub = self._timer = None
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def on_configure(self, state: State) -> TransitionCallbackReturn:
+        try:
+            values = read_parameters(self, SPECS)
+            if values["closing_current"] > values["current_limit"]:
+                raise ParameterError(
+                    f"Parameter 'closing_current' = {values['closing_current']} A exceeds "
+                    f"'current_limit' = {values['current_limit']} A; lower it.")
+            geometry = GripperGeometry(
+                pitch_radius_m=values["geometry.pitch_radius"],
+                open_opening_m=values["geometry.open_opening"],
+                closed_opening_m=values["geometry.closed_opening"])
+            config = GraspConfig(geometry=geometry,
+                                 closing_current_a=values["closing_current"],
+                                 hold_current_a=values["closing_current"],
+                                 stale_after_s=values["tactile_timeout"])
+        except (ParameterError, ValueError, ControlError) as exc:
+            self.get_logger().error(f"configure failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        client = Xm430Client(values["port"], values["baud_rate"], values["servo_id"])
+        try:
+            client.connect()
+            self._prepare_servo(client, values)
+        except DynamixelError as exc:
+            client.close()
+            self.get_logger().error(f"configure failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        self._values, self._client, self._config = values, client, config
+        self._joint_pub = self.create_lifecycle_publisher(JointState, "~/joint_states", 10)
+        self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._entities = [
+            self.create_subscription(WrenchStamped, "tactile_wrench", self._on_force, 100,
+                                     callback_group=self._group),
+            ActionServer(self, Grasp, "~/grasp", self._execute_grasp,
+                         goal_callback=self._on_goal, cancel_callback=self._on_cancel,
+                         callback_group=self._group),
+            ActionServer(self, Release, "~/release", self._execute_release,
+                         goal_callback=self._on_goal, cancel_callback=self._on_cancel,
+                         callback_group=self._group),
+            self.create_service(Trigger, "~/reboot", self._on_reboot,
+                                callback_group=self._group),
+        ]
+        self.get_logger().info(
+            f"configured: XM430 id {values['servo_id']} on {values['port']} at "
+            f"{values['baud_rate']} bit/s (firmware {client.firmware_version})")
+        return TransitionCallbackReturn.SUCCESS
+
+    @staticmethod
+    def _prepare_servo(client: Xm430Client, values: dict[str, Any]) -> None:
+        client.set_torque(False)
+        client.set_operating_mode(OperatingMode.CURRENT_BASED_POSITION)
+        client.set_current_limit_a(values["current_limit"])
+
+    def on_activate(self, state: State) -> TransitionCallbackReturn:
+        assert self._client is not None
+        try:
+            self._hold_here(torque=True)
+        except DynamixelError as exc:
+            self.get_logger().error(f"activate failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        self._timer = self.create_timer(1.0 / self._values["control_rate"], self._loop,
+                                        callback_group=self._loop_group)
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: State) -> TransitionCallbackReturn:
+        self._abort_active("the gripper node was deactivated")
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+            self._timer = None
+        if self._client is not None:
+            try:
+                self._client.set_torque(False)
+            except DynamixelError as exc:
+                self.get_logger().warn(f"torque off failed: {exc}")
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: State) -> TransitionCallbackReturn:
+        self._teardown()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: State) -> TransitionCallbackReturn:
+        self._abort_active("the gripper node is shutting down")
+        self._teardown()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _teardown(self) -> None:
+        if self._timer is not None:
+            self.destroy_timer(self._timer)
+            self._timer = None
+        for entity in self._entities:
+            if isinstance(entity, ActionServer):
+                entity.destroy()
+            elif hasattr(entity, "topic_name"):
+                self.destroy_subscription(entity)
+            else:
+                self.destroy_service(entity)
+        self._entities = []
+        if self._joint_pub is not None:
+            self.destroy_lifecycle_publisher(self._joint_pub)
+        if self._diag_pub is not None:
+            self.destroy_publisher(self._diag_pub)
+        self._joint_pub = self._diag_pub = None
+        if self._client is not None:
+            self._client.close()
+        self._client = None
+
+    # -- servo loop (timer) ------------------------------------------------------------------
+    def _loop(self) -> None:
+        client = self._client
+        if client is None:
+            return
+        try:
+            state = client.read_state()
+        except DynamixelError as exc:
+            if not self._comm_error:
+                self.get_logger().error(f"servo unreachable: {exc}")
+            self._comm_error = str(exc)
+            self._publish_diagnostics()
+            return
+        if self._comm_error:
+            self.get_logger().info("servo answers again")
+        self._comm_error = ""
+        self._state = state
+        self._state_event.set()
+        if state.hardware_error and state.hardware_error != self._hw_error:
+            self._on_hardware_error(state.hardware_error)
+        self._hw_error = state.hardware_error
+        assert self._config is not None
+        msg = JointState(name=["finger_opening"],
+                         position=[self._config.geometry.opening_m(state.position_rad)],
+                         velocity=[-2.0 * self._config.geometry.pitch_radius_m
+                                   * state.velocity_rad_s],
+                         effort=[state.current_a])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        if self._joint_pub is not None:
+            self._joint_pub.publish(msg)
+        if time.monotonic() - self._last_diag >= 1.0:
+            self._publish_diagnostics()
+
+    def _on_hardware_error(self, bits: frozenset[str]) -> None:
+        self.get_logger().error(f"servo hardware error: {', '.join(sorted(bits))}; torque off")
+        assert self._client is not None
+        try:
+            self._client.set_torque(False)
+        except DynamixelError as exc:
+            self.get_logger().error(f"torque off failed: {exc}")
+        self._publish_diagnostics(bits)
+        if self._values.get("auto_reboot"):
+            threading.Thread(target=self._reboot, daemon=True).start()
+
+    def _publish_diagnostics(self, bits: frozenset[str] | None = None) -> None:
+        self._last_diag = time.monotonic()
+        if self._diag_pub is None:
+            return
+        bits = self._hw_error if bits is None else bits
+        status = DiagnosticStatus(name=f"{self.get_fully_qualified_name()}: XM430",
+                                  hardware_id=f"{self._values.get('port')} id "
+                                  f"{self._values.get('servo_id')}")
+        if bits:
+            status.level = DiagnosticStatus.ERROR
+            status.message = "hardware error: " + ", ".join(sorted(bits))
+        elif self._comm_error:
+            status.level, status.message = DiagnosticStatus.ERROR, self._comm_error
+        else:
+            status.level, status.message = DiagnosticStatus.OK, "ready"
+        state = self._state
+        if state is not None:
+            status.values = [KeyValue(key=k, value=v) for k, v in (
+                ("position_rad", f"{state.position_rad:.4f}"),
+                ("current_a", f"{state.current_a:.3f}"),
+                ("input_voltage_v", f"{state.input_voltage_v:.1f}"),
+                ("temperature_c", f"{state.temperature_c:.0f}"),
+                ("hardware_error", ",".join(sorted(bits)) or "none"))]
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(array)
+
+    # -- commands ---------------------------------------------------------------------------
+    def _send(self, command: ServoCommand | None) -> None:
+        if command is None or self._client is None:
+            return
+        self._client.command_position(command.goal_position_rad,
+                                      command.profile_velocity_rad_s,
+                                      goal_current_a=command.goal_current_a)
+
+    def _hold_here(self, torque: bool = False) -> None:
+        assert self._client is not None and self._config is not None
+        state = self._client.read_state()
+        self._state = state
+        if torque:
+            self._client.set_torque(True)
+        self._client.command_position(state.position_rad, self._config.stop_velocity_rad_s,
+                                      goal_current_a=self._config.hold_current_a)
+
+    # -- tactile ------------------------------------------------------------------------------
+    def _on_force(self, msg: WrenchStamped) -> None:
+        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+        self._force = (msg.wrench.force.z, stamp)
+
+    # -- actions -----------------------------------------------------------------------------
+    def _on_goal(self, goal: Any) -> GoalResponse:
+        return GoalResponse.ACCEPT
+
+    def _on_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
+        return CancelResponse.ACCEPT
+
+    def _take_over(self, goal_handle: ServerGoalHandle) -> None:
+        with self._goal_lock:
+            self._active_goal = goal_handle
+            self._abort_reason = "preempted by a newer goal"
+
+    def _superseded(self, goal_handle: ServerGoalHandle) -> bool:
+        with self._goal_lock:
+            return self._active_goal is not goal_handle
+
+    def _abort_active(self, reason: str) -> None:
+        with self._goal_lock:
+            self._active_goal = None
+            self._abort_reason = reason
+
+    def _execute_grasp(self, goal_handle: ServerGoalHandle) -> Grasp.Result:
+        self._take_over(goal_handle)
+        goal = goal_handle.request
+        assert self._config is not None
+        request = GraspRequest(
+            target_force_n=goal.target_force,
+            speed_m_s=goal.closing_speed or self._values["default_closing_speed"],
+            timeout_s=goal.timeout or self._values["default_timeout"])
+        controller = GraspController(self._config)
+
+        def feedback(step: Step) -> None:
+            force = self._force[0] if self._force else math.nan
+            goal_handle.publish_feedback(Grasp.Feedback(force=force, opening=step.opening_m))
+
+        def result(step: Step, message: str | None = None) -> Grasp.Result:
+            force = self._force[0] if self._force else math.nan
+            return Grasp.Result(contact_detected=step.outcome is Outcome.CONTACT,
+                                force=force, opening=step.opening_m,
+                                message=message or f"{step.outcome}: {step.message}")
+
+        def tick(now: float, state: ServoState) -> Step:
+            force = self._force
+            return controller.tick(now, force[0] if force else None,
+                                   force[1] if force else None, state)
+
+        return self._run(goal_handle, lambda now, state: controller.start(request, now, state),
+                         tick, controller, feedback, result, Grasp.Result)
+
+    def _execute_release(self, goal_handle: ServerGoalHandle) -> Release.Result:
+        self._take_over(goal_handle)
+        assert self._config is not None
+        opening = goal_handle.request.opening or self._config.geometry.open_opening_m
+        controller = ReleaseController(self._config)
+
+        def feedback(step: Step) -> None:
+            goal_handle.publish_feedback(Release.Feedback(opening=step.opening_m))
+
+        def result(step: Step, message: str | None = None) -> Release.Result:
+            return Release.Result(opening=step.opening_m,
+                                  success=step.outcome is Outcome.OPENED,
+                                  message=message or f"{step.outcome}: {step.message}")
+
+        return self._run(
+            goal_handle,
+            lambda now, state: controller.start(opening, self._values["release_speed"],
+                                                self._values["default_timeout"], now, state),
+            lambda now, state: controller.tick(now, state), controller, feedback, result,
+            Release.Result)
+
+    def _run(self, goal_handle: ServerGoalHandle, start: Any, tick: Any, controller: Any,
+             feedback: Any, result: Any, result_type: Any) -> Any:
+        """The loop both actions share: start, tick at the control rate, finish."""
+        state = self._state
+        if state is None or self._client is None:
+            goal_handle.abort()
+            return result_type(message="the gripper is not active")
+        try:
+            if self._hw_error:
+                raise ServoHardwareError("servo hardware error: "
+                                         + ", ".join(sorted(self._hw_error)), self._hw_error)
+            if not self._client.torque_enabled():
+                self._hold_here(torque=True)
+            step = start(time.time(), self._state)
+            self._send(step.command)
+        except (ControlError, DynamixelError) as exc:
+            goal_handle.abort()
+            return result_type(message=str(exc))
+        period = 1.0 / self._values["control_rate"]
+        feedback_period = 1.0 / self._values["feedback_rate"]
+        last_feedback = 0.0
+        while not step.finished:
+            if goal_handle.is_cancel_requested:
+                step = controller.cancel(time.time(), self._state)
+                self._send_safely(step.command)
+                goal_handle.canceled()
+                return result(step, "canceled: stopped where the fingers were")
+            if self._superseded(goal_handle):
+                step = controller.cancel(time.time(), self._state)
+                self._send_safely(step.command)
+                goal_handle.abort()
+                return result(step, self._abort_reason)
+            self._state_event.clear()
+            self._state_event.wait(2 * period)
+            if self._comm_error:
+                goal_handle.abort()
+                return result(step, f"servo unreachable: {self._comm_error}")
+            step = tick(time.time(), self._state)
+            if not self._send_safely(step.command):
+                goal_handle.abort()
+                return result(step, f"servo unreachable: {self._comm_error}")
+            now = time.monotonic()
+            if now - last_feedback >= feedback_period:
+                feedback(step)
+                last_feedback = now
+        if step.outcome is Outcome.HARDWARE_ERROR:
+            self._on_hardware_error(self._state.hardware_error)
+        if step.outcome is not None and step.outcome.succeeded:
+            goal_handle.succeed()
+        else:
+            goal_handle.abort()
+        with self._goal_lock:
+            if self._active_goal is goal_handle:
+                self._active_goal = None
+        return result(step)
+
+    def _send_safely(self, command: ServoCommand | None) -> bool:
+        try:
+            self._send(command)
+        except ServoHardwareError:
+            return True  # the loop reports it through the state's hardware_error
+        except DynamixelError as exc:
+            self._comm_error = str(exc)
+            return False
+        return True
+
+    # -- recovery ----------------------------------------------------------------------------
+    def _reboot(self) -> tuple[bool, str]:
+        client = self._client
+        if client is None:
+            return False, "the gripper is not configured"
+        try:
+            client.reboot()
+            self._prepare_servo(client, self._values)
+            self._hw_error = frozenset()
+            self._hold_here(torque=True)
+        except DynamixelError as exc:
+            self.get_logger().error(f"reboot failed: {exc}")
+            return False, str(exc)
+        self.get_logger().info("servo rebooted, hardware error cleared, torque on")
+        self._publish_diagnostics(frozenset())
+        return True, "rebooted; hardware error cleared"
+
+    def _on_reboot(self, request: Trigger.Request, response: Trigger.Response
+                   ) -> Trigger.Response:
+        self._abort_active("the servo is being rebooted")
+        response.success, response.message = self._reboot()
+        return response
+
+
+def main(args: list[str] | None = None) -> None:
+    run_lifecycle_node(GripperNode, args)
+
+
+if __name__ == "__main__":
+    main()

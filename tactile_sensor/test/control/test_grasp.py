@@ -1,0 +1,148 @@
+"""Grasp and release state machines, fed synthetic inputs (pure, no I/O)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from tactile_sensor.control.errors import InvalidRequest
+from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.control.grasp import (
+    GraspConfig,
+    GraspController,
+    GraspRequest,
+    Outcome,
+    Phase,
+    ReleaseController,
+)
+
+G = GripperGeometry()
+
+
+@dataclass(frozen=True)
+class Servo:
+    position_rad: float = G.open_position_rad
+    moving: bool = True
+    hardware_error: frozenset[str] = frozenset()
+
+
+def at(opening_m: float, **kw) -> Servo:
+    return Servo(G.position_rad(opening_m), **kw)
+
+
+def started(target=2.0, speed=0.01, timeout=5.0, config=None) -> GraspController:
+    controller = GraspController(config)
+    step = controller.start(GraspRequest(target, speed, timeout), 0.0, Servo())
+    assert step.phase is Phase.CLOSING and not step.finished
+    return controller
+
+
+@given(st.floats(0.001, 0.1), st.floats(0.1, 20.0))
+def test_start_commands_the_closed_limit_at_the_requested_finger_speed(speed, target):
+    step = GraspController().start(GraspRequest(target, speed, 5.0), 0.0, Servo())
+    assert step.command.goal_position_rad == pytest.approx(G.closed_position_rad)
+    assert step.command.profile_velocity_rad_s * G.pitch_radius_m == pytest.approx(speed)
+    assert step.command.goal_current_a == GraspConfig().closing_current_a
+
+
+def test_contact_holds_where_the_fingers_are():
+    controller = started(target=2.0)
+    step = controller.tick(0.5, 2.1, 0.49, at(0.018))
+    assert step.outcome is Outcome.CONTACT and step.phase is Phase.DONE
+    assert step.command.goal_position_rad == pytest.approx(G.position_rad(0.018))
+    assert step.command.goal_current_a == GraspConfig().hold_current_a
+    assert controller.tick(0.6, 2.1, 0.59, at(0.018)).command is None   # finished
+
+
+@given(st.floats(0.0, 1.0), st.floats(0.0, 1.0))
+def test_slowdown_never_speeds_up_with_more_force(f1, f2):
+    controller = started(target=2.0, config=GraspConfig(resend_speed_change=0.0))
+    low, high = sorted((f1, f2))
+    s_low = controller._scheduled_speed(low * 2.0)
+    s_high = controller._scheduled_speed(high * 2.0)
+    assert s_high <= s_low + 1e-12
+    assert s_high >= GraspConfig().min_speed_fraction * 0.01 / G.pitch_radius_m - 1e-12
+
+
+def test_slowdown_recommands_a_lower_speed_once():
+    controller = started(target=2.0)
+    assert controller.tick(0.1, 0.5, 0.1, at(0.03)).command is None
+    step = controller.tick(0.2, 1.6, 0.2, at(0.019))
+    assert step.command.profile_velocity_rad_s == pytest.approx(0.4 * 0.01 / G.pitch_radius_m)
+    assert controller.tick(0.21, 1.6, 0.21, at(0.019)).command is None
+
+
+@pytest.mark.parametrize(("tick", "outcome"), [
+    ((6.0, 0.0, 6.0, at(0.03)), Outcome.TIMEOUT),
+    ((0.5, 0.0, 0.3, at(0.03)), Outcome.TACTILE_STALE),
+    ((0.5, None, None, at(0.03)), Outcome.TACTILE_STALE),
+    ((0.5, 0.0, 0.5, at(G.closed_opening_m)), Outcome.CLOSED_LIMIT_WITHOUT_CONTACT),
+    ((0.5, 0.0, 0.5, at(0.03, hardware_error=frozenset({"overload"}))),
+     Outcome.HARDWARE_ERROR),
+])
+def test_aborts_with_a_reason(tick, outcome):
+    step = started().tick(*tick)
+    assert step.outcome is outcome and step.phase is Phase.ABORTED
+    assert not outcome.succeeded
+    if outcome is Outcome.HARDWARE_ERROR:
+        assert step.command is None and "overload" in step.message
+    else:
+        assert step.command.goal_position_rad == pytest.approx(tick[3].position_rad)
+
+
+def test_waits_briefly_for_the_first_tactile_reading():
+    step = started().tick(0.05, None, None, at(0.05))
+    assert step.outcome is None and step.message == "waiting for tactile force"
+
+
+def test_cancel_stops_at_once_and_only_while_moving():
+    controller = started()
+    step = controller.cancel(0.3, at(0.04))
+    assert step.outcome is Outcome.CANCELED
+    assert step.command.goal_position_rad == pytest.approx(G.position_rad(0.04))
+    assert controller.cancel(0.4, at(0.04)).outcome is None
+
+
+def test_start_with_a_latched_error_aborts():
+    step = GraspController().start(GraspRequest(2.0, 0.01, 5.0), 0.0,
+                                   Servo(hardware_error=frozenset({"overheating"})))
+    assert step.outcome is Outcome.HARDWARE_ERROR
+
+
+@pytest.mark.parametrize("request_", [
+    GraspRequest(0.0, 0.01, 5.0), GraspRequest(2.0, 0.0, 5.0), GraspRequest(2.0, 1.0, 5.0),
+    GraspRequest(2.0, 0.01, 0.0), GraspRequest(float("nan"), 0.01, 5.0),
+])
+def test_invalid_grasp_requests(request_):
+    with pytest.raises(InvalidRequest):
+        GraspController().start(request_, 0.0, Servo())
+
+
+def test_invalid_config():
+    with pytest.raises(InvalidRequest, match="slowdown_from_fraction"):
+        GraspConfig(slowdown_from_fraction=0.0)
+    with pytest.raises(InvalidRequest, match="hold_current_a"):
+        GraspConfig(hold_current_a=-1.0)
+
+
+def test_release_opens_and_finishes_when_still_there():
+    release = ReleaseController()
+    step = release.start(0.05, 0.02, 3.0, 0.0, at(0.018))
+    assert step.command.goal_position_rad == pytest.approx(G.position_rad(0.05))
+    assert release.tick(0.5, at(0.03)).outcome is None
+    assert release.tick(0.9, at(0.05, moving=True)).outcome is None
+    assert release.tick(1.0, at(0.05, moving=False)).outcome is Outcome.OPENED
+
+
+def test_release_aborts_and_rejects_bad_requests():
+    release = ReleaseController()
+    release.start(0.05, 0.02, 1.0, 0.0, at(0.018))
+    assert release.tick(1.5, at(0.02)).outcome is Outcome.TIMEOUT
+    with pytest.raises(InvalidRequest, match="outside the travel"):
+        ReleaseController().start(0.1, 0.02, 1.0, 0.0, at(0.02))
+    with pytest.raises(InvalidRequest, match="speed"):
+        ReleaseController().start(0.05, -1.0, 1.0, 0.0, at(0.02))
+    with pytest.raises(InvalidRequest, match="timeout"):
+        ReleaseController().start(0.05, 0.02, 0.0, 0.0, at(0.02))

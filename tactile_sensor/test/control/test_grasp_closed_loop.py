@@ -1,0 +1,60 @@
+"""Grasp state machine + Xm430Client + emulator + gripper world in one loop."""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+import pytest
+from tactile_sensor.control.grasp import GraspController, GraspRequest, Outcome
+from tactile_sensor.hardware.xm430 import Xm430Client
+from tactile_sensor.hardware.xm430_table import OperatingMode
+from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin
+from tactile_sensor.sim.xm430_emulator import Xm430Emulator
+
+
+@pytest.fixture(autouse=True)
+def _share_the_gil_fairly():
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(2e-4)
+    yield
+    sys.setswitchinterval(before)
+
+
+def run_grasp(tmp_path, rod_diameter_m):
+    d = np.linspace(0.0, 0.003, 31)
+    force = 7.0 * d / 0.003
+    world = GripperWorld(TabulatedSkin(d, force, 2.0 - 0.07 * force, 0.005),
+                         rod_diameter_m=rod_diameter_m)
+    with Xm430Emulator(tmp_path / "xm430", baudrate=1_000_000, world=world) as emu, \
+            Xm430Client(str(emu.link.link_path), 1_000_000, 1, timeout_s=0.2) as client:
+        client.set_operating_mode(OperatingMode.CURRENT_BASED_POSITION)
+        client.set_torque(True)
+        controller = GraspController()
+        step = controller.start(GraspRequest(2.0, 0.02, 5.0), time.monotonic(),
+                                client.read_state())
+        while True:
+            if step.command is not None:
+                c = step.command
+                client.command_position(c.goal_position_rad, c.profile_velocity_rad_s,
+                                        goal_current_a=c.goal_current_a)
+            if step.finished:
+                break
+            state = client.read_state()
+            now = time.monotonic()
+            step = controller.tick(now, world.latest.force_a_n, now, state)
+        time.sleep(0.2)
+        return step, world.latest.force_a_n
+
+
+def test_closing_on_the_rod_reaches_the_target_force(tmp_path):
+    step, held = run_grasp(tmp_path, 0.020)
+    assert step.outcome is Outcome.CONTACT
+    # held where the fingers were read (0.088 deg position steps ~ 0.05 N on this skin)
+    assert 1.8 <= held < 2.6
+
+
+def test_no_rod_ends_at_the_closed_limit(tmp_path):
+    step, held = run_grasp(tmp_path, None)
+    assert step.outcome is Outcome.CLOSED_LIMIT_WITHOUT_CONTACT and held == 0.0

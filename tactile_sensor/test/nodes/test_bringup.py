@@ -1,0 +1,99 @@
+"""Both configurations through 'tactile-sensor bringup' with mock hardware, checking the
+recorded data against the world's ground truth; and the command's bad-input paths."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+
+from tactile_sensor.physics.params import PhysicsParams
+from tactile_sensor.physics.prediction import load_or_compute_curve
+
+
+def read_bag(path: Path) -> dict[str, tuple[np.ndarray, list]]:
+    """topic -> (header stamps [s], messages)."""
+    out: dict[str, tuple[list, list]] = {}
+    with AnyReader([path]) as reader:
+        for connection, _, raw in reader.messages():
+            msg = reader.deserialize(raw, connection.msgtype)
+            stamps, msgs = out.setdefault(connection.topic, ([], []))
+            header = getattr(msg, "header", None)
+            stamps.append(header.stamp.sec + header.stamp.nanosec * 1e-9 if header else 0.0)
+            msgs.append(msg)
+    return {topic: (np.array(s), m) for topic, (s, m) in out.items()}
+
+
+def bringup(spawn, tmp_path: Path, *args: str):
+    return spawn("bringup", *args, module="tactile_sensor.cli")
+
+
+def test_bench_compression_records_plausible_data(spawn, ros_domain, tmp_path):
+    bag = tmp_path / "bench_bag"
+    run = bringup(spawn, tmp_path, "bench", "--protocol", "compression", "--record", str(bag),
+                  "--port", f"adc_port={tmp_path / 'adc'}")
+    assert run.proc.wait(timeout=240) == 0, run.output()
+    assert "protocol 100 %" in run.output()
+    data = read_bag(bag)
+    for topic in ("/driver/reading", "/driver/wrench", "/bench/stage/joint_states",
+                  "/bench/gauge/wrench", "/diagnostics", "/calibration_curve"):
+        assert topic in data, (topic, sorted(data))
+    # rates: 1 kHz from the ADC (driver) and from the gauge, over the protocol
+    for topic in ("/driver/reading", "/bench/gauge/wrench"):
+        stamps = data[topic][0]
+        rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+        assert 900 < rate < 1100, (topic, rate)
+    gauge_t, gauge = data["/bench/gauge/wrench"]
+    gauge_f = np.array([m.wrench.force.z for m in gauge])
+    _, stage = data["/bench/stage/joint_states"]
+    depth = np.array([m.position[0] for m in stage])
+    assert depth.max() == pytest.approx(0.003, rel=1e-3)
+    curve = load_or_compute_curve(PhysicsParams())
+    # the gauge reads the FEM force at full indentation, plus a few % of rate effect
+    assert gauge_f.max() == pytest.approx(curve.force_n[-1], rel=0.10)
+    # the driver's force tracks the gauge on the shared clock
+    force_t, wrench = data["/driver/wrench"]
+    force = np.array([m.wrench.force.z for m in wrench])
+    inside = (force_t > gauge_t[0]) & (force_t < gauge_t[-1])
+    reference = np.interp(force_t[inside], gauge_t, gauge_f)
+    rmse = float(np.sqrt(np.mean((force[inside] - reference) ** 2)))
+    assert rmse < 0.07 * curve.force_n[-1], rmse
+    assert force.max() == pytest.approx(gauge_f.max(), rel=0.12)
+
+
+def test_gripper_grasp_records_contact_near_target(spawn, ros_domain, tmp_path):
+    bag = tmp_path / "gripper_bag"
+    run = bringup(spawn, tmp_path, "gripper", "--protocol", "grasp", "--record", str(bag),
+                  "--port", f"adc_port={tmp_path / 'adc'}",
+                  "--port", f"servo_port={tmp_path / 'xm430'}")
+    assert run.proc.wait(timeout=240) == 0, run.output()
+    out = run.output()
+    assert "grasp result: contact=True" in out
+    assert "release: success=True" in out
+    data = read_bag(bag)
+    for topic in ("/driver/wrench", "/gripper/joint_states", "/gripper_world/ground_truth"):
+        assert topic in data, (topic, sorted(data))
+    truth = np.array([m.wrench.force.z for m in data["/gripper_world/ground_truth"][1]])
+    assert truth.max() == pytest.approx(1.5, rel=0.15)  # protocols.yaml target force
+    opening = np.array([m.position[0] for m in data["/gripper/joint_states"][1]])
+    assert opening.min() < 0.021 and opening[-1] > 0.05  # closed on the 20 mm rod, reopened
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["bench", "--protocol", "nope"], "Unknown bench protocol 'nope'"),
+    (["bench", "--port", "adc=/x"], "NAME=PATH"),
+    (["bench", "--config", "/no/such.yaml"], "does not exist"),
+])
+def test_bad_options_give_one_sentence(spawn, tmp_path, args, message):
+    run = bringup(spawn, tmp_path, *args)
+    assert run.proc.wait(timeout=60) == 2
+    assert message in run.output() and "Traceback" not in run.output()
+
+
+def test_an_existing_record_folder_is_never_overwritten(spawn, tmp_path):
+    (tmp_path / "bag").mkdir()
+    run = bringup(spawn, tmp_path, "bench", "--record", str(tmp_path / "bag"))
+    assert run.proc.wait(timeout=60) == 2
+    assert "already exists" in run.output()

@@ -1,0 +1,91 @@
+"""Model node in its own process: ~/predict answers from the FEM curve, the latched
+calibration reaches a subscriber that starts late, bad input is refused with a message."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from tactile_sensor.configurations import config_dir
+from tactile_sensor.physics.params import PhysicsParams
+from tactile_sensor.physics.prediction import load_or_compute_curve
+from tactile_sensor_interfaces.msg import CalibrationCurve
+from tactile_sensor_interfaces.srv import PredictOutput
+
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                     reliability=ReliabilityPolicy.RELIABLE)
+
+
+@pytest.fixture(scope="module")
+def curve():
+    return load_or_compute_curve(PhysicsParams())
+
+
+def start_model(spawn, *extra: str):
+    return spawn("--ros-args", "-r", "__node:=model",
+                 "--params-file", str(config_dir() / "physics.yaml"),
+                 "-p", "autostart:=true", *extra, module="tactile_sensor.nodes.model")
+
+
+def call(node, client, request, timeout_s: float = 10.0):
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout_s)
+    assert future.done()
+    return future.result()
+
+
+def test_predict_and_latched_calibration(spawn, ros_domain, curve):
+    model = start_model(spawn)
+    assert model.wait_for_output("prediction ready", 120), model.output()
+    time.sleep(1.0)  # the late subscriber below starts well after the publication
+    with rclpy.init():
+        node = rclpy.create_node("model_client")
+        received: list[CalibrationCurve] = []
+        node.create_subscription(CalibrationCurve, "/calibration_curve", received.append,
+                                 LATCHED)
+        client = node.create_client(PredictOutput, "/model/predict")
+        assert client.wait_for_service(timeout_sec=20)
+        d = np.linspace(0.0, float(curve.indentation_m[-1]), 7)
+        response = call(node, client, PredictOutput.Request(indentation=d.tolist()))
+        assert response.success, response.message
+        expected = curve.at(d)
+        np.testing.assert_allclose(response.force, expected.force_n, rtol=1e-9)
+        np.testing.assert_allclose(response.output, expected.output_v, rtol=1e-9)
+        np.testing.assert_allclose(response.distance, expected.distance_m, rtol=1e-9)
+        assert np.all(np.diff(response.force) > 0)
+
+        outside = call(node, client, PredictOutput.Request(indentation=[0.001, 0.02]))
+        assert not outside.success
+        assert "0.02" in outside.message
+
+        deadline = time.monotonic() + 10
+        while not received and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)
+        node.destroy_node()
+    assert received, "the late subscriber got no latched calibration"
+    output, force = curve.calibration()
+    np.testing.assert_allclose(received[0].output, output)
+    np.testing.assert_allclose(received[0].force, force)
+    assert received[0].source.startswith("fem:")
+
+
+def test_not_ready_while_computing_and_bad_physics_parameter(spawn, ros_domain, tmp_path):
+    # A fresh cache: the node must answer "not ready" while the sweep runs.
+    model = start_model(spawn, "-p", f"cache_dir:={tmp_path}", "-p", "steps:=6",
+                        "-p", "mesh_nx:=3", "-p", "mesh_ny:=4", "-p", "mesh_nz:=6")
+    with rclpy.init():
+        node = rclpy.create_node("model_client")
+        client = node.create_client(PredictOutput, "/model/predict")
+        assert client.wait_for_service(timeout_sec=20)
+        first = call(node, client, PredictOutput.Request(indentation=[0.001]))
+        node.destroy_node()
+    if not first.success:
+        assert "not ready" in first.message and "%" in first.message, first.message
+    assert model.wait_for_output("prediction ready", 120), model.output()
+    bad = start_model(spawn, "-r", "__node:=model_bad", "-p", "height:=-0.01")
+    assert bad.wait_for_output("configure transition failed", 30), bad.output()
+    assert "'height'" in bad.output() and "Traceback" not in bad.output()

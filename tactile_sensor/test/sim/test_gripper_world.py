@@ -1,0 +1,112 @@
+"""Gripper world: geometry, contact, load torque and the photoreflector voltage."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin
+
+
+def skin() -> TabulatedSkin:
+    d = np.linspace(0.0, 0.003, 31)
+    force = 7.0 * (d / 0.003) ** 1.2
+    return TabulatedSkin(d, force, 2.0 - 0.07 * force, thickness_m=0.005)
+
+
+@given(st.floats(0.002, 0.060))
+def test_geometry_round_trip_and_direction(opening):
+    g = GripperGeometry()
+    position = g.position_rad(opening)
+    assert g.opening_m(position) == pytest.approx(opening)
+    assert g.opening_m(position + 0.01) < opening           # positive rotation closes
+
+
+def test_contact_starts_at_the_rod_diameter_and_is_symmetric():
+    world = GripperWorld(skin(), rod_diameter_m=0.020)
+    g = world.geometry
+    assert world.indentations_m(g.position_rad(0.0201)) == (0.0, 0.0)
+    a, b = world.indentations_m(g.position_rad(0.018))
+    assert a == pytest.approx(0.001) and b == pytest.approx(0.001)
+    world.set_rod(0.020, 0.002)                              # rod nearer finger B
+    a, b = world.indentations_m(g.position_rad(0.018))
+    assert a == 0.0 and b == pytest.approx(0.003)
+
+
+@given(st.floats(0.0, 0.062), st.floats(0.0, 0.001))
+def test_load_torque_is_monotonic_in_closing(opening, delta):
+    world = GripperWorld(skin(), rod_diameter_m=0.020)
+    g = world.geometry
+    p = g.position_rad(opening)
+    assert world.load_torque_nm(p + delta) >= world.load_torque_nm(p) - 1e-12
+
+
+def test_load_torque_is_pitch_radius_times_both_forces():
+    world = GripperWorld(skin(), rod_diameter_m=0.020)
+    p = world.geometry.position_rad(0.016)
+    assert world.load_torque_nm(p) == pytest.approx(0.014 * 2 * skin().force_n(0.002))
+
+
+def test_closed_limit_is_a_hard_stop_without_rod():
+    world = GripperWorld(skin(), rod_diameter_m=None)
+    g = world.geometry
+    assert world.load_torque_nm(g.closed_position_rad) == 0.0
+    assert world.load_torque_nm(g.closed_position_rad + 0.01) > 0.5   # 56 N per 0.28 mm
+
+
+def test_update_drives_voltage_and_force_history():
+    world = GripperWorld(skin(), rod_diameter_m=0.020)
+    g = world.geometry
+    rest = world.photoreflector_voltage(0.0)
+    world.update(1.0, g.position_rad(0.020))
+    world.update(2.0, g.position_rad(0.016))
+    assert world.photoreflector_voltage(2.0) < rest            # the skin bulges nearer
+    assert world.latest.force_a_n == pytest.approx(skin().force_n(0.002))
+    assert world.force_at(1.5) == pytest.approx(0.5 * skin().force_n(0.002))
+    assert world.force_at(5.0) == world.latest.force_a_n
+
+
+def test_skin_extrapolates_and_bottoms_out():
+    s = skin()
+    assert s.force_n(0.004) > s.force_n(0.003)
+    assert s.force_n(0.006) - s.force_n(0.005) > 100.0          # resin frame
+    assert s.voltage_v(0.004) == s.voltage_v(0.003)
+
+
+@pytest.mark.parametrize(("d", "f", "v", "match"), [
+    ([0.0], [0.0], [1.0], "2\\+ points"),
+    ([0.0, 0.0], [0.0, 1.0], [1.0, 1.0], "increase"),
+    ([0.0, 0.001], [1.0, 0.0], [1.0, 1.0], "must not decrease"),
+])
+def test_skin_table_validation(d, f, v, match):
+    with pytest.raises(ValueError, match=match):
+        TabulatedSkin(d, f, v)
+
+
+def test_bad_world_arguments():
+    with pytest.raises(ValueError, match="rod_diameter_m"):
+        GripperWorld(skin(), rod_diameter_m=-0.01)
+    with pytest.raises(ValueError, match="closed_opening_m"):
+        GripperGeometry(closed_opening_m=0.1)
+
+
+def test_reader_thread_sees_consistent_samples():
+    world = GripperWorld(skin(), rod_diameter_m=0.020)
+    g = world.geometry
+    stop, seen = threading.Event(), []
+
+    def reader():
+        while not stop.is_set():
+            seen.append(world.photoreflector_voltage(0.0))
+
+    thread = threading.Thread(target=reader)
+    thread.start()
+    for i in range(2000):
+        world.update(i * 1e-3, g.position_rad(0.020 - 0.004 * i / 2000))
+    stop.set()
+    thread.join()
+    assert seen and all(1.0 < v <= 2.0 for v in seen)
