@@ -19,6 +19,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
 from rosbags.rosbag2 import Reader
+
 from tactile_sensor.analysis import cli
 from tactile_sensor.analysis.synthetic import (
     BagTopics,

@@ -44,7 +44,8 @@ class Spawned:
         )
 
     def output(self) -> str:
-        self._log_file.flush()
+        if not self._log_file.closed:
+            self._log_file.flush()
         return self.log.read_text(errors="replace")
 
     def wait_for_output(self, text: str, timeout_s: float = 20.0) -> bool:

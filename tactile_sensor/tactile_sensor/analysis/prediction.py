@@ -65,8 +65,11 @@ def physics_prediction(verbose: bool = True) -> tuple[Prediction | None, str]:
     except ImportError:  # pragma: no cover - depends on the physics layer's state
         PhysicsError = RuntimeError
 
+    shown = []
+
     def progress(fraction: float, message: str) -> None:
         if verbose:
+            shown.append(fraction)
             print(f"\rmodel prediction: {100 * fraction:3.0f}% {message}"[:79],
                   end="", file=sys.stderr, flush=True)
 
@@ -75,7 +78,7 @@ def physics_prediction(verbose: bool = True) -> tuple[Prediction | None, str]:
     except (PhysicsError, RuntimeError, ValueError, OSError) as err:
         return None, f"physics prediction failed ({err})"
     finally:
-        if verbose:
+        if shown:
             print(file=sys.stderr)
     d = np.asarray(curve.indentation_m, dtype=float)
     out = np.asarray(curve.output_v, dtype=float)

@@ -125,7 +125,8 @@ class AdcStreamReader:
 
     ``port`` is a device path or any pyserial URL. ``channels`` (if given) rejects frames
     with another channel count. Callbacks run in the reader thread: keep them short
-    (hand samples to a queue or a ``SignalChain`` and return).
+    (hand samples to a queue or a ``SignalChain`` and return) and do not let them raise:
+    an exception escaping a callback stops the reader (state STOPPED, reason says why).
     """
 
     def __init__(
@@ -263,6 +264,16 @@ class AdcStreamReader:
         return f"cannot open {self.port}: {exc}; {retry}"
 
     def _run(self) -> None:
+        try:
+            self._loop()
+        except BaseException as exc:
+            # Only a callback can get here (port errors are states). Make the dead thread
+            # visible in the state, then let threading.excepthook print the traceback.
+            self._set_state(ConnectionState.STOPPED,
+                            f"reader stopped by an error in a callback: {exc!r}")
+            raise
+
+    def _loop(self) -> None:
         port: serial.SerialBase | None = None
         try:
             while not self._stop.is_set():

@@ -11,9 +11,10 @@ Run: ``python -m tactile_sensor.nodes.recorder --ros-args -p path:=run1
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import json
-import os
+import shutil
 import signal
 import sys
 import time
@@ -22,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from rclpy.exceptions import InvalidHandle
+from rclpy.exceptions import InvalidHandle, InvalidTopicNameException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import (
@@ -45,6 +46,7 @@ from tactile_sensor.recording import STORAGES, BagRecorder, RecordingError
 QUEUE_DEPTH = 10_000  # messages the middleware may hold per topic while the executor is busy
 DISCOVERY_PERIOD_S = 0.2
 PROGRESS_PERIOD_S = 10.0
+TAKE_BATCH = 256  # messages taken per callback beyond the one the executor delivered
 
 
 def _check_topics(value: list[Any]) -> str | None:
@@ -142,24 +144,40 @@ class RecorderNode(Node):
         self._subscriptions_by_topic: dict[str, Subscription[Any]] = {}
         declare_parameters(self, PARAMETERS)
         params = read_parameters(self, PARAMETERS)
-        self._pending = {self.resolve_topic_name(t.strip()) for t in params["topics"]}
+        self._pending = {self._resolve("topics", t) for t in params["topics"]}
+        topic_types = [parse_topic_type(entry) for entry in params["topic_types"]]
+        topic_types = [(self._resolve("topic_types", t), m) for t, m in topic_types]
         path = params["path"] or time.strftime("recorder_%Y%m%d_%H%M%S")
         self._bag = BagRecorder(
             Path(path), params["storage"], custom_data={"recorder": "tactile_sensor.recorder"})
         self._bag.open()
         self.path = self._bag.path
         self._last_total = 0
-        for entry in params["topic_types"]:
-            topic, msgtype = parse_topic_type(entry)
-            topic = self.resolve_topic_name(topic)
-            self._pending.add(topic)
-            self._subscribe(topic, msgtype, [])
+        try:
+            for topic, msgtype in topic_types:
+                self._pending.add(topic)
+                self._subscribe(topic, msgtype, [])
+        except RecordingError:
+            # The folder is ours (BagRecorder refuses existing paths) and holds nothing yet;
+            # remove it so the same command works once the cause is fixed.
+            bag, self._bag = self._bag, None
+            bag.close()
+            shutil.rmtree(bag.path, ignore_errors=True)
+            raise
         self.get_logger().info(
             f"Recording to {self.path} ({params['storage']}); waiting for "
             f"{', '.join(sorted(self._pending - set(self._subscriptions_by_topic))) or 'nothing'}")
         self._discovery = self.create_timer(DISCOVERY_PERIOD_S, self._discover)
         self._progress = self.create_timer(PROGRESS_PERIOD_S, self._report_progress)
         self._discover()
+
+    def _resolve(self, parameter: str, topic: str) -> str:
+        try:
+            return self.resolve_topic_name(topic.strip())
+        except (InvalidTopicNameException, RuntimeError):
+            raise ParameterError(
+                f"Parameter '{parameter}' holds {topic!r}, which is not a valid topic name; "
+                "use names like '/driver/wrench'.") from None
 
     @property
     def counts(self) -> dict[str, int]:
@@ -182,24 +200,22 @@ class RecorderNode(Node):
                 self.get_logger().warning(
                     f"{topic} is published with several types {msgtypes}; recording "
                     f"{msgtypes[0]} only.")
-            self._subscribe(topic, msgtypes[0], publishers)
+            try:
+                self._subscribe(topic, msgtypes[0], publishers)
+            except RecordingError as exc:
+                self.get_logger().error(str(exc))
+                self._pending.discard(topic)
 
     def _subscribe(self, topic: str, msgtype: str, publishers: list[TopicEndpointInfo]) -> None:
+        """Add the topic to the bag and subscribe raw; RecordingError when it cannot be."""
         assert self._bag is not None
         try:
             cls = message_class(msgtype)
-            self._bag.add_topic(topic, msgtype, offered_qos_yaml(
-                [p.qos_profile for p in publishers]))
         except (ImportError, AttributeError, ValueError):
-            self.get_logger().error(
-                f"Cannot record {topic}: type {msgtype} is not installed here; source the "
-                "workspace that defines it and restart the recorder.")
-            self._pending.discard(topic)
-            return
-        except RecordingError as exc:
-            self.get_logger().error(f"Cannot record {topic}: {exc}")
-            self._pending.discard(topic)
-            return
+            raise RecordingError(
+                f"Cannot record {topic}: message type {msgtype} is not installed here; "
+                "source the workspace that defines it and restart the recorder.") from None
+        self._bag.add_topic(topic, msgtype, offered_qos_yaml([p.qos_profile for p in publishers]))
         qos = subscription_qos(publishers) if publishers else QoSProfile(
             depth=QUEUE_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
         self._subscriptions_by_topic[topic] = self.create_subscription(
@@ -216,8 +232,34 @@ class RecorderNode(Node):
         return self.get_clock().now().nanoseconds
 
     def _on_message(self, topic: str, cdr: bytes, info: MessageInfo) -> None:
-        if self._bag is not None:
-            self._bag.write(topic, self._stamp_ns(info), cdr)
+        bag = self._bag
+        if bag is None:
+            return
+        try:
+            bag.write(topic, self._stamp_ns(info), cdr)
+            # One executor round per message costs far more than a take: take what else is
+            # already waiting here (bounded, so other topics and timers still get their turn).
+            self._take(bag, topic, self._subscriptions_by_topic[topic], TAKE_BATCH)
+        except RecordingError as exc:
+            # A storage failure (disk full, folder removed) ends this recording but not the
+            # node: say so once, drop further messages.
+            self._bag = None
+            self.get_logger().error(str(exc))
+            with contextlib.suppress(RecordingError):
+                bag.close()  # keep whatever part of the bag the storage still accepts
+
+    def _take(self, bag: BagRecorder, topic: str, sub: Subscription[Any], limit: int) -> int:
+        """Write up to ``limit`` messages the middleware holds for ``sub``; returns how many."""
+        taken = 0
+        with sub.handle:
+            while taken < limit:
+                item = sub.handle.take_message(sub.msg_type, True)
+                if item is None:
+                    break
+                cdr, info = item
+                bag.write(topic, self._stamp_ns(info), cdr)
+                taken += 1
+        return taken
 
     def _report_progress(self) -> None:
         counts = self.counts
@@ -229,14 +271,8 @@ class RecorderNode(Node):
 
     def _take_waiting(self, bag: BagRecorder) -> int:
         """Take what the middleware still holds for us, so a shutdown loses no message."""
-        taken = 0
-        for topic, sub in self._subscriptions_by_topic.items():
-            with sub.handle:
-                while (item := sub.handle.take_message(sub.msg_type, True)) is not None:
-                    cdr, info = item
-                    bag.write(topic, self._stamp_ns(info), cdr)
-                    taken += 1
-        return taken
+        return sum(self._take(bag, topic, sub, sys.maxsize)
+                   for topic, sub in self._subscriptions_by_topic.items())
 
     def close_bag(self) -> None:
         """Finish the bag (metadata included); later messages are not recorded."""
@@ -249,7 +285,11 @@ class RecorderNode(Node):
             taken = 0
             self.get_logger().warning(f"Could not take the last queued messages: {exc}")
         self._bag = None
-        bag.close()
+        try:
+            bag.close()
+        except RecordingError as exc:
+            self.get_logger().error(str(exc))
+            return
         counts = bag.counts
         detail = ", ".join(f"{t}: {n}" for t, n in sorted(counts.items()))
         self.get_logger().info(
@@ -271,13 +311,7 @@ def main(args: list[str] | None = None) -> int:
                 print(f"recorder: {exc}", file=sys.stderr)
                 return 1
             try:
-                if os.environ.get("RECORDER_EXECUTOR") == "events":
-                    from rclpy.experimental import EventsExecutor
-                    ex = EventsExecutor()
-                    ex.add_node(node)
-                    ex.spin()
-                else:
-                    rclpy.spin(node)
+                rclpy.spin(node)
             finally:
                 # A second Ctrl-C must not interrupt writing the bag's index and metadata.
                 signal.signal(signal.SIGINT, signal.SIG_IGN)

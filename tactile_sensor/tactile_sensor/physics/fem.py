@@ -9,7 +9,9 @@ generic form assembly is an order of magnitude slower for this) into a CSR matri
 pattern and scatter indices are computed once. Newton reuses the factorisation while it
 converges fast (modified Newton) and refactorises when it slows.
 
-Half model: the block is symmetric about x = 0 (the photoreflector window is centred there).
+Quarter model: the block is symmetric about x = 0 and y = 0. The window is centred on x = 0;
+symmetry about y = 0 holds exactly because the module is taken as front/back symmetric (its
+back wall has the same window — see ``PhysicsParams.window_width``).
 """
 
 from __future__ import annotations
@@ -79,7 +81,7 @@ def _axis(breaks: list[float], n: int, grading: float = 1.0) -> np.ndarray:
 
 
 def build_mesh(params: PhysicsParams) -> skfem.MeshHex:
-    """Structured, graded hexahedral half mesh x in [0, W/2], y in [-D/2, D/2], z in [0, H]."""
+    """Structured, graded hexahedral quarter mesh x in [0, W/2], y in [0, D/2], z in [0, H]."""
     p = params
     hw, hd = p.width / 2, p.depth / 2
     module = p.boundary == "bonded" and p.module_height > 0
@@ -89,9 +91,8 @@ def build_mesh(params: PhysicsParams) -> skfem.MeshHex:
         xb.append(p.window_width / 2)
         zb += [p.window_center_z - p.window_height / 2, p.window_center_z + p.window_height / 2,
                p.module_height]
-    ny = p.mesh_ny + p.mesh_ny % 2
     x = _axis(xb, p.mesh_nx)
-    y = _axis([-hd, 0.0, hd], ny)
+    y = _axis([0.0, hd], p.mesh_ny)
     z = _axis(zb, p.mesh_nz, p.mesh_grading if p.boundary == "bonded" else 1.0)
     return skfem.MeshHex.init_tensor(x, y, z)
 
@@ -100,54 +101,29 @@ def build_mesh(params: PhysicsParams) -> skfem.MeshHex:
 # constitutive law
 
 
-def _mooney_rivlin(F: np.ndarray, c10: float, c01: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Isochoric Mooney–Rivlin: returns (P_iso, A_iso = dP/dF, J, F^-1) per point.
-
-    W = C10 (I1bar - 3) + C01 (I2bar - 3), I1bar = I3^(-1/3) I1, I2bar = I3^(-2/3) I2.
-    """
-    C = np.swapaxes(F, -1, -2) @ F
+def _kinematics(F: np.ndarray) -> dict[str, np.ndarray]:
+    """Invariants and the tensors the Mooney–Rivlin stress and tangent are built from."""
     J = np.linalg.det(F)
-    Finv = np.linalg.inv(F)
-    Cinv = Finv @ np.swapaxes(Finv, -1, -2)
+    G = np.swapaxes(np.linalg.inv(F), -1, -2)              # F^-T
+    C = np.swapaxes(F, -1, -2) @ F
     I1 = np.trace(C, axis1=-2, axis2=-1)
-    C2 = C @ C
-    I2 = 0.5 * (I1**2 - np.trace(C2, axis1=-2, axis2=-1))
-    I3 = J**2
-    eye = np.eye(3)
-    a = I3 ** (-1.0 / 3.0)
-    b = I3 ** (-2.0 / 3.0)
-    x1, x2 = I1[..., None, None], I2[..., None, None]
-    aa, bb = a[..., None, None], b[..., None, None]
-    dI1b = aa * eye - aa * x1 / 3.0 * Cinv
-    dI2b = bb * (x1 * eye - C) - 2.0 / 3.0 * bb * x2 * Cinv
-    S = 2.0 * (c10 * dI1b + c01 * dI2b)
+    I2 = 0.5 * (I1**2 - np.einsum("...ij,...ij->...", C, C))
+    H = I1[..., None, None] * F - F @ C                    # dI2/dF / 2
+    return {"J": J, "G": G, "C": C, "I1": I1, "I2": I2, "H": H}
 
-    def outer(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return u[..., :, :, None, None] * v[..., None, None, :, :]
 
-    # symmetric 4th-order identity pieces: Isym_ABCD = 1/2 (d_AC d_BD + d_AD d_BC)
-    Isym = 0.5 * (np.einsum("ac,bd->abcd", eye, eye) + np.einsum("ad,bc->abcd", eye, eye))
-    ICinv = 0.5 * (Cinv[..., :, None, :, None] * Cinv[..., None, :, None, :]
-                   + Cinv[..., :, None, None, :] * Cinv[..., None, :, :, None])
-    a4 = a[..., None, None, None, None]
-    b4 = b[..., None, None, None, None]
-    i1, i2 = I1[..., None, None, None, None], I2[..., None, None, None, None]
-    E = np.broadcast_to(eye, C.shape)
-    d2I1b = (-a4 / 3.0 * (outer(E, Cinv) + outer(Cinv, E)) + a4 * i1 / 9.0 * outer(Cinv, Cinv)
-             + a4 * i1 / 3.0 * ICinv)
-    M = x1 * eye - C
-    d2I2b = (b4 * (outer(E, E) - Isym) - 2.0 / 3.0 * b4 * (outer(M, Cinv) + outer(Cinv, M))
-             + 4.0 / 9.0 * b4 * i2 * outer(Cinv, Cinv) + 2.0 / 3.0 * b4 * i2 * ICinv)
-    Cmat = 4.0 * (c10 * d2I1b + c01 * d2I2b)  # (..., I, K, J, L) = 4 d2W/dC_IK dC_JL
-    P = F @ S
-    # A_iKkL = d_ik S_KL + F_iI F_kJ Cmat_IKJL
-    shp = F.shape[:-2]
-    t = F @ Cmat.reshape(*shp, 3, 27)                    # (.., i, [K J L])
-    t = t.reshape(*shp, 3, 3, 3, 3)                       # i K J L
-    t = np.swapaxes(t, -1, -2) @ np.swapaxes(F, -1, -2)[..., None, None, :, :]  # i K L k
-    A = np.swapaxes(t, -1, -2) + eye[:, None, :, None] * S[..., None, :, None, :]
-    return P, A, J, Finv
+def _piola(F: np.ndarray, k: dict[str, np.ndarray], c10: float, c01: float,
+           pres: np.ndarray) -> np.ndarray:
+    """First Piola stress of the isochoric Mooney–Rivlin part plus the element pressure.
+
+    W = C10 (J^-2/3 I1 - 3) + C01 (J^-4/3 I2 - 3) + volume term (mean dilatation).
+    """
+    J, G, I1, I2, H = k["J"], k["G"], k["I1"], k["I2"], k["H"]
+    al = (c10 * J ** (-2.0 / 3.0))[..., None, None]
+    be = (c01 * J ** (-4.0 / 3.0))[..., None, None]
+    return (al * (2.0 * F - (2.0 / 3.0) * I1[..., None, None] * G)
+            + be * (2.0 * H - (4.0 / 3.0) * I2[..., None, None] * G)
+            + (pres * J)[..., None, None] * G)
 
 
 # --------------------------------------------------------------------------------------------
@@ -175,6 +151,7 @@ class SkinModel:
         self.nodes = mesh.p.shape[1]
         self._setup_constraints()
         self._setup_pattern()
+        self.stats = {"factorisations": 0, "iterations": 0}
 
     # -- boundary conditions -------------------------------------------------------------------
     def _setup_constraints(self) -> None:
@@ -187,13 +164,13 @@ class SkinModel:
         bottom = z < tol
         top = z > p.height - tol
         fixed[x < tol, 0] = True                              # symmetry plane x = 0
+        fixed[y < tol, 1] = True                              # symmetry plane y = 0
         if p.boundary == "bonded":
             fixed[bottom, :] = True
             fixed[top, :] = True
             if p.module_height > 0:
                 band = z <= p.module_height + tol
                 fixed[band & (x > hw - tol), 0] = True
-                fixed[band & (y < -hd + tol), 1] = True
                 front = band & (y > hd - tol)
                 zc, wh, ww = p.window_center_z, p.window_height / 2, p.window_width / 2
                 window = front & (x < ww - tol) & (abs(z - zc) < wh - tol)
@@ -201,7 +178,6 @@ class SkinModel:
         else:
             fixed[bottom, 2] = True
             fixed[top, 2] = True
-            fixed[abs(y) < tol, 1] = True                     # symmetry plane y = 0
         self._top = top
         self._fixed = fixed.ravel()
         self._free = np.flatnonzero(~self._fixed)
@@ -245,32 +221,72 @@ class SkinModel:
     # -- residual and tangent ------------------------------------------------------------------
     def _evaluate(self, u: np.ndarray, tangent: bool
                   ) -> tuple[np.ndarray, sp.csr_matrix | None]:
+        """Internal force vector (all dofs) and, if asked, the free-free tangent matrix.
+
+        The tangent dP/dF of this law is a sum of outer products of F, F^-T and
+        H = I1 F - F C plus a few index-swapped terms, so the element matrices are built from
+        batched matrix products of (8 x 3) shape-gradient images without ever forming the
+        9 x 9 material tangent.
+        """
         p = self.params
         ue = u[self._edofs].reshape(-1, 8, 3)                         # (e, a, i)
-        dndx = self._dndx                                             # (e, q, a, K)
-        F = np.swapaxes(ue, 1, 2)[:, None] @ dndx + np.eye(3)         # (e, q, i, K)
-        P, A, J, Finv = _mooney_rivlin(F, p.c10, p.c01)
+        dn = self._dndx                                               # (e, q, a, K)
+        F = np.swapaxes(ue, 1, 2)[:, None] @ dn + np.eye(3)           # (e, q, i, K)
+        k = _kinematics(F)
         w = self._w
-        JFinvT = J[..., None, None] * np.swapaxes(Finv, -1, -2)       # (e, q, i, K)
+        J, G = k["J"], k["G"]
         theta = (w * J).sum(axis=1) / self._vol
         kappa = p.bulk_modulus
         pres = kappa * (theta - 1.0)                                  # (e,)
-        # g_e[a, i] = sum_q w J F^-1_Ki dN_a/dX_K
-        g = np.einsum("eq,eqaK,eqiK->eai", w, dndx, JFinvT, optimize=True).reshape(-1, 24)
-        Ptot = P + pres[:, None, None, None] * JFinvT
-        fe = (w[..., None, None] * (dndx @ np.swapaxes(Ptot, -1, -2))).sum(axis=1)
+        pq = np.broadcast_to(pres[:, None], J.shape)
+        P = _piola(F, k, p.c10, p.c01, pq)
+        fe = (w[..., None, None] * (dn @ np.swapaxes(P, -1, -2))).sum(axis=1)
         fint = np.bincount(self._edofs.ravel(), weights=fe.ravel(), minlength=self.ndof)
         if not tangent:
             return fint, None
-        # volumetric geometric part: p J (F^-1_Ki F^-1_Lk - F^-1_Kk F^-1_Li)
-        Av = _vol_geometric(Finv, pres[:, None] * J)
-        A = A + Av                                                    # (e, q, i, K, k, L)
         ne, nq = w.shape
-        At = np.moveaxis(A, 3, 2).reshape(ne, nq, 3, 27)              # (K, [i k L])
-        t1 = dndx @ At                                                # (e, q, a, [i k L])
-        t1 = t1.reshape(ne, nq, 72, 3) @ np.swapaxes(dndx, -1, -2)    # (e, q, [a i k], b)
-        ke = (w[..., None, None] * t1).sum(axis=1).reshape(ne, 8, 3, 3, 8)
-        ke = ke.transpose(0, 1, 2, 4, 3).reshape(ne, 24, 24)
+        I1, I2 = k["I1"], k["I2"]
+        al = p.c10 * J ** (-2.0 / 3.0)
+        be = p.c01 * J ** (-4.0 / 3.0)
+        pj = pq * J
+        # images of the shape gradients: v_a = F^-T dN_a, f_a = F dN_a, h_a = H dN_a
+        V = dn @ np.swapaxes(G, -1, -2)                               # (e, q, a, i)
+        Fm = dn @ np.swapaxes(F, -1, -2)
+        Hm = dn @ np.swapaxes(k["H"], -1, -2)
+        # outer-product terms: [v f h] M [v f h]^T with a symmetric 3x3 M per point
+        c_gg = (4.0 / 9.0) * al * I1 + (16.0 / 9.0) * be * I2 + pj
+        c_fg = -(4.0 / 3.0) * al
+        c_hg = -(8.0 / 3.0) * be
+        c_ff = 4.0 * be
+        Q = np.stack([V, Fm, Hm], axis=-1).reshape(ne, nq, 24, 3)     # rows (a, i)
+        M = np.zeros((ne, nq, 3, 3))
+        M[..., 0, 0] = c_gg
+        M[..., 0, 1] = M[..., 1, 0] = c_fg
+        M[..., 0, 2] = M[..., 2, 0] = c_hg
+        M[..., 1, 1] = c_ff
+        QM = (w[..., None, None] * Q) @ M                              # (e, q, 24, 3)
+        ke = np.swapaxes(QM, 1, 2).reshape(ne, 24, 3 * nq) @ np.swapaxes(Q, 1, 2).reshape(
+            ne, 24, 3 * nq).swapaxes(1, 2)
+        # swapped terms: K[a i, b k] += c_T V[a k] V[b i] + c_F f[a k] f[b i]
+        c_t = (2.0 / 3.0) * al * I1 + (4.0 / 3.0) * be * I2 - pj
+        c_f = -2.0 * be
+        R1 = np.concatenate([(w * c_t)[..., None, None] * V, (w * c_f)[..., None, None] * Fm],
+                            axis=-1)                                  # (e, q, a, [k k'])
+        R2 = np.concatenate([V, Fm], axis=-1)
+        R1 = R1.reshape(ne, nq, 8, 2, 3).transpose(0, 2, 4, 1, 3).reshape(ne, 24, 2 * nq)
+        R2 = R2.reshape(ne, nq, 8, 2, 3).transpose(0, 2, 4, 1, 3).reshape(ne, 24, 2 * nq)
+        sw = (R1 @ R2.swapaxes(1, 2)).reshape(ne, 8, 3, 8, 3)         # (a, k, b, i)
+        ke += sw.transpose(0, 1, 4, 3, 2).reshape(ne, 24, 24)
+        # isotropic-in-dof terms: delta_ik dN_a (c1 I - 2 be C) dN_b  and  -2 be D_ab b_ik
+        Mk = (2.0 * (al + be * I1))[..., None, None] * np.eye(3) - 2.0 * be[..., None, None] * k["C"]
+        D8 = ((w[..., None, None] * dn) @ Mk @ np.swapaxes(dn, -1, -2)).sum(axis=1)  # (e, 8, 8)
+        ke += np.einsum("eab,ik->eaibk", D8, np.eye(3)).reshape(ne, 24, 24)
+        Dq = (dn @ np.swapaxes(dn, -1, -2)).reshape(ne, nq, 64)
+        bq = ((-2.0 * w * be)[..., None, None] * (F @ np.swapaxes(F, -1, -2))).reshape(ne, nq, 9)
+        Db = (np.swapaxes(Dq, 1, 2) @ bq).reshape(ne, 8, 8, 3, 3)
+        ke += Db.transpose(0, 1, 3, 2, 4).reshape(ne, 24, 24)
+        # mean-dilatation rank-one term
+        g = ((w * J)[..., None, None] * V).sum(axis=1).reshape(ne, 24)  # d(theta V_e)/du
         ke += (kappa / self._vol)[:, None, None] * g[:, :, None] * g[:, None, :]
         data = np.bincount(self._scatter, weights=ke.ravel(), minlength=self._nnz + 1)
         K = sp.csr_matrix((data[:-1], self._indices, self._indptr),
@@ -306,7 +322,7 @@ class SkinModel:
             self._prescribe(u, d)
             u, lu = self._newton(u, lu, Kp)
             fint, _ = self._evaluate(u, tangent=False)
-            forces.append(-2.0 * fint.reshape(-1, 3)[self._top, 2].sum())
+            forces.append(-4.0 * fint.reshape(-1, 3)[self._top, 2].sum())
             bulges.append(float(self._patch @ u.reshape(-1, 3)[:, 1]))
             if progress is not None:
                 progress(n / p.steps, f"load step {n}/{p.steps}: indentation "
@@ -315,10 +331,11 @@ class SkinModel:
                            time.perf_counter() - start)
 
     def _factorise(self, u: np.ndarray, perm: np.ndarray) -> object:
+        self.stats["factorisations"] += 1
         _, K = self._evaluate(u, tangent=True)
         assert K is not None
         return (spla.splu(K[perm][:, perm].tocsc(), permc_spec="NATURAL",
-                          options={"SymmetricMode": True}), perm)
+                          diag_pivot_thresh=0.1, options={"SymmetricMode": True}), perm)
 
     def _tangent_predictor(self, u: np.ndarray, d: float, perm: np.ndarray
                            ) -> tuple[np.ndarray, object]:
@@ -344,20 +361,21 @@ class SkinModel:
 
     def _newton(self, u: np.ndarray, lu: object, perm: np.ndarray
                 ) -> tuple[np.ndarray, object]:
-        """Modified Newton: keep the factorisation while the residual falls fast enough."""
+        """Newton with factorisation reuse.
+
+        An old factorisation is kept while each step cuts the residual at least fivefold; a
+        step that does not is rejected and the tangent refactorised at the current state (a
+        stale tangent of a nearly incompressible solid can otherwise diverge).
+        """
         free = self._free
-        tol_u = 1e-9 * self.params.height
-        last_norm = np.inf
+        tol_u = 1e-8 * self.params.height
+        r = self._evaluate(u, tangent=False)[0][free]
+        norm = np.linalg.norm(r)
         fresh = False
-        for _ in range(80):
-            fint, _ = self._evaluate(u, tangent=False)
-            r = fint[free]
-            norm = np.linalg.norm(r)
-            if lu is None or (not fresh and norm > 0.2 * last_norm):
+        for _ in range(60):
+            if lu is None:
                 lu = self._factorise(u, perm)
                 fresh = True
-            else:
-                fresh = False
             solver, pm = lu  # type: ignore[misc]
             du = np.empty_like(r)
             du[pm] = solver.solve(-r[pm])
@@ -367,8 +385,16 @@ class SkinModel:
                 if alpha < 1e-3:
                     raise ConvergenceError("An element inverted during the FEM solve; use "
                                            "more load steps or a finer mesh.")
-            u[free] += alpha * du
-            last_norm = norm
+            trial = u.copy()
+            trial[free] += alpha * du
+            r_trial = self._evaluate(trial, tangent=False)[0][free]
+            norm_trial = np.linalg.norm(r_trial)
+            if not fresh and norm_trial > 0.5 * norm:
+                lu = None                                   # reject; refactorise here
+                continue
+            u, r, norm = trial, r_trial, norm_trial
+            fresh = False
+            self.stats["iterations"] += 1
             if alpha == 1.0 and np.abs(du).max() < tol_u:
                 return u, lu
         raise ConvergenceError("The FEM Newton solve did not converge; use more load steps "
@@ -381,16 +407,6 @@ class SkinModel:
         ue = trial[self._edofs].reshape(-1, 8, 3)
         F = np.swapaxes(ue, 1, 2)[:, None] @ self._dndx + np.eye(3)
         return bool(np.all(np.linalg.det(F) > 0.05))
-
-
-def _vol_geometric(Finv: np.ndarray, pj: np.ndarray) -> np.ndarray:
-    """p J (F^-1_Ki F^-1_Lk - F^-1_Kk F^-1_Li) as A[..., i, K, k, L]."""
-    G = np.swapaxes(Finv, -1, -2)                 # G_iK = F^-1_Ki
-    t1 = G[..., :, :, None, None] * G[..., None, None, :, :]          # G_iK G_kL
-    t2 = G[..., :, None, None, :] * Finv[..., None, :, :, None]       # G_iL G_kK
-    # t1: i K k L -> F^-1_Ki F^-1_Lk ; need F^-1_Ki F^-1_Lk - F^-1_Kk F^-1_Li
-    # F^-1_Kk F^-1_Li = G_kK G_iL = t2[i, K, k, L]
-    return pj[..., None, None, None, None] * (t1 - t2)
 
 
 def _nested_dissection_order(points: np.ndarray, free: np.ndarray) -> np.ndarray:

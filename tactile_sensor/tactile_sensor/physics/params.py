@@ -65,7 +65,9 @@ class PhysicsParams:
                               "zero, tangential sliding); assumption from Fig. 4; 0 = no "
                               "module", low=0.0)
     window_width: float = _f(0.006, "m", "width of the open window in the module's front "
-                             "wall through which the photoreflector looks (assumption)",
+                             "wall through which the photoreflector looks (assumption; the "
+                             "back wall is taken to have the same window, which makes the "
+                             "model exactly symmetric front/back)",
                              low=0.0, low_open=True)
     window_height: float = _f(0.004, "m", "height of that window (assumption)", low=0.0,
                               low_open=True)
@@ -84,11 +86,10 @@ class PhysicsParams:
                                     "tuned to the paper's Fig. 9 speed effect)", curve=False)
     prony_tau: tuple[float, ...] = _f((0.1, 1.5), "s", "Prony relaxation times "
                                       "(assumption)", curve=False)
-    # --- mesh (half model, symmetric about x = 0) --------------------------------------------
-    mesh_nx: int = _f(10, "1", "elements across the half width", low=1, high=200)
-    mesh_ny: int = _f(22, "1", "elements through the depth (rounded up to even)", low=2,
-                      high=400)
-    mesh_nz: int = _f(28, "1", "elements along the height", low=2, high=400)
+    # --- mesh (quarter model, symmetric about x = 0 and y = 0) ------------------------------
+    mesh_nx: int = _f(12, "1", "elements across the half width", low=1, high=200)
+    mesh_ny: int = _f(12, "1", "elements across the half depth", low=1, high=200)
+    mesh_nz: int = _f(44, "1", "elements along the height", low=2, high=400)
     mesh_grading: float = _f(2.0, "1", "ratio of largest to smallest element along the "
                              "height, finer toward the base and probe corners (1 = uniform)",
                              low=1.0, high=10.0)

@@ -215,6 +215,10 @@ class BagRecorder:
         if topic not in self._msgtypes:
             raise RecordingError(
                 f"Topic {topic} was not added to bag {self.path}; call add_topic() first.")
+        if not 0 <= timestamp_ns < 2**63:
+            raise RecordingError(
+                f"Timestamp {timestamp_ns} for {topic} is outside 0..2**63-1 ns; pass "
+                "nanoseconds since the epoch.")
         with self._accept:
             self._require_open()
             self._queue.put(_Message(topic, int(timestamp_ns), bytes(cdr)))

@@ -5,11 +5,13 @@ and a slow ambient drift, quantises like a ``adc_bits`` ADC referenced to ``vref
 writes frames (``hardware.adc_frame``) at ``rate_hz``, paced by the monotonic clock and
 written in batches of at most ~1 ms so it holds 1 kHz and reaches tens of kHz.
 
-Like the firmware it never blocks on a slow host: bytes the pseudo-terminal has no room
-for are lost (the reader sees the gap). Faults on command: ``unplug`` (the link
-disappears, the device keeps its clock and sequence running, the link returns),
-``inject_garbage`` (random bytes spliced into the stream, possibly mid-frame) and
-``drop_frames``.
+Like the firmware it never blocks on a slow host. A pseudo-terminal buffers only ~18 KB,
+a real USB serial port (ttyACM, tty flip buffers) about 64 KB more, so the device keeps
+up to ``host_buffer_bytes`` of backlog that it hands to the pseudo-terminal as the host
+drains it; whole batches that do not fit are lost (the reader sees the sequence gap).
+Faults on command: ``unplug`` (the link disappears, the device keeps its clock and
+sequence running, the link returns), ``inject_garbage`` (random bytes spliced into the
+stream, possibly mid-frame) and ``drop_frames``.
 """
 
 from __future__ import annotations
@@ -158,10 +160,10 @@ def _ar1(a: float, start: np.ndarray, innov: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class DeviceStats:
     frames_generated: int
-    frames_written: int  # handed to the link in full (the host may still lose them)
+    frames_written: int  # accepted into the host buffer (not lost to an overflow)
     frames_dropped: int  # by drop_frames()
     frames_unplugged: int  # generated while the cable was out
-    bytes_lost: int  # the pseudo-terminal had no room (host not reading fast enough)
+    bytes_lost: int  # host buffer overflowed (host not reading fast enough)
     garbage_bytes: int
     unplugs: int
     plugged: bool
@@ -183,6 +185,7 @@ class MockAdcDevice:
         channels: int = 1,
         clock_offset_us: int = 0,
         seed: int | None = None,
+        host_buffer_bytes: int = 65536,
     ) -> None:
         if not isinstance(rate_hz, int | float) or not 1.0 <= rate_hz <= 200_000.0:
             raise SimError(f"The ADC rate must be in [1, 200000] Hz, got {rate_hz!r}.")
@@ -194,6 +197,9 @@ class MockAdcDevice:
         if isinstance(channels, bool) or not isinstance(channels, int) or not (
                 1 <= channels <= MAX_CHANNELS):
             raise SimError(f"channels must be 1..{MAX_CHANNELS}, got {channels!r}.")
+        if isinstance(host_buffer_bytes, bool) or not isinstance(host_buffer_bytes, int) or \
+                not 0 <= host_buffer_bytes <= 1 << 26:
+            raise SimError(f"host_buffer_bytes must be 0..64 MiB, got {host_buffer_bytes!r}.")
         if not callable(voltage_source):
             raise SimError("voltage_source must be a callable t [s] -> V.")
         self.link = PtyLink(link_path)
@@ -206,6 +212,8 @@ class MockAdcDevice:
         self._source = voltage_source
         self._vectorised = _is_vectorised(voltage_source)
         self._rng = np.random.default_rng(seed)
+        self._backlog = bytearray()
+        self._backlog_limit = host_buffer_bytes
         self._sampler = AdcSampler(rate_hz, self.noise, adc_bits, vref_v, channels, self._rng)
         self._frame = struct.Struct(f"<2sBHI{channels}H")
         self._header = (PROTOCOL_VERSION << 4) | channels
@@ -326,6 +334,7 @@ class MockAdcDevice:
         while not self._stop.is_set():
             now = time.monotonic()
             self._serve_link(now)
+            self._flush()
             due = int((now - self._t0) * rate) + 1 - k
             if due <= 0:
                 wake = max(self._t0 + k / rate, last_write + min_gap_s)
@@ -341,6 +350,7 @@ class MockAdcDevice:
             unplug_s, self._unplug_s = self._unplug_s, None
             replug_at = self._replug_at
         if unplug_s is not None:
+            self._backlog.clear()  # the host's buffers go with the cable
             if self.link.is_open:
                 self.link.close()
                 with self._lock:
@@ -391,12 +401,21 @@ class MockAdcDevice:
                 self._unplugged += n - drop
                 self._garbage += garbage
             return
-        written = self.link.write(data)
+        fits = len(self._backlog) + len(data) <= self._backlog_limit or not self._backlog
         with self._lock:
             self._garbage += garbage
-            self._bytes_lost += len(data) - written
-            if written == len(data):
+            if fits:
                 self._written += n - drop
+            else:
+                self._bytes_lost += len(data)
+        if fits:
+            self._backlog += data
+            self._flush()
+
+    def _flush(self) -> None:
+        if self._backlog and self.link.is_open:
+            written = self.link.write(bytes(self._backlog[:65536]))
+            del self._backlog[:written]
 
 
 def _is_vectorised(source: VoltageSource) -> bool:

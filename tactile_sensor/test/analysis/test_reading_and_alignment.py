@@ -48,7 +48,8 @@ def test_negative_gauge_force_is_flipped_and_noted():
     signals = press_signals(PROTOCOL, TRUTH)
     result = ch.characterise(in_memory(signals, force_scale=-1.0), ch.Options())
     assert result.aligned.force_flipped
-    assert result.metrics["sensitivity_v_per_n"] == pytest.approx(0.07, rel=0.05)
+    expected = TRUTH.sensitivity_v_per_n / TRUTH.rate_factor(10.0)  # force 10 % up at 10 mm/s
+    assert result.metrics["sensitivity_v_per_n"] == pytest.approx(expected, rel=0.04)
     assert any("flipped" in n for n in result.metrics["notes"])
 
 

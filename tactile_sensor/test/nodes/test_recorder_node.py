@@ -145,3 +145,67 @@ def test_missing_topics_exits_with_one_sentence(ros_domain, spawn, tmp_path: Pat
     out = recorder.output()
     assert "Parameter 'topics'" in out and "give at least one topic" in out
     assert "Traceback" not in out
+
+
+# -- in process, as the bringup composes it ----------------------------------------------------
+
+def make_recorder(node: Node, **params):
+    from rclpy.parameter import Parameter
+
+    from tactile_sensor.nodes.recorder import RecorderNode
+
+    return RecorderNode("inproc_recorder", context=node.context, parameter_overrides=[
+        Parameter(name, value=value) for name, value in params.items()])
+
+
+def test_composed_recorder_records_and_finishes_on_destroy(node, tmp_path: Path):
+    from rclpy.executors import SingleThreadedExecutor
+
+    recorder = make_recorder(node, path=str(tmp_path / "bag"), topics=["/inproc/wrench"])
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(recorder)
+    pub = node.create_publisher(WrenchStamped, "/inproc/wrench", 100)
+
+    def spin_until(predicate) -> bool:
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and not predicate():
+            executor.spin_once(timeout_sec=0.05)
+        return predicate()
+
+    assert spin_until(lambda: pub.get_subscription_count() > 0)
+    for i in range(20):
+        msg = WrenchStamped()
+        msg.wrench.force.z = float(i)
+        pub.publish(msg)
+    assert spin_until(lambda: recorder.counts.get("/inproc/wrench", 0) >= 20)
+    recorder.destroy_node()
+    executor.shutdown()
+    with AnyReader([tmp_path / "bag"]) as reader:
+        forces = [reader.deserialize(raw, c.msgtype).wrench.force.z
+                  for c, _, raw in reader.messages()]
+    assert forces == [float(i) for i in range(20)]
+
+
+@pytest.mark.parametrize(("params", "match"), [
+    ({"topics": ["/ok", "not a topic"]}, "Parameter 'topics' holds 'not a topic'"),
+    ({"topics": ["/a"], "topic_types": ["/a:std_msgs/msg/String"]},
+     "Parameter 'topic_types' = .* should look like '/topic=pkg/msg/Type'"),
+    ({"topics": ["/a"], "topic_types": ["bad name=std_msgs/msg/String"]},
+     "Parameter 'topic_types' holds 'bad name'"),
+    ({"topics": ["/a"], "storage": "parquet"}, "Parameter 'storage' = 'parquet' is invalid"),
+])
+def test_bad_parameters_fail_construction_with_the_parameter_named(node, tmp_path, params, match):
+    from tactile_sensor.nodes.parameters import ParameterError
+
+    with pytest.raises(ParameterError, match=match):
+        make_recorder(node, path=str(tmp_path / "bag"), **params)
+    assert not (tmp_path / "bag").exists()
+
+
+def test_uninstalled_type_fails_construction_and_leaves_no_folder(node, tmp_path):
+    from tactile_sensor.recording import RecordingError
+
+    with pytest.raises(RecordingError, match="no_such_pkg/msg/Thing is not installed here"):
+        make_recorder(node, path=str(tmp_path / "bag"), topics=["/a"],
+                      topic_types=["/a=no_such_pkg/msg/Thing"])
+    assert not (tmp_path / "bag").exists()

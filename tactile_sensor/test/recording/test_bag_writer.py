@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +17,7 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from rosbags.interfaces import QosDurability
 from rosbags.rosbag2 import Reader
+
 from tactile_sensor.recording import BagRecorder, RecordingError, default_typestore
 from tactile_sensor.recording.bag_writer import register_package
 
@@ -291,3 +293,29 @@ def test_writing_before_open_or_after_close_is_refused(tmp_path):
         bag.write("/w", 0, wrench_cdr(0))
     with pytest.raises(RecordingError, match="opened already"):
         bag.open()
+
+
+def test_negative_timestamp_is_refused(tmp_path):
+    with BagRecorder(tmp_path / "bag") as bag:
+        bag.add_topic("/w", WRENCH)
+        with pytest.raises(RecordingError, match=r"outside 0\.\.2\*\*63-1 ns"):
+            bag.write("/w", -1, wrench_cdr(0))
+
+
+def test_storage_failure_is_reported_with_the_fix(tmp_path, monkeypatch):
+    """A full disk surfaces as RecordingError on the next write or on close, never silently."""
+    from rosbags.rosbag2.storage_mcap import McapWriter
+
+    def disk_full(self, connection, timestamp, data):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(McapWriter, "write", disk_full)
+    bag = BagRecorder(tmp_path / "bag").open()
+    bag.add_topic("/w", WRENCH)
+    bag.write("/w", 1, wrench_cdr(0))
+    with pytest.raises(RecordingError, match=r"No space left on device.*free disk space"):
+        for i in range(10_000):  # the thread fails soon; a later write reports it
+            bag.write("/w", 2 + i, wrench_cdr(0))
+            time.sleep(0.001)
+    with pytest.raises(RecordingError, match="free disk space"):
+        bag.close()

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.errors import CalibrationError
 

@@ -5,6 +5,7 @@ import threading
 
 import numpy as np
 import pytest
+
 from tactile_sensor.hardware.adc_reader import Sample
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import ChainConfig, SignalChain

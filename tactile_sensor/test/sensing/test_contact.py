@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import pytest
+
 from tactile_sensor.sensing.contact import ContactDetector
 from tactile_sensor.sensing.errors import SensingError
 

@@ -3,6 +3,7 @@ from __future__ import annotations
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.errors import SensingError
 

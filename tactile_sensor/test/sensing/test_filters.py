@@ -5,6 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.signal import butter, sosfilt, sosfilt_zi
+
 from tactile_sensor.sensing.errors import SensingError
 from tactile_sensor.sensing.filters import (
     DEFAULT_FILTER,

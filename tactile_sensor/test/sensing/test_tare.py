@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from tactile_sensor.sensing.errors import SensingError, TareError
 from tactile_sensor.sensing.tare import TareWindow
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.filters import make_filter

@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from tactile_sensor.sim.bench_world import BenchWorld
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.profiles import parse_profile

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.profiles import PROTOCOLS, LoadProfile, parse_profile
 

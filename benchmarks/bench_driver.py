@@ -1,0 +1,117 @@
+"""Driver node over ROS at 1 kHz: end-to-end latency and CPU use.
+
+Starts the mock ADC (1 kHz, its own process) and the driver node (its own process), and
+subscribes here. Latency = reception time here - the reading's stamp, which is the
+sample's device time mapped to the host clock (so it includes serial transfer, framing,
+the signal chain, publishing and DDS delivery, less the smallest transfer delay, which
+the clock mapping absorbs). CPU = the driver process's user+system time over the window.
+
+    python benchmarks/bench_driver.py [--seconds 30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+
+from tactile_sensor_interfaces.msg import TactileReading
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--rate", type=float, default=1000.0)
+    args = parser.parse_args()
+    os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    source = ROOT / "tactile_sensor"
+    env = dict(os.environ, PYTHONPATH=f"{source}:{os.environ.get('PYTHONPATH', '')}")
+    tmp = Path(tempfile.mkdtemp(prefix="bench_driver_"))
+    d = np.linspace(0, 0.003, 31)
+    (tmp / "skin.json").write_text(json.dumps({"indentation_m": d.tolist(),
+                                               "force_n": (7 * d / 0.003).tolist(),
+                                               "voltage_v": (3.0 - 0.5 * d / 0.003).tolist()}))
+    (tmp / "cal.json").write_text(json.dumps({
+        "format": "tactile_sensor/calibration", "version": 1, "source": "bench",
+        "output_v": (0.5 * d / 0.003).tolist(), "force_n": (7 * d / 0.003).tolist()}))
+    py = sys.executable
+    driver = subprocess.Popen(
+        [py, "-m", "tactile_sensor.nodes.driver", "--ros-args", "-r", "__node:=driver",
+         "-p", f"port:={tmp / 'adc'}", "-p", "calibration_source:=file",
+         "-p", f"calibration_file:={tmp / 'cal.json'}", "-p", "autostart:=true",
+         "-p", f"sample_rate:={args.rate}"], env=env, stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL)
+    mock = subprocess.Popen(
+        [py, "-m", "tactile_sensor.cli", "mock", "adc", "--link", str(tmp / "adc"),
+         "--rate", str(args.rate), "--skin-table", str(tmp / "skin.json"), "--loop",
+         "--profile", "ramp:depth=0.003,speed=0.003,cycles=1,rest=0.5"],
+        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    latencies: list[float] = []
+    lock = threading.Lock()
+
+    def on_reading(msg: TactileReading) -> None:
+        now = time.time_ns()
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        with lock:
+            latencies.append((now - stamp) * 1e-9)
+
+    try:
+        with rclpy.init():
+            node = rclpy.create_node("bench_driver_listener")
+            node.create_subscription(TactileReading, "/driver/reading", on_reading, 1000)
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            threading.Thread(target=executor.spin, daemon=True).start()
+            deadline = time.monotonic() + 30
+            while len(latencies) < 2000 and time.monotonic() < deadline:
+                time.sleep(0.1)
+            if len(latencies) < 2000:
+                print("driver produced no data within 30 s", file=sys.stderr)
+                return 1
+            with lock:
+                latencies.clear()
+            cpu0, t0 = cpu_seconds(driver.pid), time.monotonic()
+            time.sleep(args.seconds)
+            cpu1, t1 = cpu_seconds(driver.pid), time.monotonic()
+            with lock:
+                lat = np.array(latencies)
+            executor.shutdown()
+            node.destroy_node()
+    finally:
+        for proc in (mock, driver):
+            proc.send_signal(signal.SIGINT)
+        for proc in (mock, driver):
+            try:
+                proc.wait(5)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+    received = len(lat) / (t1 - t0)
+    print(f"driver at {args.rate:g} Hz for {t1 - t0:.1f} s: {received:.0f} readings/s received")
+    print(f"  end-to-end latency (sample -> subscriber): median {np.median(lat) * 1e3:.2f} ms, "
+          f"p99 {np.percentile(lat, 99) * 1e3:.2f} ms, max {lat.max() * 1e3:.2f} ms "
+          "(goal: p99 <= 2 ms)")
+    print(f"  driver CPU: {100 * (cpu1 - cpu0) / (t1 - t0):.1f} % of one core")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,165 @@
+"""The prediction curve: indentation -> force, bulge, distance, voltage, module output.
+
+One FEM sweep (``fem.SkinModel``) plus the photoreflector optics gives the curve the model
+node serves, the mocks simulate and the analysis overlays. It is cached on disk under the
+hash of every parameter that changes it, so only the first run with new parameters pays
+for the sweep; the cache write is atomic (a crashed run never leaves half a file).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .errors import OutOfRangeError, PhysicsError
+from .optics import Photoreflector
+from .params import PhysicsParams
+
+Progress = Callable[[float, str], None]
+ARRAYS = ("indentation_m", "force_n", "bulge_m", "distance_m", "voltage_v", "output_v")
+
+
+@dataclass(frozen=True)
+class CurvePoints:
+    """The curve's quantities at requested indentations."""
+
+    indentation_m: np.ndarray
+    force_n: np.ndarray
+    bulge_m: np.ndarray
+    distance_m: np.ndarray
+    voltage_v: np.ndarray
+    output_v: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class PredictionCurve:
+    """Per load step of the FEM sweep (SI units); ``digest`` names the parameters."""
+
+    indentation_m: np.ndarray
+    force_n: np.ndarray
+    bulge_m: np.ndarray  # side-surface displacement toward the photoreflector
+    distance_m: np.ndarray  # photoreflector-skin distance = gap - bulge
+    voltage_v: np.ndarray
+    output_v: np.ndarray  # paper's inverted output: V(rest) - V
+    nodes: int
+    seconds: float
+    digest: str
+
+    @property
+    def max_indentation_m(self) -> float:
+        return float(self.indentation_m[-1])
+
+    def at(self, indentation_m: npt.ArrayLike) -> CurvePoints:
+        """Linear interpolation between load steps; refuses to extrapolate."""
+        d = np.atleast_1d(np.asarray(indentation_m, dtype=float))
+        low, high = 0.0, self.max_indentation_m
+        bad = ~np.isfinite(d) | (d < low - 1e-12) | (d > high + 1e-12)
+        if np.any(bad):
+            first = float(d[bad][0])
+            raise OutOfRangeError(
+                f"Indentation {first:g} m is outside the modelled range {low:g}..{high:g} m; "
+                "ask within it or recompute the model with a larger max_indentation.")
+        return self.at_clamped(d)
+
+    def at_clamped(self, indentation_m: npt.ArrayLike) -> CurvePoints:
+        """Like :meth:`at`, holding the end values outside the range (for simulators)."""
+        d = np.asarray(indentation_m, dtype=float)
+        return CurvePoints(*(np.interp(d, self.indentation_m, getattr(self, name))
+                             for name in ARRAYS))
+
+    def calibration(self) -> tuple[np.ndarray, np.ndarray]:
+        """(output [V] strictly increasing, force [N]): the inverse used by the driver."""
+        keep = [0]
+        for i in range(1, self.output_v.size):
+            if self.output_v[i] > self.output_v[keep[-1]] + 1e-12:
+                keep.append(i)
+        if len(keep) < 2:
+            raise PhysicsError("The predicted output does not grow with indentation, so it "
+                               "cannot calibrate force; check the window and gap parameters.")
+        return self.output_v[keep].copy(), self.force_n[keep].copy()
+
+    def force_from_output(self, output_v: npt.ArrayLike) -> np.ndarray:
+        output, force = self.calibration()
+        return np.interp(output_v, output, force)
+
+    def to_dict(self) -> dict[str, Any]:
+        data: dict[str, Any] = {name: getattr(self, name).tolist() for name in ARRAYS}
+        data.update(nodes=self.nodes, seconds=self.seconds, digest=self.digest)
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> PredictionCurve:
+        try:
+            arrays = {name: np.asarray(data[name], dtype=float) for name in ARRAYS}
+            curve = cls(**arrays, nodes=int(data["nodes"]), seconds=float(data["seconds"]),
+                        digest=str(data.get("digest", "")))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise PhysicsError(f"A prediction file lacks or mangles {exc}; regenerate it with "
+                               "'tactile-sensor model sweep --json'.") from None
+        sizes = {arrays[name].size for name in ARRAYS}
+        if len(sizes) != 1 or sizes.pop() < 2 or np.any(np.diff(curve.indentation_m) <= 0):
+            raise PhysicsError("A prediction file's arrays differ in length or its "
+                               "indentations do not increase; regenerate it.")
+        return curve
+
+
+def curve_from_sweep(params: PhysicsParams, indentation_m: np.ndarray, force_n: np.ndarray,
+                     bulge_m: np.ndarray, nodes: int, seconds: float) -> PredictionCurve:
+    """Apply the optics to a mechanical sweep."""
+    optics = Photoreflector(params.pigment_white, params.supply_voltage)
+    distance = params.gap - np.asarray(bulge_m, dtype=float)
+    if np.any(distance < 0):
+        raise PhysicsError("The skin would bulge past the photoreflector (distance < 0); "
+                           "increase 'gap' or reduce 'max_indentation'.")
+    voltage = optics.voltage(distance)
+    rest = float(optics.voltage(params.gap))
+    return PredictionCurve(np.asarray(indentation_m, float), np.asarray(force_n, float),
+                           np.asarray(bulge_m, float), distance, voltage, rest - voltage,
+                           nodes, seconds, params.digest())
+
+
+def default_cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "tactile_sensor"
+
+
+def compute_curve(params: PhysicsParams, progress: Progress | None = None) -> PredictionCurve:
+    from .fem import SkinModel  # scikit-fem is only needed for a cold sweep
+
+    sweep = SkinModel(params).sweep(progress)
+    return curve_from_sweep(params, sweep.indentation_m, sweep.force_n, sweep.bulge_m,
+                            sweep.nodes, sweep.seconds)
+
+
+def load_or_compute_curve(params: PhysicsParams, cache_dir: Path | None = None,
+                          progress: Progress | None = None) -> PredictionCurve:
+    """The cached curve for ``params``, computing and caching it on a miss."""
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    path = folder / f"prediction-{params.digest()}.json"
+    if path.is_file():
+        try:
+            return PredictionCurve.from_dict(json.loads(path.read_text()))
+        except (PhysicsError, json.JSONDecodeError, OSError):
+            pass  # a damaged cache entry is recomputed and replaced
+    if progress is not None:
+        progress(0.0, f"computing the FEM sweep (cache miss: {path.name})")
+    curve = compute_curve(params, progress)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".prediction-", suffix=".tmp")
+        with os.fdopen(fd, "w") as handle:
+            json.dump(curve.to_dict(), handle)
+        os.replace(tmp, path)
+    except OSError:
+        with contextlib.suppress(OSError, UnboundLocalError):
+            os.unlink(tmp)
+    return curve
