@@ -2,7 +2,8 @@
 
 Fit: outputs are binned, the mean force per bin is made non-decreasing by weighted
 isotonic regression, and a PCHIP through those points (monotone by construction) is
-sampled at evenly spaced outputs. The file format is the one in docs/CONTRACTS.md.
+sampled at evenly spaced outputs. Files are read and written through the driver's own
+``sensing.calibration.Calibration``, so the two can never disagree about the format.
 """
 
 from __future__ import annotations
@@ -16,10 +17,11 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 from scipy.optimize import isotonic_regression
 
+from tactile_sensor.sensing.calibration import Calibration as SensingCalibration
+from tactile_sensor.sensing.errors import CalibrationError
+
 from .errors import CalibrationFileError, SegmentError
 
-FORMAT = "tactile_sensor/calibration"
-VERSION = 1
 MIN_BIN_SAMPLES = 5
 
 
@@ -36,11 +38,6 @@ class Calibration:
         """Linear interpolation, clamped to the end forces beyond the table (as the driver)."""
         return np.interp(output_v, self.output_v, self.force_n)
 
-    def to_dict(self) -> dict[str, Any]:
-        return {"format": FORMAT, "version": VERSION,
-                "output_v": [float(x) for x in self.output_v],
-                "force_n": [float(x) for x in self.force_n],
-                "source": self.source, "fit": self.fit}
 
 
 def fit_calibration(output_v: np.ndarray, force_n: np.ndarray, source: str,
@@ -78,49 +75,19 @@ def fit_calibration(output_v: np.ndarray, force_n: np.ndarray, source: str,
 
 
 def save_calibration(cal: Calibration, path: Path) -> None:
-    path.write_text(json.dumps(cal.to_dict(), indent=2) + "\n", encoding="utf-8")
+    """Write the file the driver loads (format and validation: sensing/calibration.py)."""
+    table = SensingCalibration.from_curve(cal.output_v.tolist(), cal.force_n.tolist(),
+                                          cal.source)
+    table.to_file(path, fit=cal.fit)
 
 
 def load_calibration(path: Path | str) -> Calibration:
-    """Read and validate a calibration file; CalibrationFileError names what is wrong."""
-    path = Path(path)
+    """Read a calibration exactly as the driver does; CalibrationFileError names the fault."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except OSError as err:
-        raise CalibrationFileError(f"cannot read the calibration file {path} "
-                                   f"({err.strerror}); pass an existing file.") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise CalibrationFileError(f"the calibration file {path} is not valid JSON ({err}); "
-                                   "write it with 'tactile-sensor analyze --fit-calibration'."
-                                   ) from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise CalibrationFileError(f"the calibration file {path} lacks \"format\": "
-                                   f"\"{FORMAT}\"; pass a file in the format of "
-                                   "docs/CONTRACTS.md.")
-    if data.get("version") != VERSION:
-        raise CalibrationFileError(f"the calibration file {path} has version "
-                                   f"{data.get('version')!r}, this tool reads {VERSION}; "
-                                   "refit it with this version.")
-    arrays = []
-    for key in ("output_v", "force_n"):
-        value = data.get(key)
-        try:
-            arr = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            arr = np.zeros(0)
-        if arr.ndim != 1 or arr.size < 2 or not np.all(np.isfinite(arr)):
-            raise CalibrationFileError(f"the calibration file {path} needs \"{key}\" as a "
-                                       "list of at least two finite numbers; fix or refit it.")
-        arrays.append(arr)
-    out, force = arrays
-    if out.size != force.size:
-        raise CalibrationFileError(f"the calibration file {path} has {out.size} outputs but "
-                                   f"{force.size} forces; they must pair up.")
-    if np.any(np.diff(out) <= 0):
-        raise CalibrationFileError(f"the calibration file {path} has output_v not strictly "
-                                   "increasing; fix or refit it.")
-    if np.any(np.diff(force) < 0):
-        raise CalibrationFileError(f"the calibration file {path} has force_n decreasing; a "
-                                   "calibration must be monotone - fix or refit it.")
+        table = SensingCalibration.from_file(path)
+    except CalibrationError as err:
+        raise CalibrationFileError(str(err)) from None
+    data = json.loads(Path(path).read_text(encoding="utf-8"))
     fit = data.get("fit") if isinstance(data.get("fit"), dict) else {}
-    return Calibration(out, force, str(data.get("source", path)), fit)
+    return Calibration(np.asarray(table.output_v), np.asarray(table.force_n),
+                       str(data.get("source") or table.source), fit)

@@ -64,7 +64,7 @@ SPECS = [
               minimum=1.0, maximum=10_000.0),
     ParamSpec("protocol.name", "compression", "protocol name (for the log and the bag)"),
     ParamSpec("protocol.depth", 0.003, "indentation at the bottom of each stroke [m]",
-              minimum=0.0, exclusive_minimum=True, maximum=0.02),
+              minimum=0.0, maximum=0.02),
     ParamSpec("protocol.speeds", [0.001], "probe speeds [m/s], run in order"),
     ParamSpec("protocol.cycles", 1, "load/unload cycles per speed", minimum=1,
               maximum=100_000),

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import yaml
 
 from tactile_sensor.sim.errors import SimError
 
@@ -79,23 +80,23 @@ class LoadProfile:
         return self._knots[0].copy(), self._knots[1].copy()
 
 
-PROTOCOLS: dict[str, dict[str, Any]] = {
-    # Sec. III-B: press 3 mm at 1 mm/s from contact, then unload.
-    "compression": {"depth_m": 0.003, "speeds_m_s": (0.001,), "cycles": 1, "hold_s": 0.0,
-                    "rest_s": 1.0},
-    # Sec. III-C: 100 load/unload cycles at 1 mm/s to 3 mm, 1 s wait between them.
-    "repeatability": {"depth_m": 0.003, "speeds_m_s": (0.001,), "cycles": 100, "hold_s": 1.0,
-                      "rest_s": 0.5},
-    # Sec. III-D: 0.1, 1 and 10 mm/s to 3 mm, 5 cycles each.
-    "speeds": {"depth_m": 0.003, "speeds_m_s": (0.0001, 0.001, 0.01), "cycles": 5,
-               "hold_s": 0.0, "rest_s": 1.0},
-    # No contact at all: for noise floors and tare checks.
-    "rest": {"depth_m": 0.0, "speeds_m_s": (0.001,), "cycles": 1, "hold_s": 0.0,
-             "rest_s": 10.0},
-}
-
 _KEYS = {"depth": "depth_m", "speed": "speeds_m_s", "speeds": "speeds_m_s", "cycles": "cycles",
          "hold": "hold_s", "rest": "rest_s", "preload": "preload_m"}
+
+
+def _load_protocols() -> dict[str, dict[str, Any]]:
+    """The bench protocols of config/protocols.yaml (one definition for the mock CLI, the
+    bench node, the launch files and the bringup), as LoadProfile keyword arguments."""
+    from tactile_sensor.configurations import config_dir
+
+    table = yaml.safe_load((config_dir() / "protocols.yaml").read_text())["bench"]
+    return {name: {_KEYS[key.removeprefix("protocol.")]:
+                   tuple(value) if isinstance(value, list) else value
+                   for key, value in (params or {}).items()}
+            for name, params in table.items()}
+
+
+PROTOCOLS: dict[str, dict[str, Any]] = _load_protocols()
 
 
 def profile_from_protocol(name: str, **overrides: Any) -> LoadProfile:

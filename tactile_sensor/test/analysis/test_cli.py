@@ -161,13 +161,14 @@ def test_empty_segment(tmp_path, capsys, case):
 
 BAD_CALIBRATIONS = {
     "not_json": ("{output_v: [", "not valid JSON"),
-    "wrong_format": (json.dumps({"format": "other", "version": 1}), "lacks"),
+    "wrong_format": (json.dumps({"format": "other", "version": 1}),
+                     "not a calibration file"),
     "wrong_version": (json.dumps({"format": "tactile_sensor/calibration", "version": 7,
                                   "output_v": [0, 1], "force_n": [0, 1]}), "version 7"),
     "short": (json.dumps({"format": "tactile_sensor/calibration", "version": 1,
-                          "output_v": [0.1], "force_n": [1.0]}), "at least two"),
+                          "output_v": [0.1], "force_n": [1.0]}), "at least 2 points"),
     "text": (json.dumps({"format": "tactile_sensor/calibration", "version": 1,
-                         "output_v": ["a", "b"], "force_n": [0, 1]}), "finite numbers"),
+                         "output_v": ["a", "b"], "force_n": [0, 1]}), "must hold numbers"),
     "unpaired": (json.dumps({"format": "tactile_sensor/calibration", "version": 1,
                              "output_v": [0, 1, 2], "force_n": [0, 1]}), "pair up"),
     "not_increasing": (json.dumps({"format": "tactile_sensor/calibration", "version": 1,
@@ -175,7 +176,7 @@ BAD_CALIBRATIONS = {
                        "strictly increasing"),
     "force_decreasing": (json.dumps({"format": "tactile_sensor/calibration", "version": 1,
                                      "output_v": [0, 1, 2], "force_n": [0, 2, 1]}),
-                         "decreasing"),
+                         "non-decreasing"),
 }
 
 
@@ -192,7 +193,7 @@ def test_bad_calibration_file(bags, tmp_path, capsys, case):
 def test_missing_calibration_file(bags, tmp_path, capsys):
     code, err = run([str(bags[0]), "--out", str(tmp_path / "o"), "--prediction", "none",
                      "--calibration", str(tmp_path / "nope.json")], capsys)
-    assert_one_sentence(code, err, "cannot read the calibration file")
+    assert_one_sentence(code, err, "nope.json does not exist")
 
 
 @pytest.mark.parametrize(("text", "fragment"), [
