@@ -35,7 +35,8 @@ from tactile_sensor.control.grasp import (  # noqa: E402
 from tactile_sensor.hardware.errors import CommunicationTimeout  # noqa: E402
 from tactile_sensor.hardware.xm430 import Xm430Client  # noqa: E402
 from tactile_sensor.hardware.xm430_table import OperatingMode  # noqa: E402
-from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin  # noqa: E402
+from tactile_sensor.sim.gripper_world import GripperWorld  # noqa: E402
+from tactile_sensor.sim.skin_response import TabulatedSkin  # noqa: E402
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator  # noqa: E402
 
 TRANSPORT_DELAY_S = 0.005
@@ -54,7 +55,7 @@ def skin() -> tuple[TabulatedSkin, str]:
         volts = 2.0 - 0.07 * force
         return TabulatedSkin(d, force, volts, thickness_m=0.005), "paper-shaped stand-in"
     curve = load_or_compute_curve(PhysicsParams())
-    return TabulatedSkin.from_curve(curve), "physics PredictionCurve"
+    return TabulatedSkin.from_prediction_curve(curve), "physics PredictionCurve"
 
 
 def wait_for(path: Path, timeout_s: float = 10.0) -> None:

@@ -22,80 +22,10 @@ from __future__ import annotations
 
 import bisect
 import threading
-from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
-
-import numpy as np
 
 from tactile_sensor.control.geometry import GripperGeometry
-
-#: Stiffness of the resin frame / hard stops once skin or travel is used up [N/m].
-RIGID_STIFFNESS_N_PER_M = 2.0e5
-
-
-class SkinResponse(Protocol):
-    """Force and photoreflector voltage of the skin at an indentation (both monotonic)."""
-
-    def force_n(self, indentation_m: float) -> float: ...
-
-    def voltage_v(self, indentation_m: float) -> float: ...
-
-
-class TabulatedSkin:
-    """Skin response by linear interpolation of a table (e.g. a physics PredictionCurve).
-
-    Force beyond the table continues with the last slope, and past ``thickness_m`` the resin
-    frame adds a stiff spring; voltage holds its last value (the module saturates).
-    """
-
-    def __init__(self, indentation_m: Sequence[float], force_n: Sequence[float],
-                 voltage_v: Sequence[float], thickness_m: float | None = None) -> None:
-        d = np.asarray(indentation_m, dtype=float)
-        f = np.asarray(force_n, dtype=float)
-        v = np.asarray(voltage_v, dtype=float)
-        if d.ndim != 1 or len(d) < 2 or d.shape != f.shape or d.shape != v.shape:
-            raise ValueError("skin table needs three equal-length 1-D arrays of 2+ points")
-        if np.any(np.diff(d) <= 0) or d[0] < 0:
-            raise ValueError("skin table indentations must start at >= 0 and increase")
-        if np.any(np.diff(f) < 0):
-            raise ValueError("skin table force must not decrease with indentation")
-        self._d, self._f, self._v = d, f, v
-        # plain lists: scalar lookups in the emulator's inner loop are ~10x faster than np
-        self._dl, self._fl, self._vl = d.tolist(), f.tolist(), v.tolist()
-        self._slope = float((f[-1] - f[-2]) / (d[-1] - d[-2]))
-        self.thickness_m = float(thickness_m) if thickness_m is not None else float(d[-1]) * 1.5
-
-    @classmethod
-    def from_curve(cls, curve: object, thickness_m: float | None = None) -> TabulatedSkin:
-        """Adapt a physics ``PredictionCurve`` (arrays indentation_m, force_n, voltage_v)."""
-        return cls(curve.indentation_m, curve.force_n, curve.voltage_v,  # type: ignore[attr-defined]
-                   thickness_m)
-
-    @property
-    def max_table_indentation_m(self) -> float:
-        return float(self._d[-1])
-
-    def force_n(self, indentation_m: float) -> float:
-        d = max(0.0, indentation_m)
-        if d <= self._dl[-1]:
-            force = self._interp(d, self._fl)
-        else:
-            force = float(self._f[-1] + self._slope * (d - self._d[-1]))
-        if d > self.thickness_m:
-            force += RIGID_STIFFNESS_N_PER_M * (d - self.thickness_m)
-        return force
-
-    def voltage_v(self, indentation_m: float) -> float:
-        return self._interp(min(max(0.0, indentation_m), self._dl[-1]), self._vl)
-
-    def _interp(self, d: float, values: list[float]) -> float:
-        xs = self._dl
-        if d <= xs[0]:
-            return values[0]
-        i = min(bisect.bisect_right(xs, d), len(xs) - 1)
-        x0, x1 = xs[i - 1], xs[i]
-        return values[i - 1] + (values[i] - values[i - 1]) * (d - x0) / (x1 - x0)
+from tactile_sensor.sim.skin_response import RIGID_STIFFNESS_N_PER_M, SkinResponse
 
 
 @dataclass(frozen=True)

@@ -719,7 +719,7 @@ def _build_world(args: argparse.Namespace) -> GripperWorld | None:
     if args.no_world:
         return None
     from tactile_sensor.control.geometry import GripperGeometry
-    from tactile_sensor.sim.gripper_world import TabulatedSkin
+    from tactile_sensor.sim.skin_response import TabulatedSkin
 
     try:
         from tactile_sensor.physics.params import PhysicsParams
@@ -735,7 +735,7 @@ def _build_world(args: argparse.Namespace) -> GripperWorld | None:
     geometry = GripperGeometry(pitch_radius_m=args.pitch_radius, open_opening_m=args.open,
                                closed_opening_m=args.closed)
     rod = None if args.rod_diameter <= 0 else args.rod_diameter
-    return GripperWorld(TabulatedSkin.from_curve(curve), geometry, rod, args.rod_offset)
+    return GripperWorld(TabulatedSkin.from_prediction_curve(curve), geometry, rod, args.rod_offset)
 
 
 def _parser() -> argparse.ArgumentParser:

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+
 from tactile_sensor.control.errors import InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import (

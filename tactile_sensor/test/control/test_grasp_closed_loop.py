@@ -7,10 +7,12 @@ import time
 
 import numpy as np
 import pytest
+
 from tactile_sensor.control.grasp import GraspController, GraspRequest, Outcome
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.hardware.xm430_table import OperatingMode
-from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin
+from tactile_sensor.sim.gripper_world import GripperWorld
+from tactile_sensor.sim.skin_response import TabulatedSkin
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
 
 
@@ -25,7 +27,7 @@ def _share_the_gil_fairly():
 def run_grasp(tmp_path, rod_diameter_m):
     d = np.linspace(0.0, 0.003, 31)
     force = 7.0 * d / 0.003
-    world = GripperWorld(TabulatedSkin(d, force, 2.0 - 0.07 * force, 0.005),
+    world = GripperWorld(TabulatedSkin(d, force, 2.0 - 0.07 * force, thickness_m=0.005),
                          rod_diameter_m=rod_diameter_m)
     with Xm430Emulator(tmp_path / "xm430", baudrate=1_000_000, world=world) as emu, \
             Xm430Client(str(emu.link.link_path), 1_000_000, 1, timeout_s=0.2) as client:

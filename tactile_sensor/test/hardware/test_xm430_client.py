@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 import pytest
+
 from tactile_sensor.hardware.errors import (
     CommunicationTimeout,
     DynamixelError,
@@ -19,7 +20,8 @@ from tactile_sensor.hardware.errors import (
 )
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.hardware.xm430_table import OperatingMode
-from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin
+from tactile_sensor.sim.gripper_world import GripperWorld
+from tactile_sensor.sim.skin_response import TabulatedSkin
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
 
 BAUD = 1_000_000

@@ -8,6 +8,7 @@ import dynamixel_easy_sdk
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+
 from tactile_sensor.hardware import xm430_table as table
 
 

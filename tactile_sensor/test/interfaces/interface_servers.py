@@ -24,7 +24,7 @@ class InterfaceServers(Node):
         self._predict = self.create_service(PredictOutput, "predict", self._on_predict)
         self.get_logger().info("servers ready")
 
-    def _execute(self, handle):  # noqa: ANN001, ANN202
+    def _execute(self, handle):
         target = handle.request.target_force
         for i in range(1, 6):
             feedback = Grasp.Feedback(force=target * i / 5, opening=0.05 - 0.01 * i)
@@ -34,7 +34,7 @@ class InterfaceServers(Node):
         return Grasp.Result(contact_detected=True, force=target, opening=0.0,
                             message="contact")
 
-    def _on_predict(self, request, response):  # noqa: ANN001, ANN202
+    def _on_predict(self, request, response):
         response.force = [2.0 * d for d in request.indentation]
         response.distance = [0.002 - d for d in request.indentation]
         response.voltage = [1.0] * len(request.indentation)

@@ -6,6 +6,7 @@ import pytest
 from dynamixel_sdk import PacketHandler
 from hypothesis import assume, given
 from hypothesis import strategies as st
+
 from tactile_sensor.sim.dynamixel_packets import (
     BadCrc,
     Instruction,

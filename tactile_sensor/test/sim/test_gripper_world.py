@@ -8,8 +8,11 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+
 from tactile_sensor.control.geometry import GripperGeometry
-from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin
+from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.gripper_world import GripperWorld
+from tactile_sensor.sim.skin_response import TabulatedSkin
 
 
 def skin() -> TabulatedSkin:
@@ -78,12 +81,12 @@ def test_skin_extrapolates_and_bottoms_out():
 
 
 @pytest.mark.parametrize(("d", "f", "v", "match"), [
-    ([0.0], [0.0], [1.0], "2\\+ points"),
-    ([0.0, 0.0], [0.0, 1.0], [1.0, 1.0], "increase"),
+    ([0.0], [0.0], [1.0], "length ≥ 2"),
+    ([0.0, 0.0], [0.0, 1.0], [1.0, 1.0], "strictly increasing"),
     ([0.0, 0.001], [1.0, 0.0], [1.0, 1.0], "must not decrease"),
 ])
 def test_skin_table_validation(d, f, v, match):
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises(SimError, match=match):
         TabulatedSkin(d, f, v)
 
 

@@ -7,6 +7,7 @@ import math
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+
 from tactile_sensor.sim.motor_model import (
     BACKDRIVE_TORQUE_NM,
     TORQUE_CONSTANT_NM_PER_A,

@@ -22,9 +22,11 @@ from dynamixel_sdk import (
     PacketHandler,
     PortHandler,
 )
+
 from tactile_sensor.sim.dynamixel_packets import Instruction, build_instruction, parse_one
 from tactile_sensor.sim.errors import SimError
-from tactile_sensor.sim.gripper_world import GripperWorld, TabulatedSkin
+from tactile_sensor.sim.gripper_world import GripperWorld
+from tactile_sensor.sim.skin_response import TabulatedSkin
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
 
 BAUD = 1_000_000

@@ -1,0 +1,288 @@
+"""``tactile-sensor model sweep``: the FEM prediction of the module from the command line.
+
+Parameters come from the defaults, then ``--config`` (flat YAML or ROS ``ros__parameters``
+form, e.g. ``config/physics.yaml``), then ``--set NAME=VALUE``, then ``--boundary`` and
+``--steps``. The sweep is cached like the model node's (same digest, same cache folder), so
+the CLI and the node share work.
+
+Exit codes: 0 done, 1 the model failed (a PhysicsError, e.g. no convergence, or an output
+file could not be written), 2 bad command line, parameter or config file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, NoReturn
+
+from .errors import PhysicsError
+from .params import BOUNDARIES, PhysicsParams
+from .prediction import PredictionCurve, compute_curve, load_or_compute_curve
+
+PROG = "tactile-sensor model"
+
+
+class UsageError(Exception):
+    """A bad command line, parameter or config file (exit code 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of exiting, so ``main`` owns every exit code."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(f"{message}; see '{self.prog} --help'.")
+
+
+def parser() -> argparse.ArgumentParser:
+    top = _Parser(prog=PROG, description="Finite-element prediction of the tactile-sensing "
+                  "module (skin force, side bulge, photoreflector output).")
+    sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    p = sub.add_parser(
+        "sweep", help="press the skin from 0 to max_indentation and predict force and output",
+        description="Press the skin block from 0 to max_indentation with the FEM model, apply "
+                    "the photoreflector optics and report force, bulge and module output "
+                    "(the paper's Fig. 7(a)/(b)). Results are cached per parameter digest.")
+    p.add_argument("--config", type=Path, metavar="FILE",
+                   help="YAML physics parameters: a flat NAME: VALUE mapping, or ROS params "
+                        "form '<node or /**>: {ros__parameters: {...}}' (e.g. "
+                        "config/physics.yaml; names that are not physics parameters are "
+                        "ignored there)")
+    p.add_argument("--set", dest="sets", action="extend", nargs="+", default=[],
+                   metavar="NAME=VALUE",
+                   help="override a physics parameter in SI units (m, Pa, ...), e.g. "
+                        "--set height=0.025 c01=12180 gap=0.002; known names: "
+                        + ", ".join(PhysicsParams.names()))
+    p.add_argument("--boundary", choices=BOUNDARIES,
+                   help="'bonded' (paper: base fixed, probe bonded, module present) or "
+                        "'frictionless' (verification, no module)")
+    p.add_argument("--steps", type=int, metavar="N", help="load steps (overrides 'steps')")
+    p.add_argument("--json", type=Path, metavar="PATH",
+                   help="write the curve (indentation_m, force_n, bulge_m, distance_m, "
+                        "voltage_v, output_v, nodes, seconds, params) as JSON")
+    p.add_argument("--plot", type=Path, metavar="PATH",
+                   help="write a PNG: force and output change against indentation")
+    p.add_argument("--cache-dir", type=Path, metavar="DIR",
+                   help="cache folder (default $XDG_CACHE_HOME/tactile_sensor)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="always run the FEM sweep and do not store the result")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    return top
+
+
+# -- parameters ------------------------------------------------------------------------------
+
+
+def _physics_names(section: Mapping[str, Any]) -> dict[str, Any]:
+    names = set(PhysicsParams.names())
+    return {str(k): v for k, v in section.items() if k in names}
+
+
+def config_values(path: Path) -> dict[str, Any]:
+    """Physics values from a YAML file in flat or ROS params form (not yet validated)."""
+    import yaml
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise UsageError(f"cannot read the config file {path} ({err.strerror}); pass an "
+                         "existing YAML file.") from None
+    except UnicodeDecodeError:
+        raise UsageError(f"the config file {path} is not UTF-8 text; pass a YAML "
+                         "file.") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        where = f" at line {mark.line + 1}" if mark is not None else ""
+        raise UsageError(f"the config file {path} is not valid YAML{where}; fix its "
+                         "syntax.") from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise UsageError(f"the config file {path} must hold a mapping of physics parameters "
+                         "or ROS params sections, not a {type(data).__name__}.")
+    ros_sections = [v for v in data.values()
+                    if isinstance(v, dict) and "ros__parameters" in v]
+    if not ros_sections:
+        return {str(k): v for k, v in data.items()}  # flat: unknown names are errors later
+    if len(ros_sections) != len(data):
+        raise UsageError(f"the config file {path} mixes ROS params sections with other "
+                         "top-level keys; use one form.")
+    values: dict[str, Any] = {}
+    for section in ros_sections:
+        params = section["ros__parameters"]
+        if params is None:
+            continue
+        if not isinstance(params, dict):
+            raise UsageError(f"a 'ros__parameters' entry in {path} is not a mapping; fix "
+                             "the config file.")
+        values.update(_physics_names(params))
+    return values
+
+
+def set_values(items: list[str]) -> dict[str, Any]:
+    """``NAME=VALUE`` strings -> mapping (values stay strings; PhysicsParams coerces)."""
+    names = set(PhysicsParams.names())
+    values: dict[str, Any] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        name = name.strip()
+        if not sep or not name or not value.strip():
+            raise UsageError(f"--set expects NAME=VALUE, got {item!r}; e.g. --set "
+                             "height=0.025.")
+        if name not in names:
+            raise UsageError(f"--set names an unknown physics parameter {name!r}; known "
+                             f"ones are {', '.join(sorted(names))}.")
+        values[name] = value.strip()
+    return values
+
+
+def build_params(args: argparse.Namespace) -> PhysicsParams:
+    values: dict[str, Any] = {}
+    if args.config is not None:
+        values.update(config_values(args.config))
+    values.update(set_values(args.sets))
+    if args.boundary is not None:
+        values["boundary"] = args.boundary
+    if args.steps is not None:
+        values["steps"] = args.steps
+    try:
+        return PhysicsParams.from_mapping(values)
+    except PhysicsError as err:
+        raise UsageError(str(err)) from None
+
+
+def _check_output(path: Path | None, option: str) -> None:
+    """Fail before a long sweep, not after it, when an output cannot be written there."""
+    if path is None:
+        return
+    if path.is_dir():
+        raise UsageError(f"{option} {path} is a directory; pass a file name.")
+    if not path.parent.is_dir():
+        raise UsageError(f"the folder of {option} {path} does not exist; create it first.")
+
+
+# -- output ----------------------------------------------------------------------------------
+
+
+class _Progress:
+    """Percent and message of a cold sweep on stderr; also tells a cache miss from a hit."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled
+        self.called = False
+
+    def __call__(self, fraction: float, message: str) -> None:
+        self.called = True
+        if self.enabled:
+            print(f"[{100 * fraction:5.1f}%] {message}", file=sys.stderr, flush=True)
+
+
+def write_json(curve: PredictionCurve, params: PhysicsParams, path: Path) -> None:
+    data = curve.to_dict()
+    data["params"] = {k: list(v) if isinstance(v, tuple) else v
+                      for k, v in params.to_dict().items()}
+    path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+
+
+def write_plot(curve: PredictionCurve, params: PhysicsParams, path: Path) -> None:
+    """Fig. 7(a)/(b) analogue: force and module output change against indentation."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d_mm = curve.indentation_m * 1e3
+    fig, (ax_f, ax_v) = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    ax_f.plot(d_mm, curve.force_n, "o-", color="tab:red", ms=4)
+    ax_f.set(xlabel="indentation [mm]", ylabel="contact force [N]",
+             title="(a) force vs indentation")
+    ax_v.plot(d_mm, curve.output_v, "o-", color="tab:blue", ms=4)
+    ax_v.set(xlabel="indentation [mm]", ylabel="change in module output [V]",
+             title="(b) predicted output vs indentation")
+    for ax in (ax_f, ax_v):
+        ax.grid(True, alpha=0.3)
+        ax.set_xlim(left=0.0)
+    fig.suptitle(f"FEM prediction ({params.boundary}, {curve.nodes} nodes, "
+                 f"{params.pigment_white:g} % white, gap {params.gap * 1e3:g} mm)")
+    try:
+        fig.savefig(path, dpi=120)
+    finally:
+        plt.close(fig)
+
+
+def summary(curve: PredictionCurve, cache: str) -> str:
+    d = curve.max_indentation_m
+    force = float(curve.force_n[-1])
+    output = float(curve.output_v[-1])
+    sensitivity = f"{output / force:.4f} V/N" if force > 0 else "n/a (no force)"
+    return "\n".join([
+        f"indentation     {d * 1e3:.3f} mm",
+        f"force           {force:.3f} N",
+        f"bulge           {curve.bulge_m[-1] * 1e3:.4f} mm "
+        f"(distance {curve.distance_m[0] * 1e3:.3f} -> {curve.distance_m[-1] * 1e3:.3f} mm)",
+        f"output change   {output:.4f} V "
+        f"(voltage {curve.voltage_v[0]:.4f} -> {curve.voltage_v[-1]:.4f} V)",
+        f"sensitivity     {sensitivity} (output / force at max indentation)",
+        f"nodes           {curve.nodes}",
+        f"sweep seconds   {curve.seconds:.2f}",
+        f"cache           {cache}",
+    ])
+
+
+def sweep(args: argparse.Namespace) -> int:
+    params = build_params(args)
+    _check_output(args.json, "--json")
+    _check_output(args.plot, "--plot")
+    progress = _Progress(not args.quiet)
+    if args.no_cache:
+        curve = compute_curve(params, progress)
+        cache = "off (--no-cache)"
+    else:
+        curve = load_or_compute_curve(params, args.cache_dir, progress)
+        cache = f"miss (computed, digest {params.digest()})" if progress.called else \
+            f"hit (digest {params.digest()})"
+    try:
+        if args.json is not None:
+            write_json(curve, params, args.json)
+        if args.plot is not None:
+            write_plot(curve, params, args.plot)
+    except OSError as err:
+        raise PhysicsError(f"cannot write {err.filename} ({err.strerror}); pass a writable "
+                           "path.") from None
+    print(summary(curve, cache))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    started = time.perf_counter()
+    try:
+        args = parser().parse_args(sys.argv[1:] if argv is None else argv)
+    except UsageError as err:
+        print(f"{PROG}: {err}", file=sys.stderr)
+        return 2
+    except SystemExit as exc:  # --help
+        return exc.code if isinstance(exc.code, int) else 0
+    try:
+        code = sweep(args)
+    except UsageError as err:
+        print(f"{PROG} {args.command}: {err}", file=sys.stderr)
+        return 2
+    except PhysicsError as err:
+        print(f"{PROG} {args.command}: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f"{PROG} {args.command}: interrupted.", file=sys.stderr)
+        return 130
+    if not args.quiet:
+        print(f"done in {time.perf_counter() - started:.1f} s", file=sys.stderr)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
