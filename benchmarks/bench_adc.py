@@ -61,7 +61,9 @@ def paper_linear_skin() -> TabulatedSkin:
     return TabulatedSkin(d, 7.0 * d / 0.003, 1.986 - 0.49 * d / 0.003, "paper-linear")
 
 
-def load_skin() -> TabulatedSkin:
+def load_skin(kind: str) -> TabulatedSkin:
+    if kind == "paper-linear":
+        return paper_linear_skin()
     try:
         return default_skin(lambda f, m: print(f"  FEM {f * 100:5.1f} % {m}", flush=True))
     except (SimError, ImportError, AttributeError, TypeError) as exc:
@@ -196,10 +198,10 @@ def best_lag_ms(out: np.ndarray, truth: np.ndarray, mask: np.ndarray, rate_hz: f
     return float(shifts[int(np.argmin(rms))] / rate_hz * 1e3)
 
 
-def bench_filters(seed: int) -> None:
+def bench_filters(seed: int, skin_kind: str) -> None:
     print("\n== filters: one simulated press at 1 kHz, paper-level noise ==")
     rate = 1000.0
-    skin = load_skin()
+    skin = load_skin(skin_kind)
     print(f"skin: {skin.source}; noise {AdcNoise()}")
     rows: dict[str, dict[str, float]] = {name: {} for name in FILTERS}
     for speed in (0.001, 0.01):
@@ -251,11 +253,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rates", default="1000,2000,5000,10000,20000,40000",
                         help="comma-separated ingest rates to try in order [Hz]")
     parser.add_argument("--seed", type=int, default=1, help="noise seed for the filter press")
+    parser.add_argument("--skin", choices=("fem", "paper-linear"), default="fem",
+                        help="skin response for the filter press: the FEM prediction "
+                             "(default; falls back to paper-linear if physics fails) or a "
+                             "linear curve from the paper's figures")
     parser.add_argument("--skip-ingest", action="store_true")
     parser.add_argument("--skip-filters", action="store_true")
     args = parser.parse_args(argv)
     if not args.skip_filters:
-        bench_filters(args.seed)
+        bench_filters(args.seed, args.skin)
     if not args.skip_ingest:
         bench_ingest([float(r) for r in args.rates.split(",")], args.seconds)
     return 0

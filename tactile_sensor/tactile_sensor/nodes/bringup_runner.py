@@ -100,6 +100,9 @@ class BringupRunner:
 
     # -- run ------------------------------------------------------------------------------------
     def run(self, duration: float | None) -> int:
+        # dynamixel-sdk busy-waits for replies; with the emulator in this process a short
+        # switch interval lets the emulator's thread answer in time (docs/gripper.md).
+        sys.setswitchinterval(5e-4)
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         previous = signal.signal(signal.SIGINT, lambda *_: self.request_stop("Ctrl-C"))
         executor = MultiThreadedExecutor(num_threads=6)

@@ -294,6 +294,7 @@ class MockHardwareNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
+    sys.setswitchinterval(5e-4)  # several device threads must each answer within ~1 ms
     try:
         with rclpy.init(args=args):
             try:

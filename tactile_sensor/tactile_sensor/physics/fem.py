@@ -361,60 +361,30 @@ class SkinModel:
 
     def _newton(self, u: np.ndarray, lu: object, perm: np.ndarray
                 ) -> tuple[np.ndarray, object]:
-        """Quasi-Newton with a reused factorisation, accelerated by Anderson mixing.
+        """Full Newton (fresh tangent every iteration) with a safeguard against inversion.
 
-        The tangent of a nearly incompressible solid changes quickly with the pressure, so a
-        plain modified Newton converges only linearly; Anderson acceleration over the last few
-        preconditioned residuals recovers fast convergence at the price of residual
-        evaluations only. The tangent is refactorised when the iteration stalls.
+        A reused tangent converges only linearly here: the pressure of a nearly
+        incompressible solid makes the tangent change quickly with the state.
         """
         free = self._free
         tol_u = 1e-8 * self.params.height
-        depth = 6
-        xs: list[np.ndarray] = []
-        gs: list[np.ndarray] = []
-        best = np.inf
-        stall = 0
-        for _ in range(80):
-            if lu is None:
-                lu = self._factorise(u, perm)
-                xs.clear()
-                gs.clear()
-                stall = 0
+        for _ in range(30):
+            lu = self._factorise(u, perm)
             r = self._evaluate(u, tangent=False)[0][free]
             solver, pm = lu  # type: ignore[misc]
-            g = np.empty_like(r)
-            g[pm] = solver.solve(-r[pm])
+            du = np.empty_like(r)
+            du[pm] = solver.solve(-r[pm])
             self.stats["iterations"] += 1
-            size = np.abs(g).max()
-            if size < tol_u:
-                return u, lu
-            if size < 0.5 * best:
-                best, stall = size, 0
-            else:
-                stall += 1
-            x = u[free].copy()
-            xs.append(x)
-            gs.append(g)
-            if len(xs) > depth + 1:
-                xs.pop(0)
-                gs.pop(0)
-            step = g
-            if len(xs) > 1:
-                dG = np.stack([gs[i + 1] - gs[i] for i in range(len(gs) - 1)], axis=1)
-                dX = np.stack([xs[i + 1] - xs[i] for i in range(len(xs) - 1)], axis=1)
-                gamma = np.linalg.lstsq(dG, g, rcond=None)[0]
-                step = g - (dX + dG) @ gamma
             alpha = 1.0
-            while not self._admissible(u, step * alpha):
+            while not self._admissible(u, du * alpha):
                 alpha *= 0.5
                 if alpha < 1e-3:
                     raise ConvergenceError("An element inverted during the FEM solve; use "
                                            "more load steps or a finer mesh.")
             u = u.copy()
-            u[free] = x + alpha * step
-            if stall >= 3:
-                lu = None
+            u[free] += alpha * du
+            if alpha == 1.0 and np.abs(du).max() < tol_u:
+                return u, lu
         raise ConvergenceError("The FEM Newton solve did not converge; use more load steps "
                                "('steps') or a smaller 'max_indentation'.")
 

@@ -33,7 +33,7 @@ FIT_WINDOW_M = (1.0e-3, 2.0e-3)
 
 # Distance [mm] -> light term D [V] of the 75 % skin at a 5 V supply (assumption, see above).
 _ANCHOR_X_MM = np.array([0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.5, 8.0, 10.0, 20.0])
-_ANCHOR_V = np.array([-1.0, -0.40, 0.0499, 1.0186, 1.9873, 2.90, 3.60, 4.40, 4.75, 4.93,
+_ANCHOR_V = np.array([-1.0, -0.9188, 0.0499, 1.0186, 1.9873, 2.90, 3.60, 4.40, 4.75, 4.93,
                       4.99, 5.0, 5.0])
 _LIGHT = PchipInterpolator(_ANCHOR_X_MM * 1e-3, 5.0 - _ANCHOR_V, extrapolate=False)
 

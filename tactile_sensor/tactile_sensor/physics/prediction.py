@@ -98,6 +98,9 @@ class PredictionCurve:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> PredictionCurve:
+        if not isinstance(data, dict):
+            raise PhysicsError("A prediction file must hold a JSON object; regenerate it with "
+                               "'tactile-sensor model sweep --json'.")
         try:
             arrays = {name: np.asarray(data[name], dtype=float) for name in ARRAYS}
             curve = cls(**arrays, nodes=int(data["nodes"]), seconds=float(data["seconds"]),
@@ -105,6 +108,9 @@ class PredictionCurve:
         except (KeyError, TypeError, ValueError) as exc:
             raise PhysicsError(f"A prediction file lacks or mangles {exc}; regenerate it with "
                                "'tactile-sensor model sweep --json'.") from None
+        if any(a.ndim != 1 or not np.all(np.isfinite(a)) for a in arrays.values()):
+            raise PhysicsError("A prediction file's arrays must be flat lists of finite "
+                               "numbers; regenerate it.")
         sizes = {arrays[name].size for name in ARRAYS}
         if len(sizes) != 1 or sizes.pop() < 2 or np.any(np.diff(curve.indentation_m) <= 0):
             raise PhysicsError("A prediction file's arrays differ in length or its "
@@ -148,8 +154,8 @@ def load_or_compute_curve(params: PhysicsParams, cache_dir: Path | None = None,
     if path.is_file():
         try:
             return PredictionCurve.from_dict(json.loads(path.read_text()))
-        except (PhysicsError, json.JSONDecodeError, OSError):
-            pass  # a damaged cache entry is recomputed and replaced
+        except (PhysicsError, ValueError, OSError):
+            pass  # a damaged (even non-UTF-8) cache entry is recomputed and replaced
     if progress is not None:
         progress(0.0, f"computing the FEM sweep (cache miss: {path.name})")
     curve = compute_curve(params, progress)

@@ -13,6 +13,7 @@ to the gauge only.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
@@ -32,7 +33,8 @@ class RateDependentForce:
         g_arr, tau_arr = np.asarray(g, dtype=float), np.asarray(tau_s, dtype=float)
         if g_arr.shape != tau_arr.shape or g_arr.ndim != 1:
             raise PhysicsError("Prony moduli and times must be two lists of equal length.")
-        if np.any(g_arr < 0) or np.any(tau_arr <= 0) or not np.all(np.isfinite(g_arr)):
+        if not (np.all(np.isfinite(g_arr)) and np.all(np.isfinite(tau_arr))
+                and np.all(g_arr >= 0) and np.all(tau_arr > 0)):
             raise PhysicsError("Prony moduli must be >= 0 and relaxation times > 0 s.")
         self.g, self.tau = g_arr, tau_arr
         self.reset()
@@ -47,8 +49,8 @@ class RateDependentForce:
 
     def step(self, elastic_force_n: float, dt: float) -> float:
         """Advance by ``dt`` [s] to a relaxed force ``elastic_force_n``; returns the force."""
-        if dt < 0:
-            raise PhysicsError(f"Time step {dt!r} s must be >= 0.")
+        if not (math.isfinite(dt) and dt >= 0):
+            raise PhysicsError(f"Time step {dt!r} s must be finite and >= 0.")
         if self._last is None:
             self._last = elastic_force_n
             return elastic_force_n
@@ -70,11 +72,12 @@ class RateDependentForce:
             raise PhysicsError("force_history needs equal-length 1-D time and force arrays.")
         if times.size and np.any(np.diff(times) < 0):
             raise PhysicsError("force_history needs increasing times.")
+        saved = (self._h.copy(), self._last)  # a streaming user's state survives the batch
         self.reset()
         out = np.empty_like(forces)
         previous = times[0] if times.size else 0.0
         for k, (now, force) in enumerate(zip(times.tolist(), forces.tolist(), strict=True)):
             out[k] = self.step(force, now - previous)
             previous = now
-        self.reset()
+        self._h, self._last = saved
         return out

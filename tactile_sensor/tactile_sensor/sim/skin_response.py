@@ -114,10 +114,15 @@ def default_skin(progress: Callable[[float, str], None] | None = None) -> Tabula
     """The FEM prediction for the default physics parameters (cached after the first run;
     a cold sweep takes a while and reports ``progress(fraction, message)``)."""
     try:
+        from tactile_sensor.physics.errors import PhysicsError
         from tactile_sensor.physics.params import PhysicsParams
         from tactile_sensor.physics.prediction import load_or_compute_curve
     except ImportError as exc:
         raise SimError(f"The physics model is not available ({exc}); install the complete "
                        "tactile_sensor package.") from None
-    curve = load_or_compute_curve(PhysicsParams(), progress=progress)
+    try:
+        curve = load_or_compute_curve(PhysicsParams(), progress=progress)
+    except PhysicsError as exc:
+        raise SimError(f"The FEM prediction failed ({exc}); pass a measured skin table "
+                       "instead (--skin-table).") from None
     return TabulatedSkin.from_prediction_curve(curve)

@@ -68,3 +68,27 @@ def test_bad_grid_and_bad_table():
         TabulatedSkin([0.0, 1.0], [0.0], [2.0, 1.0])
     with pytest.raises(SimError, match="NaN"):
         TabulatedSkin([0.0, 1.0], [0.0, np.nan], [2.0, 1.0])
+
+
+def test_physics_adapters_give_the_papers_trends():
+    from tactile_sensor.physics.params import PhysicsParams
+    from tactile_sensor.physics.prediction import curve_from_sweep
+    from tactile_sensor.physics.viscoelastic import RateDependentForce
+
+    params = PhysicsParams()
+    # a mechanical sweep given as test input; the physics optics turn it into volts
+    d = np.linspace(0.0, 0.003, 13)
+    curve = curve_from_sweep(params, d, 7.0 * (d / 0.003) ** 1.3, 0.4 * d, nodes=0,
+                             seconds=0.0)
+    skin = TabulatedSkin.from_prediction_curve(curve)
+    assert skin.source == f"fem:{curve.digest}"
+    np.testing.assert_allclose(skin.voltage_v(d), curve.voltage_v)
+    peaks = []
+    for speed in (0.0001, 0.001, 0.01):
+        world = BenchWorld(parse_profile(f"ramp:speed={speed},rest=0.5"), skin,
+                           RateDependentForce.from_params(params))
+        t = np.linspace(0.0, world.duration_s, 5001)
+        peaks.append((world.force_n(t).max(), world.photoreflector_voltage(t).min()))
+    forces, volts = zip(*peaks, strict=True)
+    assert forces[0] <= forces[1] < forces[2]
+    assert volts == pytest.approx([volts[0]] * 3)
