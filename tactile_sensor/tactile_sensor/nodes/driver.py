@@ -57,6 +57,8 @@ SPECS = [
     ParamSpec("filter.min_cutoff_hz", 10.0, "one_euro minimum cutoff [Hz]", minimum=0.0,
               exclusive_minimum=True),
     ParamSpec("filter.beta", 0.5, "one_euro speed coefficient [1/V]", minimum=0.0),
+    ParamSpec("filter.d_cutoff_hz", 1.0, "one_euro derivative cutoff [Hz]", minimum=0.0,
+              exclusive_minimum=True),
     ParamSpec("publish_rate", 0.0, "rate [Hz] of ~/wrench and ~/reading; 0 = every sample "
               "(the filter always sees every sample)", minimum=0.0, maximum=100_000.0),
     ParamSpec("frame_id", "tactile_sensor", "frame of the wrench; +z is the skin normal "
@@ -82,7 +84,7 @@ SPECS = [
 
 FILTER_KEYS = {"savgol": ("window",), "moving_average": ("window",),
                "butterworth": ("order", "cutoff_hz"),
-               "one_euro": ("min_cutoff_hz", "beta"), "none": ()}
+               "one_euro": ("min_cutoff_hz", "beta", "d_cutoff_hz"), "none": ()}
 
 
 def chain_config(values: dict[str, Any]) -> ChainConfig:
