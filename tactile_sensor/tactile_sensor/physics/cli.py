@@ -211,7 +211,7 @@ def write_plot(curve: PredictionCurve, params: PhysicsParams, path: Path) -> Non
     fig.suptitle(f"FEM prediction ({params.boundary}, {curve.nodes} nodes, "
                  f"{params.pigment_white:g} % white, gap {params.gap * 1e3:g} mm)")
     try:
-        fig.savefig(path, dpi=120)
+        fig.savefig(path, dpi=120, format="png")  # PNG whatever the file name says
     finally:
         plt.close(fig)
 
@@ -247,14 +247,14 @@ def sweep(args: argparse.Namespace) -> int:
         curve = load_or_compute_curve(params, args.cache_dir, progress)
         cache = f"miss (computed, digest {params.digest()})" if progress.called else \
             f"hit (digest {params.digest()})"
-    try:
-        if args.json is not None:
-            write_json(curve, params, args.json)
-        if args.plot is not None:
-            write_plot(curve, params, args.plot)
-    except OSError as err:
-        raise PhysicsError(f"cannot write {err.filename} ({err.strerror}); pass a writable "
-                           "path.") from None
+    for path, write in ((args.json, write_json), (args.plot, write_plot)):
+        if path is None:
+            continue
+        try:
+            write(curve, params, path)
+        except OSError as err:
+            raise PhysicsError(f"cannot write {path} ({err.strerror or err}); pass a "
+                               "writable path.") from None
     print(summary(curve, cache))
     return 0
 

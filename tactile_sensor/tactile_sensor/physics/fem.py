@@ -334,8 +334,9 @@ class SkinModel:
         self.stats["factorisations"] += 1
         _, K = self._evaluate(u, tangent=True)
         assert K is not None
-        return (spla.splu(K[perm][:, perm].tocsc(), permc_spec="NATURAL",
-                          diag_pivot_thresh=0.1, options={"SymmetricMode": True}), perm)
+        return (spla.splu(K[perm][:, perm].tocsc(), permc_spec="NATURAL"), perm)
+
+
 
     def _tangent_predictor(self, u: np.ndarray, d: float, perm: np.ndarray
                            ) -> tuple[np.ndarray, object]:

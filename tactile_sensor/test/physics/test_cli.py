@@ -44,7 +44,7 @@ def test_model_help_lists_sweep(capsys):
 
 
 def test_sweep_writes_json_and_plot_then_hits_the_cache(capsys, tmp_path):
-    json_path, png_path = tmp_path / "curve.json", tmp_path / "curve.png"
+    json_path, png_path = tmp_path / "curve.json", tmp_path / "curve.figure"  # PNG anyway
     code, out, err = run(capsys, "sweep", *COARSE, "--json", str(json_path), "--plot",
                          str(png_path), "--cache-dir", str(tmp_path / "cache"))
     assert code == 0, err
@@ -216,6 +216,15 @@ def test_physics_error_during_the_sweep_exits_1(capsys, tmp_path):
     assert code == 1
     assert "increase 'gap'" in one_sentence(err)
     assert out == ""
+
+
+@pytest.mark.skipif(not Path("/proc/version").is_file(), reason="needs Linux /proc")
+def test_unwritable_output_exits_1(capsys, tmp_path):
+    # /proc/version refuses writes even for root (tmp_path permissions would not)
+    code, _, err = run(capsys, "sweep", *COARSE, "--quiet", "--cache-dir", str(tmp_path),
+                       "--json", "/proc/version")
+    assert code == 1
+    assert "cannot write /proc/version" in one_sentence(err)
 
 
 def test_convergence_error_exits_1(capsys, tmp_path, monkeypatch):

@@ -6,7 +6,7 @@ import itertools
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from tactile_sensor.physics.errors import PhysicsError
@@ -88,13 +88,14 @@ def test_fit_recovers_the_linear_window_without_noise():
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), sigma=st.floats(0.0, 0.01))
+@example(seed=708, sigma=0.01)  # picked 3.6-4.6 mm when the window was chosen by absolute error
 def test_fit_recovers_window_and_slope_from_noisy_samples(seed, sigma):
     rng = np.random.default_rng(seed)
     x = rng.permutation(np.linspace(0.0, 10e-3, 101))  # order must not matter
     v = Photoreflector(75.0).voltage(x) + rng.normal(0.0, sigma, x.size)
     fit = fit_optics(x, v)
     low, high = fit.window_m
-    assert 0.6e-3 <= low <= 1.4e-3
+    assert 0.5e-3 <= low <= 1.5e-3  # overlaps the paper window [1, 2] mm by half or more
     assert high - low == pytest.approx(1e-3, abs=1e-4)
     assert fit.slope_v_per_m == pytest.approx(FIT_SLOPE_V_PER_M, rel=0.05)
     assert np.all(np.diff(fit.voltage_v) >= 0)  # the smoothed curve is monotone

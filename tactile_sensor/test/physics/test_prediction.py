@@ -176,6 +176,19 @@ def test_coarse_frictionless_sweep_gives_a_usable_curve(tmp_path):
     assert "cache miss" in calls[0][1]
 
 
+def test_frictionless_sweep_matches_closed_form_uniaxial_compression(tmp_path):
+    """Sliding top and base: homogeneous compression of a nearly incompressible
+    Mooney-Rivlin block, P = 2 (lam - lam^-2)(C10 + C01 / lam), lateral stretch lam^-1/2."""
+    params = PhysicsParams(**COARSE)
+    curve = load_or_compute_curve(params, tmp_path)
+    lam = 1.0 - curve.indentation_m[1:] / params.height
+    stress = -2.0 * (lam - lam**-2) * (params.c10 + params.c01 / lam)
+    force = stress * params.width * params.depth
+    bulge = params.depth / 2 * (lam**-0.5 - 1.0)
+    assert curve.force_n[1:] == pytest.approx(force, rel=2e-3)
+    assert curve.bulge_m[1:] == pytest.approx(bulge, rel=2e-3)
+
+
 def test_coarse_bonded_sweep_bulges_at_the_window(tmp_path):
     """The paper's configuration (base fixed, probe bonded, module band with a window).
 
