@@ -16,6 +16,7 @@ back wall has the same window — see ``PhysicsParams.window_width``).
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -25,7 +26,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import skfem
 
-from .errors import ConvergenceError
+from .errors import ConvergenceError, PhysicsError
 from .params import PhysicsParams
 
 Progress = Callable[[float, str], None]
@@ -68,7 +69,7 @@ def _axis(breaks: list[float], n: int, grading: float = 1.0) -> np.ndarray:
     else:
         sbreaks = [(b - lo) / (hi - lo) for b in breaks]
     pts: list[np.ndarray] = []
-    for s0, s1 in zip(sbreaks[:-1], sbreaks[1:], strict=True):
+    for s0, s1 in itertools.pairwise(sbreaks):
         k = max(1, round(n * (s1 - s0)))
         pts.append(np.linspace(s0, s1, k + 1)[:-1])
     s = np.concatenate([*pts, [1.0]])
@@ -170,11 +171,15 @@ class SkinModel:
             fixed[top, :] = True
             if p.module_height > 0:
                 band = z <= p.module_height + tol
-                fixed[band & (x > hw - tol), 0] = True
+                fixed[band & (x > hw - tol), :] = True
                 front = band & (y > hd - tol)
                 zc, wh, ww = p.window_center_z, p.window_height / 2, p.window_width / 2
                 window = front & (x < ww - tol) & (abs(z - zc) < wh - tol)
-                fixed[front & ~window, 1] = True
+                fixed[front & ~window, :] = True
+                if not window.any():
+                    raise PhysicsError("The mesh has no node inside the photoreflector "
+                                       "window; raise mesh_nx and mesh_nz or enlarge the "
+                                       "window.")
         else:
             fixed[bottom, 2] = True
             fixed[top, 2] = True
@@ -232,6 +237,9 @@ class SkinModel:
         ue = u[self._edofs].reshape(-1, 8, 3)                         # (e, a, i)
         dn = self._dndx                                               # (e, q, a, K)
         F = np.swapaxes(ue, 1, 2)[:, None] @ dn + np.eye(3)           # (e, q, i, K)
+        if np.any(np.linalg.det(F) <= 0):
+            raise ConvergenceError("An element inverted during the FEM solve; use more load "
+                                   "steps ('steps') or a finer mesh.")
         k = _kinematics(F)
         w = self._w
         J, G = k["J"], k["G"]
@@ -278,7 +286,8 @@ class SkinModel:
         sw = (R1 @ R2.swapaxes(1, 2)).reshape(ne, 8, 3, 8, 3)         # (a, k, b, i)
         ke += sw.transpose(0, 1, 4, 3, 2).reshape(ne, 24, 24)
         # isotropic-in-dof terms: delta_ik dN_a (c1 I - 2 be C) dN_b  and  -2 be D_ab b_ik
-        Mk = (2.0 * (al + be * I1))[..., None, None] * np.eye(3) - 2.0 * be[..., None, None] * k["C"]
+        Mk = ((2.0 * (al + be * I1))[..., None, None] * np.eye(3)
+              - 2.0 * be[..., None, None] * k["C"])
         D8 = ((w[..., None, None] * dn) @ Mk @ np.swapaxes(dn, -1, -2)).sum(axis=1)  # (e, 8, 8)
         ke += np.einsum("eab,ik->eaibk", D8, np.eye(3)).reshape(ne, 24, 24)
         Dq = (dn @ np.swapaxes(dn, -1, -2)).reshape(ne, nq, 64)
@@ -334,9 +343,16 @@ class SkinModel:
         self.stats["factorisations"] += 1
         _, K = self._evaluate(u, tangent=True)
         assert K is not None
-        return (spla.splu(K[perm][:, perm].tocsc(), permc_spec="NATURAL"), perm)
-
-
+        if not np.all(np.isfinite(K.data)):
+            raise ConvergenceError("The FEM state became invalid (an element inverted); use "
+                                   "more load steps ('steps') or a finer mesh.")
+        try:
+            return (spla.splu(K[perm][:, perm].tocsc(), permc_spec="NATURAL",
+                              diag_pivot_thresh=0.1, options={"SymmetricMode": True}), perm)
+        except RuntimeError:
+            raise ConvergenceError("The FEM tangent is singular (the skin lost stability); "
+                                   "use more load steps ('steps') or a smaller "
+                                   "'max_indentation'.") from None
 
     def _tangent_predictor(self, u: np.ndarray, d: float, perm: np.ndarray
                            ) -> tuple[np.ndarray, object]:
