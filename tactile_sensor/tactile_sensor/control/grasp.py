@@ -301,3 +301,36 @@ class ReleaseController(_Base):
             return Step(self.phase, None, Outcome.OPENED, f"opened to {opening * 1e3:.1f} mm",
                         opening)
         return Step(self.phase, None, None, "opening", opening)
+
+
+@dataclass
+class ForceSettler:
+    """After contact, nudge the fingers until the tactile force sits at the target.
+
+    Sensing and bus delays let the fingers travel on after the force crossed the target
+    (a few tenths of a newton at 10 mm/s). Each tick moves the goal by the force error
+    divided by the skin's stiffness at the pinion (half of it, so the loop cannot
+    oscillate with one tick of delay), until the error stays within ``tolerance`` of the
+    target for ``settled_ticks`` ticks.
+    """
+
+    geometry: GripperGeometry
+    target_force_n: float
+    skin_stiffness_n_per_m: float = 2500.0
+    tolerance: float = 0.05
+    settled_ticks: int = 3
+    _inside: int = 0
+
+    def command(self, force_n: float, servo: ServoReading, current_a: float,
+                velocity_rad_s: float) -> tuple[ServoCommand, bool]:
+        """(goal for this tick, settled?)."""
+        error = force_n - self.target_force_n
+        if abs(error) <= self.tolerance * self.target_force_n:
+            self._inside += 1
+        else:
+            self._inside = 0
+        # both fingers press the object: the gap closes 2 r per radian
+        step_rad = 0.5 * error / (self.skin_stiffness_n_per_m * 2.0
+                                  * self.geometry.pitch_radius_m)
+        goal = servo.position_rad - step_rad
+        return ServoCommand(goal, velocity_rad_s, current_a), self._inside >= self.settled_ticks

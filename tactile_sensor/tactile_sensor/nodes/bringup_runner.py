@@ -60,15 +60,16 @@ class BringupRunner:
             if spec.mock_only and not self.use_mock:
                 continue
             node_class = getattr(importlib.import_module(spec.module), spec.node_class)
-            overrides = []
+            overrides = [Parameter(param, value=self.ports[arg])
+                         for param, arg in spec.port_parameters]
             if spec.mock_only:
                 # The runner starts the protocol once the driver streams force.
-                overrides = [Parameter(name, value=value)
-                             for name, value in self.protocol.items()]
+                overrides += [Parameter(name, value=value)
+                              for name, value in self.protocol.items()]
                 overrides.append(Parameter("protocol.start_delay", value=-1.0))
             self.nodes[spec.name] = node_class(
                 spec.name, namespace=self.namespace,
-                cli_args=node_arguments(spec, self.ports, self.extra_config),
+                cli_args=node_arguments(spec, self.extra_config),
                 parameter_overrides=overrides)
 
     def _absolute(self, topic: str) -> str:

@@ -27,6 +27,7 @@ from std_srvs.srv import Trigger
 from tactile_sensor.control.errors import ControlError
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import (
+    ForceSettler,
     GraspConfig,
     GraspController,
     GraspRequest,
@@ -35,7 +36,12 @@ from tactile_sensor.control.grasp import (
     ServoCommand,
     Step,
 )
-from tactile_sensor.hardware.errors import DynamixelError, ServoHardwareError
+from tactile_sensor.hardware.errors import (
+    CommunicationTimeout,
+    CorruptPacket,
+    DynamixelError,
+    ServoHardwareError,
+)
 from tactile_sensor.hardware.xm430 import ServoState, Xm430Client
 from tactile_sensor.hardware.xm430_table import OperatingMode
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
@@ -75,6 +81,15 @@ SPECS = [
     ParamSpec("feedback_rate", 50.0, "action feedback rate [Hz]", minimum=1.0,
               maximum=1000.0),
     ParamSpec("auto_reboot", False, "reboot the servo by itself after a hardware error"),
+    ParamSpec("settle_time", 1.0, "after contact, regulate the force onto the target for "
+              "at most this long [s] (0 = hold where contact was detected)", minimum=0.0,
+              maximum=10.0),
+    ParamSpec("skin_stiffness", 2500.0, "fingertip skin stiffness the settling step assumes "
+              "[N/m] (FEM: ~7 N over 3 mm)", minimum=1.0),
+    ParamSpec("packet_timeout", 0.05, "wait this long for a status packet [s]", minimum=0.001,
+              maximum=1.0),
+    ParamSpec("comm_retries", 2, "retries of a transaction that timed out or arrived "
+              "damaged before the servo counts as unreachable", minimum=0, maximum=10),
 ]
 
 
@@ -98,6 +113,8 @@ class GripperNode(Node):
         self._loop_group = MutuallyExclusiveCallbackGroup()
         self._entities: list[Any] = []
         self._joint_pub = self._diag_pub = self._timer = None
+        self._force_sub: Any = None
+        self._force_sum, self._force_count = 0.0, 0
 
     # -- lifecycle -------------------------------------------------------------------------
     def on_configure(self, state: State) -> TransitionCallbackReturn:
@@ -118,7 +135,8 @@ class GripperNode(Node):
         except (ParameterError, ValueError, ControlError) as exc:
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
-        client = Xm430Client(values["port"], values["baud_rate"], values["servo_id"])
+        client = Xm430Client(values["port"], values["baud_rate"], values["servo_id"],
+                             timeout_s=values["packet_timeout"])
         try:
             client.connect()
             self._prepare_servo(client, values)
@@ -129,9 +147,10 @@ class GripperNode(Node):
         self._values, self._client, self._config = values, client, config
         self._joint_pub = self.create_lifecycle_publisher(JointState, "~/joint_states", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._force_sub = self.create_subscription(
+            WrenchStamped, "tactile_wrench", self._on_force, 100, callback_group=self._group)
         self._entities = [
-            self.create_subscription(WrenchStamped, "tactile_wrench", self._on_force, 100,
-                                     callback_group=self._group),
+            self._force_sub,
             ActionServer(self, Grasp, "~/grasp", self._execute_grasp,
                          goal_callback=self._on_goal, cancel_callback=self._on_cancel,
                          callback_group=self._group),
@@ -196,6 +215,7 @@ class GripperNode(Node):
             else:
                 self.destroy_service(entity)
         self._entities = []
+        self._force_sub = None
         if self._joint_pub is not None:
             self.destroy_lifecycle_publisher(self._joint_pub)
         if self._diag_pub is not None:
@@ -206,12 +226,24 @@ class GripperNode(Node):
         self._client = None
 
     # -- servo loop (timer) ------------------------------------------------------------------
+    def _retrying(self, call: Any) -> Any:
+        """A lost or damaged status packet is retried: one bad packet on a busy bus must not
+        abort a grasp. Hardware errors and anything else pass straight through."""
+        for attempt in range(self._values["comm_retries"] + 1):
+            try:
+                return call()
+            except (CommunicationTimeout, CorruptPacket):
+                if attempt == self._values["comm_retries"]:
+                    raise
+        raise AssertionError("unreachable")
+
     def _loop(self) -> None:
         client = self._client
         if client is None:
             return
         try:
-            state = client.read_state()
+            state = self._retrying(client.read_state)
+            read_at = self.get_clock().now()
         except DynamixelError as exc:
             if not self._comm_error:
                 self.get_logger().error(f"servo unreachable: {exc}")
@@ -232,7 +264,7 @@ class GripperNode(Node):
                          velocity=[-2.0 * self._config.geometry.pitch_radius_m
                                    * state.velocity_rad_s],
                          effort=[state.current_a])
-        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.stamp = read_at.to_msg()
         if self._joint_pub is not None:
             self._joint_pub.publish(msg)
         if time.monotonic() - self._last_diag >= 1.0:
@@ -278,11 +310,12 @@ class GripperNode(Node):
 
     # -- commands ---------------------------------------------------------------------------
     def _send(self, command: ServoCommand | None) -> None:
-        if command is None or self._client is None:
+        client = self._client
+        if command is None or client is None:
             return
-        self._client.command_position(command.goal_position_rad,
-                                      command.profile_velocity_rad_s,
-                                      goal_current_a=command.goal_current_a)
+        self._retrying(lambda: client.command_position(
+            command.goal_position_rad, command.profile_velocity_rad_s,
+            goal_current_a=command.goal_current_a))
 
     def _hold_here(self, torque: bool = False) -> None:
         assert self._client is not None and self._config is not None
@@ -295,14 +328,44 @@ class GripperNode(Node):
 
     # -- tactile ------------------------------------------------------------------------------
     def _on_force(self, msg: WrenchStamped) -> None:
+        # At 1 kHz one executor round per message costs more than the message: take what
+        # else is already waiting and keep only the newest.
+        sub = self._force_sub
+        total, count = msg.wrench.force.z, 1
+        if sub is not None:
+            with sub.handle:
+                for _ in range(256):
+                    item = sub.handle.take_message(WrenchStamped, False)
+                    if item is None:
+                        break
+                    msg = item[0]
+                    total += msg.wrench.force.z
+                    count += 1
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         self._force = (msg.wrench.force.z, stamp)
+        with self._goal_lock:
+            self._force_sum += total
+            self._force_count += count
+
+    def _mean_force_since_last_call(self) -> float | None:
+        """Mean of the forces received since the previous call (the settler's input: one
+        tick's samples averaged, so it acts on the force rather than on its noise)."""
+        with self._goal_lock:
+            total, count = self._force_sum, self._force_count
+            self._force_sum, self._force_count = 0.0, 0
+        return total / count if count else None
 
     # -- actions -----------------------------------------------------------------------------
     def _on_goal(self, goal: Any) -> GoalResponse:
         return GoalResponse.ACCEPT
 
     def _on_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
+        """Stop the fingers here and now; the goal's loop then reports it canceled."""
+        if not self._superseded(goal_handle) and self._client is not None:
+            try:
+                self._retrying(lambda: self._hold_here())
+            except DynamixelError as exc:
+                self.get_logger().error(f"stop on cancel failed: {exc}")
         return CancelResponse.ACCEPT
 
     def _take_over(self, goal_handle: ServerGoalHandle) -> None:
@@ -344,8 +407,10 @@ class GripperNode(Node):
             return controller.tick(now, force[0] if force else None,
                                    force[1] if force else None, state)
 
+        settler = ForceSettler(self._config.geometry, request.target_force_n,
+                               self._values["skin_stiffness"])
         return self._run(goal_handle, lambda now, state: controller.start(request, now, state),
-                         tick, controller, feedback, result, Grasp.Result)
+                         tick, controller, feedback, result, Grasp.Result, settler)
 
     def _execute_release(self, goal_handle: ServerGoalHandle) -> Release.Result:
         self._take_over(goal_handle)
@@ -369,7 +434,8 @@ class GripperNode(Node):
             Release.Result)
 
     def _run(self, goal_handle: ServerGoalHandle, start: Any, tick: Any, controller: Any,
-             feedback: Any, result: Any, result_type: Any) -> Any:
+             feedback: Any, result: Any, result_type: Any,
+             settler: ForceSettler | None = None) -> Any:
         """The loop both actions share: start, tick at the control rate, finish."""
         state = self._state
         if state is None or self._client is None:
@@ -379,7 +445,7 @@ class GripperNode(Node):
             if self._hw_error:
                 raise ServoHardwareError("servo hardware error: "
                                          + ", ".join(sorted(self._hw_error)), self._hw_error)
-            if not self._client.torque_enabled():
+            if not self._retrying(self._client.torque_enabled):
                 self._hold_here(torque=True)
             step = start(time.time(), self._state)
             self._send(step.command)
@@ -396,8 +462,8 @@ class GripperNode(Node):
                 goal_handle.canceled()
                 return result(step, "canceled: stopped where the fingers were")
             if self._superseded(goal_handle):
+                # no stop command: the newer goal (or the reboot) owns the servo now
                 step = controller.cancel(time.time(), self._state)
-                self._send_safely(step.command)
                 goal_handle.abort()
                 return result(step, self._abort_reason)
             self._state_event.clear()
@@ -413,6 +479,10 @@ class GripperNode(Node):
             if now - last_feedback >= feedback_period:
                 feedback(step)
                 last_feedback = now
+        if step.outcome is Outcome.CONTACT and settler is not None:
+            aborted = self._settle(goal_handle, settler, step, feedback, period)
+            if aborted is not None:
+                return result(step, aborted)
         if step.outcome is Outcome.HARDWARE_ERROR:
             self._on_hardware_error(self._state.hardware_error)
         if step.outcome is not None and step.outcome.succeeded:
@@ -423,6 +493,33 @@ class GripperNode(Node):
             if self._active_goal is goal_handle:
                 self._active_goal = None
         return result(step)
+
+    def _settle(self, goal_handle: ServerGoalHandle, settler: ForceSettler, step: Step,
+                feedback: Any, period: float) -> str | None:
+        """Regulate the force onto the target; an abort reason, or None when done."""
+        assert self._config is not None
+        deadline = time.monotonic() + self._values["settle_time"]
+        self._mean_force_since_last_call()
+        while time.monotonic() < deadline:
+            if goal_handle.is_cancel_requested or self._superseded(goal_handle):
+                return None  # the fingers hold where they are; the caller finishes
+            self._state_event.clear()
+            self._state_event.wait(2 * period)
+            state, force = self._state, self._mean_force_since_last_call()
+            if self._comm_error:
+                return f"servo unreachable: {self._comm_error}"
+            if state is None or state.hardware_error:
+                return None
+            if force is None:
+                continue
+            command, settled = settler.command(force, state, self._config.hold_current_a,
+                                               self._config.stop_velocity_rad_s)
+            if settled:
+                return None
+            if not self._send_safely(command):
+                return f"servo unreachable: {self._comm_error}"
+            feedback(step)
+        return None
 
     def _send_safely(self, command: ServoCommand | None) -> bool:
         try:

@@ -147,3 +147,34 @@ def test_release_aborts_and_rejects_bad_requests():
         ReleaseController().start(0.05, -1.0, 1.0, 0.0, at(0.02))
     with pytest.raises(InvalidRequest, match="timeout"):
         ReleaseController().start(0.05, 0.02, 0.0, 0.0, at(0.02))
+
+
+def test_force_settler_converges_on_a_linear_skin():
+    from dataclasses import dataclass as _dc
+
+    from tactile_sensor.control.geometry import GripperGeometry
+    from tactile_sensor.control.grasp import ForceSettler
+
+    @_dc
+    class Servo:
+        position_rad: float
+        moving: bool = False
+        hardware_error: frozenset = frozenset()
+
+    geometry = GripperGeometry()
+    contact = geometry.position_rad(0.020)  # skin meets a 20 mm rod here
+    stiffness = 3000.0  # true skin stiffness differs from the settler's 2500 N/m guess
+
+    def force(position: float) -> float:
+        gap_closed = max(0.0, geometry.opening_m(contact) - geometry.opening_m(position))
+        return stiffness * gap_closed / 2.0
+
+    servo = Servo(contact + 0.08)  # overshot: about 3.4 N against a 1.5 N target
+    settler = ForceSettler(geometry, target_force_n=1.5)
+    for _ in range(40):
+        command, settled = settler.command(force(servo.position_rad), servo, 0.6, 6.0)
+        servo.position_rad = command.goal_position_rad
+        if settled:
+            break
+    assert settled
+    assert force(servo.position_rad) == pytest.approx(1.5, rel=0.05)

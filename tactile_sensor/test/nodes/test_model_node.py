@@ -74,17 +74,17 @@ def test_predict_and_latched_calibration(spawn, ros_domain, curve):
 
 
 def test_not_ready_while_computing_and_bad_physics_parameter(spawn, ros_domain, tmp_path):
-    # A fresh cache: the node must answer "not ready" while the sweep runs.
-    model = start_model(spawn, "-p", f"cache_dir:={tmp_path}", "-p", "steps:=6",
-                        "-p", "mesh_nx:=3", "-p", "mesh_ny:=4", "-p", "mesh_nz:=6")
+    # A fresh cache and a sweep of several seconds: the node answers "not ready" meanwhile.
+    model = start_model(spawn, "-p", f"cache_dir:={tmp_path}", "-p", "steps:=10",
+                        "-p", "mesh_nx:=6", "-p", "mesh_ny:=6", "-p", "mesh_nz:=22")
     with rclpy.init():
         node = rclpy.create_node("model_client")
         client = node.create_client(PredictOutput, "/model/predict")
         assert client.wait_for_service(timeout_sec=20)
         first = call(node, client, PredictOutput.Request(indentation=[0.001]))
         node.destroy_node()
-    if not first.success:
-        assert "not ready" in first.message and "%" in first.message, first.message
+    assert not first.success
+    assert "not ready" in first.message and "% done" in first.message, first.message
     assert model.wait_for_output("prediction ready", 120), model.output()
     bad = start_model(spawn, "-r", "__node:=model_bad", "-p", "height:=-0.01")
     assert bad.wait_for_output("configure transition failed", 30), bad.output()
