@@ -62,16 +62,14 @@ def protocol_parameters(configuration: str, protocol: str | None) -> dict[str, A
     return {"protocol.name": protocol, **(protocols[protocol] or {})}
 
 
-def node_arguments(spec: NodeSpec, ports: dict[str, str], extra_config: Path | None
-                   ) -> list[str]:
-    """The --ros-args a launch file would give this node."""
+def node_arguments(spec: NodeSpec, extra_config: Path | None) -> list[str]:
+    """The --ros-args a launch file would give this node (device ports go in as parameter
+    overrides instead: a node-specific section of a file would beat a global ``-p``)."""
     args = ["--ros-args"]
     for name in spec.config_files:
         args += ["--params-file", str(config_dir() / name)]
     if extra_config is not None:
         args += ["--params-file", str(extra_config)]
-    for parameter, argument in spec.port_parameters:
-        args += ["-p", f"{parameter}:={ports[argument]}"]
     for source, target in spec.remappings:
         args += ["-r", f"{source}:={target}"]
     return args

@@ -96,6 +96,8 @@ class BringupRunner:
                 node.trigger_deactivate()
             node.trigger_cleanup()
         self._states.clear()
+
+    def _destroy_nodes(self) -> None:
         for node in reversed(list(self.nodes.values())):
             node.destroy_node()
 
@@ -127,6 +129,7 @@ class BringupRunner:
             executor.shutdown(timeout_sec=2.0)
             if spinner is not None:
                 spinner.join(timeout=2.0)
+            self._destroy_nodes()  # after the executor stopped waiting on them
             rclpy.try_shutdown()
             if self.record is not None:
                 say(f"bag written to {self.record}")

@@ -207,7 +207,7 @@ class MockHardwareNode(Node):
         """Start the protocol now; False when it already runs."""
         if self._start_host_ns is not None:
             return False
-        self.source.start_device_s = self.adc.elapsed_s()
+        self.source.start_device_s = self.adc.elapsed_s
         self._start_host_ns = time.time_ns()
         self.get_logger().info(
             f"protocol '{self.values['protocol.name']}' started "
