@@ -22,7 +22,11 @@ case "$configuration" in
       --port "adc_port=/tmp/tactile_sensor/demo_adc_$$"
     echo "== analysing $run/bag"
     tactile-sensor analyze "$run/bag" --out "$run/analysis"
-    echo "== report: $run/analysis/report.md"
+    echo "== the paper's figures beside the measured ones"
+    grep '^|' "$run/analysis/report.md"
+    echo "== plots"
+    ls -1 "$run"/analysis/*.png
+    echo "== report: $run/analysis/report.md, metrics: $run/analysis/metrics.json"
     ;;
   gripper)
     echo "== gripper grasp/hold/release on mock hardware -> $run/bag"

@@ -115,7 +115,14 @@ class BringupRunner:
             self._create_nodes()
             for node in self.nodes.values():
                 executor.add_node(node)
-            spinner = threading.Thread(target=executor.spin, name="executor", daemon=True)
+            spinning = threading.Event()
+            spinning.set()
+
+            def spin() -> None:
+                while spinning.is_set():
+                    executor.spin_once(timeout_sec=0.05)
+
+            spinner = threading.Thread(target=spin, name="executor", daemon=True)
             spinner.start()
             if not self._lifecycle_up():
                 return 1
@@ -125,10 +132,11 @@ class BringupRunner:
         finally:
             signal.signal(signal.SIGINT, previous)
             say(f"shutting down ({self._stop_reason or 'protocol finished'})")
+            if spinner is not None:  # stop waiting on entities before destroying them
+                spinning.clear()
+                spinner.join(timeout=2.0)
             self._lifecycle_down()
             executor.shutdown(timeout_sec=2.0)
-            if spinner is not None:
-                spinner.join(timeout=2.0)
             self._destroy_nodes()  # after the executor stopped waiting on them
             rclpy.try_shutdown()
             if self.record is not None:
