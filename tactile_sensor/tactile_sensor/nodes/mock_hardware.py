@@ -180,7 +180,8 @@ class MockHardwareNode(Node):
                               speeds_m_s=tuple(v["protocol.speeds"]),
                               cycles=v["protocol.cycles"], hold_s=v["protocol.hold"],
                               rest_s=v["protocol.rest"])
-        self.world = BenchWorld(profile, skin, RateDependentForce.from_params(physics))
+        self.world = BenchWorld(profile, skin, RateDependentForce.from_params(physics),
+                                output_play_m=physics.output_play)
         self.source = ProtocolSource(self.world)
         self._start_host_ns: int | None = None
         self._stage_pub = self.create_publisher(JointState, "~/stage/joint_states", 1000)

@@ -31,14 +31,30 @@ class ViscoelasticModel(Protocol):
     def reset(self) -> None: ...
 
 
+def play(indentation_m: npt.NDArray[np.float64], width_m: float) -> npt.NDArray[np.float64]:
+    """The play (backlash) operator: the output trails a rising input by ``width_m`` and
+    follows a falling one at once, so its delay is ``width / speed`` on every loading edge
+    (the paper's lags shrink ten-fold per ten-fold speed, as a fixed play predicts)."""
+    if width_m <= 0:
+        return indentation_m
+    out = np.empty_like(indentation_m)
+    y = float(indentation_m[0]) if indentation_m.size else 0.0
+    for k, d in enumerate(indentation_m.tolist()):
+        y = max(d - width_m, min(d, y))
+        out[k] = y
+    return out
+
+
 class BenchWorld:
     """Ground truth of one bench run; time ``t`` [s] counts from the protocol's start."""
 
     def __init__(self, profile: LoadProfile, skin: SkinResponse,
                  viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
-                 loop: bool = False) -> None:
+                 loop: bool = False, output_play_m: float = 0.0) -> None:
         if not 1.0 <= grid_hz <= 100_000.0:
             raise SimError(f"grid_hz must be in [1, 100000] Hz, got {grid_hz!r}.")
+        if not 0.0 <= output_play_m <= 0.001:
+            raise SimError(f"output_play_m must be in [0, 0.001] m, got {output_play_m!r}.")
         self.profile = profile
         self.loop = loop
         self.duration_s = profile.duration_s
@@ -46,7 +62,7 @@ class BenchWorld:
         self._t = np.linspace(0.0, self.duration_s, n)
         self._d = np.asarray(profile.indentation(self._t), dtype=float)
         self._f_el = np.asarray(skin.force_n(self._d), dtype=float)
-        self._v = np.asarray(skin.voltage_v(self._d), dtype=float)
+        self._v = np.asarray(skin.voltage_v(play(self._d, output_play_m)), dtype=float)
         self._f = self._f_el if viscoelastic is None else self._rate_force(viscoelastic)
 
     def _rate_force(self, model: ViscoelasticModel) -> npt.NDArray[np.float64]:

@@ -92,3 +92,27 @@ def test_physics_adapters_give_the_papers_trends():
     forces, volts = zip(*peaks, strict=True)
     assert forces[0] <= forces[1] < forces[2]
     assert volts == pytest.approx([volts[0]] * 3)
+
+
+@pytest.mark.parametrize("speed", [0.0001, 0.001, 0.01])
+def test_output_play_delays_the_output_by_width_over_speed(speed):
+    from tactile_sensor.sim.profiles import LoadProfile
+
+    profile = LoadProfile(depth_m=0.003, speeds_m_s=(speed,), cycles=1, rest_s=0.5)
+    plain = BenchWorld(profile, SKIN, grid_hz=10_000.0)
+    played = BenchWorld(profile, SKIN, grid_hz=10_000.0, output_play_m=6.5e-5)
+    t = np.linspace(0.0, profile.duration_s, 200_001)
+    half = (SKIN.voltage_v(0.0) + SKIN.voltage_v(0.003)) / 2  # voltage falls with pressing
+
+    def crossing(world: BenchWorld) -> float:
+        return float(t[np.argmax(world.photoreflector_voltage(t) <= half)])
+
+    assert crossing(played) - crossing(plain) == pytest.approx(6.5e-5 / speed, rel=0.05)
+    # unloading ends where it started: no lasting offset
+    assert played.photoreflector_voltage(profile.duration_s) == pytest.approx(
+        plain.photoreflector_voltage(profile.duration_s))
+
+
+def test_bad_play_is_refused():
+    with pytest.raises(SimError, match="output_play_m"):
+        BenchWorld(parse_profile("compression"), SKIN, output_play_m=-1e-5)
