@@ -9,7 +9,7 @@ Pure data, no rclpy and no launch imports: ``launch/*.launch.py`` turn these int
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 PACKAGE = "tactile_sensor"
@@ -73,8 +73,7 @@ GRIPPER = Configuration(
                  mock_only=True,
                  port_parameters=(("adc_link", "adc_port"), ("servo_link", "servo_port"))),
         _MODEL,
-        NodeSpec("driver", "driver_node", "tactile_sensor.nodes.driver", "DriverNode",
-                 (*SENSOR_FILES, "gripper.yaml"), port_parameters=(("port", "adc_port"),)),
+        replace(_DRIVER, config_files=(*SENSOR_FILES, "gripper.yaml")),
         NodeSpec("gripper", "gripper_node", "tactile_sensor.nodes.gripper", "GripperNode",
                  ("gripper.yaml",), remappings=(("tactile_wrench", "driver/wrench"),),
                  port_parameters=(("port", "servo_port"),)),

@@ -103,3 +103,12 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     outcome = yield
     report = outcome.get_result()
     setattr(item, f"rep_{report.when}", report)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Multi-process ROS tests share two cores with every other process of the run, so a
+    timing bound can be missed by scheduling alone: they get one rerun (pytest-rerunfailures;
+    a rerun is reported in the summary, so a test that fails twice still fails the run)."""
+    for item in items:
+        if "/test/nodes/" in str(item.path):
+            item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))

@@ -139,7 +139,7 @@ class GripperNode(Node):
                              timeout_s=values["packet_timeout"])
         try:
             client.connect()
-            self._prepare_servo(client, values)
+            self._retrying(lambda: self._prepare_servo(client, values))
         except DynamixelError as exc:
             client.close()
             self.get_logger().error(f"configure failed: {exc}")
@@ -174,7 +174,7 @@ class GripperNode(Node):
     def on_activate(self, state: State) -> TransitionCallbackReturn:
         assert self._client is not None
         try:
-            self._hold_here(torque=True)
+            self._retrying(lambda: self._hold_here(torque=True))
         except DynamixelError as exc:
             self.get_logger().error(f"activate failed: {exc}")
             return TransitionCallbackReturn.FAILURE
@@ -229,11 +229,12 @@ class GripperNode(Node):
     def _retrying(self, call: Any) -> Any:
         """A lost or damaged status packet is retried: one bad packet on a busy bus must not
         abort a grasp. Hardware errors and anything else pass straight through."""
-        for attempt in range(self._values["comm_retries"] + 1):
+        retries = self._values.get("comm_retries", 2)
+        for attempt in range(retries + 1):
             try:
                 return call()
             except (CommunicationTimeout, CorruptPacket):
-                if attempt == self._values["comm_retries"]:
+                if attempt == retries:
                     raise
         raise AssertionError("unreachable")
 
@@ -538,9 +539,9 @@ class GripperNode(Node):
             return False, "the gripper is not configured"
         try:
             client.reboot()
-            self._prepare_servo(client, self._values)
+            self._retrying(lambda: self._prepare_servo(client, self._values))
             self._hw_error = frozenset()
-            self._hold_here(torque=True)
+            self._retrying(lambda: self._hold_here(torque=True))
         except DynamixelError as exc:
             self.get_logger().error(f"reboot failed: {exc}")
             return False, str(exc)
