@@ -397,18 +397,17 @@ class SkinModel:
             if np.linalg.norm(r) < tol_r:
                 return u, lu
             du = None if self._stale else self._krylov(u, r, lu, 0.5 * tol_r)
-            if du is None:                                   # stale: refactorise, full step
+            alpha = None if du is None else self._step_length(u, du)
+            if alpha is None:            # stale tangent or a Krylov step that inverts: Newton
                 lu = self._factorise(u, perm)
                 solver, pm = lu  # type: ignore[misc]
                 du = np.empty_like(r)
                 du[pm] = solver.solve(-r[pm])
+                alpha = self._step_length(u, du)
+            if alpha is None:
+                raise ConvergenceError("An element inverted during the FEM solve; use more "
+                                       "load steps ('steps') or a finer mesh.")
             self.stats["iterations"] += 1
-            alpha = 1.0
-            while not self._admissible(u, du * alpha):
-                alpha *= 0.5
-                if alpha < 1e-3:
-                    raise ConvergenceError("An element inverted during the FEM solve; use "
-                                           "more load steps or a finer mesh.")
             u = u.copy()
             u[free] += alpha * du
             r = self._internal_force(u)[free]
@@ -454,6 +453,15 @@ class SkinModel:
         # refactorise before the next correction once the preconditioner has aged this much
         self._stale = count[0] > _KRYLOV_REFRESH
         return du if info == 0 else None
+
+    def _step_length(self, u: np.ndarray, du: np.ndarray) -> float | None:
+        """The largest of 1, 1/2, 1/4, ... that keeps every element uninverted, or None."""
+        alpha = 1.0
+        while not self._admissible(u, du * alpha):
+            alpha *= 0.5
+            if alpha < 1e-3:
+                return None
+        return alpha
 
     def _admissible(self, u: np.ndarray, du_free: np.ndarray) -> bool:
         """True when u + du keeps every quadrature point's det F > 0.05 (no inverted element)."""

@@ -135,3 +135,12 @@ def test_predictor_reproduces_a_quadratic_load_path(coef, step, ahead):
     history = [(d, np.array([a + b * d + c * d * d])) for d in ds]
     d = 2 * step + ahead * step
     assert fem._extrapolate(history, d)[0] == pytest.approx(a + b * d + c * d * d, abs=1e-9)
+
+
+def test_a_krylov_step_that_would_invert_elements_falls_back_to_a_newton_step(monkeypatch):
+    p = PhysicsParams(mesh_nx=4, mesh_ny=3, mesh_nz=16, steps=5, max_indentation=0.002)
+    ref = SkinModel(p).sweep()
+    model = SkinModel(p)
+    monkeypatch.setattr(model, "_krylov", lambda u, r, lu, atol: np.full(r.shape, -1.0))
+    res = model.sweep()    # every Krylov step would crush the block by a metre
+    np.testing.assert_allclose(res.force_n, ref.force_n, rtol=1e-5)
