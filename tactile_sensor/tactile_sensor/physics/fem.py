@@ -6,8 +6,9 @@ constant per element, condensed element by element, so the global system holds d
 only. scikit-fem supplies the mesh, the shape-function gradients and the quadrature; the
 hyperelastic residual and tangent are assembled here with vectorised numpy (scikit-fem's
 generic form assembly is an order of magnitude slower for this) into a CSR matrix whose
-pattern and scatter indices are computed once. Newton reuses the factorisation while it
-converges fast (modified Newton) and refactorises when it slows.
+pattern and scatter indices are computed once. Each Newton correction is solved by GMRES with
+a factorised tangent as preconditioner, reused across iterations and load steps until GMRES
+needs too many iterations (factorising is what costs; see ``SkinModel._newton``).
 
 Quarter model: the block is symmetric about x = 0 and y = 0. The window is centred on x = 0;
 symmetry about y = 0 holds exactly because the module is taken as front/back symmetric (its
