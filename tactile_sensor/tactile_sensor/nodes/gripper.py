@@ -11,6 +11,7 @@ what it is grasping without canceling first.
 from __future__ import annotations
 
 import math
+import sys
 import threading
 import time
 from typing import Any
@@ -20,6 +21,7 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.duration import Duration
 from rclpy.lifecycle import Node, State, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -36,6 +38,7 @@ from tactile_sensor.control.grasp import (
     ServoCommand,
     Step,
 )
+from tactile_sensor.control.stop import stop_position_rad
 from tactile_sensor.hardware.errors import (
     CommunicationTimeout,
     CorruptPacket,
@@ -101,10 +104,22 @@ class GripperNode(Node):
         self._client: Xm430Client | None = None
         self._config: GraspConfig | None = None
         self._state: ServoState | None = None
+        #: The control loop's latest sample, when the servo took it (monotonic [s]) and half
+        #: that read's round trip (how long a packet takes to reach the servo) [s].
+        self._sample: tuple[ServoState, float, float] | None = None
         self._comm_error = ""
         self._hw_error: frozenset[str] = frozenset()
         self._force: tuple[float, float] | None = None  # (force [N], stamp [s])
         self._goal_lock = threading.Lock()
+        # Orders goal commands against the stop of a cancel: once a goal's stop is written,
+        # no command of that goal's loop may follow it and restart the fingers.
+        self._command_lock = threading.Lock()
+        self._halted: ServerGoalHandle | None = None
+        self._stop_written: ServerGoalHandle | None = None
+        #: The goal last written and when (monotonic [s]): a sample older than the last
+        #: command does not tell how the output moves now.
+        self._heading_to_rad: float | None = None
+        self._commanded_at = 0.0
         self._active_goal: ServerGoalHandle | None = None
         self._abort_reason = "preempted by a newer goal"
         self._last_diag = 0.0
@@ -243,8 +258,12 @@ class GripperNode(Node):
         if client is None:
             return
         try:
+            before = time.monotonic()
             state = self._retrying(client.read_state)
-            read_at = self.get_clock().now()
+            after = time.monotonic()
+            # the servo sampled its state between request and reply: stamp the middle
+            half = 0.5 * (after - before)
+            read_at = self.get_clock().now() - Duration(nanoseconds=int(half * 1e9))
         except DynamixelError as exc:
             if not self._comm_error:
                 self.get_logger().error(f"servo unreachable: {exc}")
@@ -255,6 +274,7 @@ class GripperNode(Node):
             self.get_logger().info("servo answers again")
         self._comm_error = ""
         self._state = state
+        self._sample = (state, after - half, half)
         self._state_event.set()
         if state.hardware_error and state.hardware_error != self._hw_error:
             self._on_hardware_error(state.hardware_error)
@@ -310,13 +330,20 @@ class GripperNode(Node):
         self._diag_pub.publish(array)
 
     # -- commands ---------------------------------------------------------------------------
-    def _send(self, command: ServoCommand | None) -> None:
+    def _send(self, command: ServoCommand | None,
+              goal_handle: ServerGoalHandle | None = None) -> None:
+        """Write a goal's command, unless that goal has been stopped by a cancel."""
         client = self._client
         if command is None or client is None:
             return
-        self._retrying(lambda: client.command_position(
-            command.goal_position_rad, command.profile_velocity_rad_s,
-            goal_current_a=command.goal_current_a))
+        with self._command_lock:
+            if goal_handle is not None and self._halted is goal_handle:
+                return
+            self._retrying(lambda: client.command_position(
+                command.goal_position_rad, command.profile_velocity_rad_s,
+                goal_current_a=command.goal_current_a))
+            self._heading_to_rad = command.goal_position_rad
+            self._commanded_at = time.monotonic()
 
     def _hold_here(self, torque: bool = False) -> None:
         assert self._client is not None and self._config is not None
@@ -326,6 +353,36 @@ class GripperNode(Node):
             self._client.set_torque(True)
         self._client.command_position(state.position_rad, self._config.stop_velocity_rad_s,
                                       goal_current_a=self._config.hold_current_a)
+        self._heading_to_rad = state.position_rad
+        self._commanded_at = time.monotonic()
+
+    def _stop(self, goal_handle: ServerGoalHandle) -> None:
+        """Stop the fingers where they are now, in ONE write when the control loop's last
+        sample is fresh (its position carried forward by velocity x age; see control/stop.py),
+        else read the servo first. Later commands of this goal are dropped."""
+        client, config = self._client, self._config
+        assert client is not None and config is not None
+        with self._command_lock:
+            self._halted = goal_handle
+            goal = None
+            sample = self._sample
+            if (sample is not None and not sample[0].hardware_error
+                    and sample[1] > self._commanded_at):
+                state, sampled_at, half = sample
+                period = 1.0 / self._values["control_rate"]
+                # where the output will be when the write reaches the servo
+                lands_at = time.monotonic() + min(half, 0.5 * period)
+                goal = stop_position_rad(
+                    state.position_rad, state.velocity_rad_s, lands_at - sampled_at,
+                    max_age_s=3.0 * period, heading_to_rad=self._heading_to_rad)
+            if goal is None:
+                state = self._retrying(client.read_state)
+                goal = state.position_rad
+            self._retrying(lambda: client.command_position(
+                goal, config.stop_velocity_rad_s, goal_current_a=config.hold_current_a))
+            self._heading_to_rad = goal
+            self._commanded_at = time.monotonic()
+            self._stop_written = goal_handle
 
     # -- tactile ------------------------------------------------------------------------------
     def _on_force(self, msg: WrenchStamped) -> None:
@@ -364,8 +421,8 @@ class GripperNode(Node):
         """Stop the fingers here and now; the goal's loop then reports it canceled."""
         if not self._superseded(goal_handle) and self._client is not None:
             try:
-                self._retrying(lambda: self._hold_here())
-            except DynamixelError as exc:
+                self._stop(goal_handle)
+            except (DynamixelError, ControlError) as exc:
                 self.get_logger().error(f"stop on cancel failed: {exc}")
         return CancelResponse.ACCEPT
 
@@ -447,9 +504,9 @@ class GripperNode(Node):
                 raise ServoHardwareError("servo hardware error: "
                                          + ", ".join(sorted(self._hw_error)), self._hw_error)
             if not self._retrying(self._client.torque_enabled):
-                self._hold_here(torque=True)
+                self._retrying(lambda: self._hold_here(torque=True))
             step = start(time.time(), self._state)
-            self._send(step.command)
+            self._send(step.command, goal_handle)
         except (ControlError, DynamixelError) as exc:
             goal_handle.abort()
             return result_type(message=str(exc))
@@ -459,7 +516,11 @@ class GripperNode(Node):
         while not step.finished:
             if goal_handle.is_cancel_requested:
                 step = controller.cancel(time.time(), self._state)
-                self._send_safely(step.command)
+                if self._stop_written is not goal_handle:  # the cancel callback's stop failed
+                    try:
+                        self._stop(goal_handle)
+                    except (DynamixelError, ControlError) as exc:
+                        self.get_logger().error(f"stop on cancel failed: {exc}")
                 goal_handle.canceled()
                 return result(step, "canceled: stopped where the fingers were")
             if self._superseded(goal_handle):
@@ -473,7 +534,7 @@ class GripperNode(Node):
                 goal_handle.abort()
                 return result(step, f"servo unreachable: {self._comm_error}")
             step = tick(time.time(), self._state)
-            if not self._send_safely(step.command):
+            if not self._send_safely(step.command, goal_handle):
                 goal_handle.abort()
                 return result(step, f"servo unreachable: {self._comm_error}")
             now = time.monotonic()
@@ -517,14 +578,15 @@ class GripperNode(Node):
                                                self._config.stop_velocity_rad_s)
             if settled:
                 return None
-            if not self._send_safely(command):
+            if not self._send_safely(command, goal_handle):
                 return f"servo unreachable: {self._comm_error}"
             feedback(step)
         return None
 
-    def _send_safely(self, command: ServoCommand | None) -> bool:
+    def _send_safely(self, command: ServoCommand | None,
+                     goal_handle: ServerGoalHandle | None = None) -> bool:
         try:
-            self._send(command)
+            self._send(command, goal_handle)
         except ServoHardwareError:
             return True  # the loop reports it through the state's hardware_error
         except DynamixelError as exc:
@@ -556,7 +618,14 @@ class GripperNode(Node):
         return response
 
 
+#: The GIL switch interval of the gripper process [s]. Its threads (executor, control loop,
+#: tactile callbacks, the running goal) each do little per wake-up; with Python's default
+#: 5 ms a cancel can wait several intervals for the GIL before its stop reaches the bus.
+SWITCH_INTERVAL_S = 1e-3
+
+
 def main(args: list[str] | None = None) -> None:
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
     run_lifecycle_node(GripperNode, args)
 
 

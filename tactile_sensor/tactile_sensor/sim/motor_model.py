@@ -75,7 +75,9 @@ class MotorModel:
         self.state.trajectory_velocity_rad_s = 0.0
 
     def step(self, dt: float, command: MotorCommand) -> MotorState:
-        """Advance by ``dt`` seconds (sub-stepped at 1 ms)."""
+        """Advance by ``dt`` seconds (sub-stepped at 1 ms); no time, no change."""
+        if not dt > 0:
+            return self.state
         steps = max(1, math.ceil(dt / 1e-3))
         for _ in range(steps):
             self._step(dt / steps, command)
@@ -87,26 +89,31 @@ class MotorModel:
         return NO_LOAD_SPEED_RAD_S_AT_12V * max(voltage_v, 0.0) / 12.0
 
     def _advance_profile(self, dt: float, command: MotorCommand) -> None:
+        """One step of the profile generator. A new goal starts from the present trajectory
+        velocity (the XM430's "velocity override"): with a finite Profile Acceleration a
+        goal behind a moving output is overshot and approached again from the other side;
+        with 0 (unlimited) the trajectory changes velocity at once."""
         s = self.state
         v_max = command.profile_velocity_rad_s or self._speed_limit(command.input_voltage_v)
         v_max = min(v_max, self._speed_limit(command.input_voltage_v))
         a_max = command.profile_acceleration_rad_s2 or math.inf
         error = command.goal_position_rad - s.trajectory_position_rad
-        direction = math.copysign(1.0, error) if error else 0.0
-        # fastest speed from which we can still stop at the goal
-        v_stop = math.sqrt(2.0 * a_max * abs(error)) if math.isfinite(a_max) else math.inf
-        v_target = direction * min(v_max, v_stop)
         if math.isfinite(a_max):
+            # fastest speed from which we can still stop at the goal
+            v_target = math.copysign(min(v_max, math.sqrt(2.0 * a_max * abs(error))), error)
             dv = max(-a_max * dt, min(a_max * dt, v_target - s.trajectory_velocity_rad_s))
             v = s.trajectory_velocity_rad_s + dv
+            can_stop = abs(v) <= 2.0 * a_max * dt
         else:
-            v = v_target
-        step = v * dt
-        if abs(step) >= abs(error) or direction == 0.0:
+            v = math.copysign(min(v_max, abs(error) / dt), error) if error else 0.0
+            can_stop = True
+        after = s.trajectory_position_rad + v * dt
+        reached = error == 0.0 or (command.goal_position_rad - after) * error <= 0.0
+        if reached and can_stop:
             s.trajectory_position_rad = command.goal_position_rad
             s.trajectory_velocity_rad_s = 0.0
         else:
-            s.trajectory_position_rad += step
+            s.trajectory_position_rad = after
             s.trajectory_velocity_rad_s = v
 
     def _capacity_nm(self, command: MotorCommand) -> float:

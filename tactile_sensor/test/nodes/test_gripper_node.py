@@ -66,8 +66,11 @@ class Rig:
         self.gripper = spawn(
             "--ros-args", "-r", "__node:=gripper", "-r", "tactile_wrench:=/driver/wrench",
             "--params-file", str(CONFIG / "gripper.yaml"),
+            # tactile_timeout: on a loaded 2-core machine the driver's 250 Hz stream stalls
+            # for more than the configured 0.2 s now and then, and the grasp aborts
+            # "tactile_stale" (tested in test/control); these tests are about other things
             "--params-file", overrides(tmp_path, "gripper", port=str(self.servo),
-                                       autostart=True),
+                                       autostart=True, tactile_timeout=1.0),
             module="tactile_sensor.nodes.gripper")
         assert self.driver.wait_for_output("active", 30), self.driver.output()
         assert self.gripper.wait_for_output("active", 30), self.gripper.output()
@@ -139,6 +142,12 @@ def rig(spawn, ros_domain, tmp_path, calibration_file):
         while not client.force and time.monotonic() < deadline:
             time.sleep(0.05)
         assert client.force, rig.driver.output()
+        # ... and the gripper must hear the force too before a grasp starts: the first
+        # grasp used to abort "tactile_stale" (force nan) while discovery was still going
+        while (client.node.count_subscribers("/driver/wrench") < 2
+               and time.monotonic() < deadline):
+            time.sleep(0.05)
+        time.sleep(0.3)
         yield rig, client
         client.close()
 
@@ -164,28 +173,40 @@ def test_grasp_reaches_the_target_then_release_reopens(rig):
 
 
 def test_cancel_stops_the_fingers_promptly(rig):
+    """Issue #4: cancel mid-grasp stops the fingers within 50 ms. Measured from the moment
+    the cancel request is sent to the first ~/joint_states sample that shows the fingers
+    where they came to rest (its stamp is when the servo was read), over several cancels:
+    the median must meet the 50 ms; on a loaded 2-core machine single cancels wait for a
+    CPU now and then (the scheduler, not the code), so one cancel only has to stay below
+    250 ms. Moving again after the stop (a second stop elsewhere, a closing command after
+    the stop) counts as not stopped."""
     devices, client = rig
     devices.inject("rod none")  # nothing to touch: the fingers keep closing until canceled
-    handle = client.send(client.grasp, Grasp.Goal(target_force=1.5, closing_speed=0.01,
-                                                  timeout=10.0))
-    time.sleep(1.0)
-    moving_before = client.opening[-1][1]
-    canceled_at = time.time()
-    cancel = _wait(handle.cancel_goal_async(), 5)
-    assert cancel.goals_canceling
-    result = _wait(handle.get_result_async(), 5).result
-    assert "cancel" in result.message
-    time.sleep(0.5)
-    after = [(t, o) for t, o in client.opening if t >= canceled_at]
-    final = after[-1][1]
-    assert final < moving_before  # it was closing
-    # first time the opening is within 0.05 mm of where it finally stopped
-    stopped_at = next(t for t, o in after if abs(o - final) < 5e-5)
-    # The issue asks for 50 ms; on a loaded 2-core test machine the cancel request's trip
-    # through DDS and the executor alone varies by tens of ms (measured 58-99 ms with four
-    # processes busy), so the test bound is looser: timing targets belong to benchmarks.
-    print(f"cancel -> fingers stopped: {(stopped_at - canceled_at) * 1e3:.0f} ms")
-    assert stopped_at - canceled_at < 0.150, stopped_at - canceled_at
+    latencies = []
+    for trial in range(6):  # each grasp closes ~6 mm more; no release in between
+        handle = client.send(client.grasp, Grasp.Goal(target_force=1.5, closing_speed=0.01,
+                                                      timeout=10.0))
+        time.sleep(0.2 + 0.015 * trial)  # cancel at different phases of the 100 Hz loop
+        moving_before = client.opening[-1][1]
+        canceled_at = time.time()
+        cancel = _wait(handle.cancel_goal_async(), 5)
+        result = _wait(handle.get_result_async(), 5).result
+        assert cancel.goals_canceling and "cancel" in result.message, result.message
+        time.sleep(0.3)
+        after = [(t, o) for t, o in client.opening if t >= canceled_at]
+        final = after[-1][1]
+        assert final < moving_before  # it was closing
+        # stopped = the first sample from which on the opening stays within 0.05 mm of
+        # where it came to rest (a finger passing that point and coming back, or closing
+        # again after the stop, counts as still moving)
+        last_off = max((i for i, (_, o) in enumerate(after) if abs(o - final) >= 5e-5),
+                       default=-1)
+        latencies.append(after[last_off + 1][0] - canceled_at)
+    ms = np.array(latencies) * 1e3
+    print(f"cancel -> fingers stopped (joint_states stamps), {len(ms)} cancels: median "
+          f"{np.median(ms):.0f} ms, max {ms.max():.0f} ms ({np.round(ms).astype(int)})")
+    assert np.median(ms) <= 50.0, ms
+    assert ms.max() < 250.0, ms
 
 
 def test_overload_aborts_with_the_decoded_reason_and_torque_off(rig):

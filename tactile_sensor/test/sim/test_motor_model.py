@@ -67,3 +67,33 @@ def test_low_voltage_limits_torque():
     assert motor.load_torque(motor.state.position_rad) == pytest.approx(
         TORQUE_CONSTANT_NM_PER_A * 6.0 / (12.0 / 2.3), rel=1e-3)
     assert motor.overload_time_s > 1.0     # pushing at the stall current counts to overload
+
+
+def test_no_time_no_change():
+    motor = MotorModel(1.0)
+    before = (motor.state.position_rad, motor.state.velocity_rad_s)
+    for dt in (0.0, -0.01):
+        motor.step(dt, MotorCommand(True, 2.0, 1.0, 0.0, 1.0))
+    assert (motor.state.position_rad, motor.state.velocity_rad_s) == before
+
+
+def test_a_new_goal_starts_from_the_present_velocity():
+    """Velocity override (XM430 e-manual, Profile Velocity): a goal written while moving
+    makes a profile that starts at the present trajectory velocity. With a finite Profile
+    Acceleration a goal behind a moving output is overshot and then approached from the
+    other side; with Profile Acceleration 0 (rectangular profile) the trajectory stops at
+    once, which is why the gripper's stop writes acceleration 0."""
+    ramp = MotorModel(0.0)
+    ramp.step(0.5, MotorCommand(True, 5.0, 1.0, 0.0, 1.0))
+    here = ramp.state.position_rad
+    ramp.step(0.05, MotorCommand(True, here, 1.0, 10.0, 1.0))
+    assert ramp.state.position_rad > here + 0.03  # still going: 1 rad/s at 10 rad/s^2
+    ramp.step(2.0, MotorCommand(True, here, 1.0, 10.0, 1.0))
+    assert ramp.state.position_rad == pytest.approx(here)
+
+    step = MotorModel(0.0)
+    step.step(0.5, MotorCommand(True, 5.0, 1.0, 0.0, 1.0))
+    here = step.state.position_rad
+    step.step(0.001, MotorCommand(True, here, 1.0, 0.0, 1.0))
+    assert step.state.position_rad == pytest.approx(here)
+    assert step.state.velocity_rad_s == 0.0
