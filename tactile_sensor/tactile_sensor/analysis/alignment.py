@@ -7,7 +7,7 @@ all three topics cover; each topic is linearly interpolated by its header stamps
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,6 +26,25 @@ class Aligned:
     rate_hz: float
     start_ns: int
     force_flipped: bool
+    # role ('reading', 'reference', 'position') -> [(start, stop) [s]] where that topic
+    # has no message for longer than GAP_FACTOR of its usual interval (interpolated there)
+    gaps_s: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
+
+
+GAP_FACTOR = 20.0  # a stamp step this many times the topic's median step is a gap
+MIN_GAP_S = 0.02  # ... and at least this long
+
+
+def stream_gaps(stamps_ns: np.ndarray, origin_ns: int) -> list[tuple[float, float]]:
+    """Intervals [s from origin_ns] in which a topic has no message although it usually
+    has many: the recorder or the publisher lost messages there (a starved process)."""
+    if stamps_ns.size < 3:
+        return []
+    steps = np.diff(stamps_ns)
+    limit = max(GAP_FACTOR * float(np.median(steps)), MIN_GAP_S * 1e9)
+    where = np.flatnonzero(steps > limit)
+    return [(float(stamps_ns[i] - origin_ns) * 1e-9, float(stamps_ns[i + 1] - origin_ns) * 1e-9)
+            for i in where.tolist()]
 
 
 def _finite(series: Series, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -78,5 +97,12 @@ def align(recording: Recording) -> Aligned:
     flipped = bool(-np.min(force_n) > np.max(force_n))
     if flipped:
         force_n = -force_n
+    span = t_s[-1]
+    gaps = {}
+    for role, (stamps, _) in zip(("reading", "reference", "position"), streams, strict=True):
+        inside = [(max(a, 0.0), min(b, span)) for a, b in stream_gaps(stamps, start)
+                  if b > 0.0 and a < span]
+        if inside:
+            gaps[role] = inside
     return Aligned(t_s=t_s, output_v=output_v, force_n=force_n, indentation_m=indentation_m,
-                   rate_hz=1e9 / dt_ns, start_ns=start, force_flipped=flipped)
+                   rate_hz=1e9 / dt_ns, start_ns=start, force_flipped=flipped, gaps_s=gaps)

@@ -13,7 +13,7 @@ from .alignment import Aligned, align
 from .bag_reader import Progress, Recording, TopicSpec, read_recording
 from .calibration_fit import Calibration, fit_calibration
 from .prediction import Prediction
-from .segmentation import Segmentation, segment
+from .segmentation import GAP_SHARE, Segmentation, segment
 
 SCHEMA = "tactile_sensor/analysis-metrics"
 PAPER: dict[str, Any] = {
@@ -92,6 +92,27 @@ def analyse_bag(bag: str, options: Options, progress: Progress | None = None
     return characterise(recording, options)
 
 
+def gap_notes(recording: Recording, aligned: Aligned, seg: Segmentation) -> list[str]:
+    """Say where a topic lost messages: values there are interpolated, and a press inside
+    a gap of the stage topic cannot be seen at all (so the cycle count is short)."""
+    notes = []
+    windows = [(aligned.t_s[c.window[0]], aligned.t_s[c.window[1] - 1]) for c in seg.cycles]
+    for role, gaps in aligned.gaps_s.items():
+        lengths = [b - a for a, b in gaps]
+        hit = sum(any(a < w1 and b > w0 for a, b in gaps) for w0, w1 in windows)
+        notes.append(f"topic {recording.series[role].topic} has {len(gaps)} gap(s) without "
+                     f"messages (longest {max(lengths):.3f} s, {sum(lengths):.3f} s in all; "
+                     f"the recorder or publisher was starved); {hit} analysed cycle(s) "
+                     "overlap them (values interpolated there)"
+                     + ("; a press entirely inside one cannot be found." if role == "position"
+                        else "."))
+    if seg.in_position_gaps:
+        notes.append(f"{seg.in_position_gaps} press(es) were left out because messages are "
+                     "missing in them (any on the stage topic, or more than "
+                     f"{GAP_SHARE:.0%} of the press on the output or force topic).")
+    return notes
+
+
 def characterise(recording: Recording, options: Options) -> Characterisation:
     aligned = align(recording)
     seg = segment(aligned, options.reference_speed_mm_s, recording.series["position"].topic)
@@ -104,6 +125,7 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
     if seg.skipped:
         notes.append(f"{seg.skipped} press(es) cut off by the recording's start or end, or "
                      "with too few samples, were left out.")
+    notes += gap_notes(recording, aligned, seg)
     ref_key = seg.reference_key
     ref_cycles = [cycles[i] for i in seg.speed_groups[ref_key]]
     peaks = np.array([m.peak_values(sig, c) for c in ref_cycles])
@@ -115,7 +137,8 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
         group = [cycles[i] for i in members]
         fit = m.sensitivity(sig, group)
         gpeaks = np.array([m.peak_values(sig, c) for c in group])
-        lags[key] = m.phase_lag(sig, group, aligned.rate_hz)
+        per_cycle = m.phase_lags(sig, group, aligned.rate_hz)
+        lags[key] = float(np.median(per_cycle)) if per_cycle else None
         by_speed[key] = {
             "cycles": len(group),
             "loading_speed_mm_s": _num(float(np.median([c.speed_mm_s for c in group]))),
@@ -126,6 +149,7 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
             "peak_force_n": _num(float(np.median(gpeaks[:, 1]))),
             "peak_output_v": _num(float(np.median(gpeaks[:, 0]))),
             "phase_lag_s": _num(lags[key]),
+            "phase_lag_sem_s": _num(m.lag_standard_error(per_cycle)),
         }
 
     sens = m.sensitivity(sig, ref_cycles)

@@ -188,18 +188,24 @@ def repeatability(peaks_v: np.ndarray) -> Repeatability:
     return Repeatability(peaks_v, cv, drift, k)
 
 
-LAG_LEVELS = (0.2, 0.8)  # part of the rising edge fitted, as fractions of the top
+LAG_EDGE = (0.05, 0.35)  # part of the rising edge fitted, as fractions of the top
 
 
-def _half_rise_time(x: np.ndarray, top: float, smooth: int, dt: float) -> float | None:
-    """Time at which a straight line fitted to the rising edge between 20 % and 80 % of
-    top reaches 50 % of top. A fit over the whole edge is far less noisy than any one
-    crossing; the edge is located on the moving mean, the fit uses the raw samples."""
+def _onset_time(x: np.ndarray, top: float, smooth: int, dt: float) -> float | None:
+    """Time at which a straight line fitted to the foot of the rising edge (5 % to 35 %
+    of top) meets the rest level: when the signal starts to rise. The edge is located
+    on the moving mean, the fit uses the raw samples, so noise averages over the foot.
+
+    Why the foot and not the middle: output and force are different static functions of
+    the indentation (the FEM output is nearly linear, the force is not), so their
+    mid-level crossings part by a fixed indentation, i.e. by a time ``Δd / speed`` that
+    looks exactly like a lag falling with speed although nothing is late. Near the rest
+    level both rise almost linearly, and that bias is a few µm of indentation."""
     if top <= 0:
         return None
     ma = moving_average(x, smooth) / top
-    lo = np.flatnonzero(ma >= LAG_LEVELS[0])
-    hi = np.flatnonzero(ma >= LAG_LEVELS[1])
+    lo = np.flatnonzero(ma >= LAG_EDGE[0])
+    hi = np.flatnonzero(ma >= LAG_EDGE[1])
     if lo.size == 0 or hi.size == 0:
         return None
     a, b = int(lo[0]) + smooth // 2, int(hi[0]) + smooth // 2 + 1
@@ -207,7 +213,7 @@ def _half_rise_time(x: np.ndarray, top: float, smooth: int, dt: float) -> float 
         return None
     t = np.arange(a, b) * dt
     slope, intercept = np.polyfit(t, x[a:b] / top, 1)
-    return float((0.5 - intercept) / slope) if slope > 0 else None
+    return float(-intercept / slope) if slope > 0 else None
 
 
 def _plateau(x: np.ndarray, smooth: int) -> tuple[float, int]:
@@ -222,29 +228,55 @@ def _plateau(x: np.ndarray, smooth: int) -> tuple[float, int]:
 
 
 def phase_lag(sig: Signals, cycles: Sequence[Cycle], rate_hz: float) -> float | None:
-    """Delay of the output behind the force on the loading edges [s]; positive: output late.
+    """Delay of the output behind the force on the loading edges [s]: the median over
+    cycles of :func:`phase_lags`; None when no cycle gives one."""
+    lags = phase_lags(sig, cycles, rate_hz)
+    return float(np.median(lags)) if lags else None
 
-    Per cycle, each baseline-removed signal is normalised by its own top (the median of
-    the middle half of the run where its moving mean - over a twentieth of the ramp, at
-    most half the hold - stays above 90 % of its maximum); a line fitted to its rising
-    edge between 20 % and 80 % gives the time it reaches 50 %. The lag is the median
-    over cycles of output time minus force time. Unlike cross-correlation of a slow
-    ramp (where a delay is indistinguishable from an offset) it uses only the loading
-    edge, so unloading hysteresis does not bias it.
+
+def lag_standard_error(lags: Sequence[float]) -> float | None:
+    """Standard error of the median of per-cycle lags [s] (1.2533 s / sqrt(n)): the onset
+    fit scatters from cycle to cycle, and a reader must see how far to trust the median."""
+    if len(lags) < 2:
+        return None
+    return 1.2533 * float(np.std(lags, ddof=1)) / float(np.sqrt(len(lags)))
+
+
+def phase_lags(sig: Signals, cycles: Sequence[Cycle], rate_hz: float) -> list[float]:
+    """Per-cycle delay of the output behind the force on the loading edge [s]; positive:
+    output late.
+
+    Per cycle, each signal less its level just before the press (median over a twentieth
+    of the ramp, at most half the rest) is normalised by its own top (the median of the
+    middle half of the run where its moving mean - over a twentieth of the ramp, at most
+    half the hold - stays above 90 % of its maximum); a line fitted to the foot of its
+    rising edge (5 % to 35 %, located on the moving mean) gives the time it leaves the
+    rest level. The lag is
+    the median over cycles of output onset minus force onset. Unlike cross-correlation
+    of a slow ramp (where a delay is indistinguishable from an offset) it uses only the
+    loading edge, so unloading hysteresis does not bias it, and unlike a mid-level
+    crossing it is not biased by the different shapes of output and force.
     """
     dt = 1.0 / rate_hz
     lags = []
-    for c in cycles:
+    prev_stop = 0
+    for c in sorted(cycles, key=lambda c: c.window[0]):
         a, b = c.window
-        hold = c.unload[0] - c.load[1]
-        smooth = max(1, min((c.load[1] - c.load[0]) // 20, hold // 2))
+        ramp, hold = c.load[1] - c.load[0], c.unload[0] - c.load[1]
+        smooth = max(1, ramp // 20)  # a twentieth of the ramp: the edge and the rest level
+        top_smooth = max(1, min(smooth, hold // 2)) if hold >= 2 else smooth
+        rest = max(1, min(smooth, (a - prev_stop) // 2))
+        prev_stop = b
         times = []
-        for x in (sig.force_n[a:b], sig.output_v[a:b]):
-            top, middle = _plateau(x, smooth)
-            times.append(_half_rise_time(x[:middle], top, smooth, dt))
+        for full in (sig.force_n, sig.output_v):
+            # from this press's own rest level: between presses the force still recovers
+            # from the last unloading (viscoelastic), and ambient light drifts the output
+            x = full[a:b] - float(np.median(full[max(0, a - rest):a + 1]))
+            top, middle = _plateau(x, top_smooth)
+            times.append(_onset_time(x[:middle], top, smooth, dt))
         if times[0] is not None and times[1] is not None:
             lags.append(times[1] - times[0])
-    return float(np.median(lags)) if lags else None
+    return lags
 
 
 @dataclass(frozen=True)

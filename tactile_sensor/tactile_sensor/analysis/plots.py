@@ -105,6 +105,36 @@ def cycles_over_time(ch: Characterisation, path: Path) -> Path:
     return _save(fig, path)
 
 
+def first_last_cycles(ch: Characterisation, path: Path) -> Path:
+    """The first and the last k cycles of the reference group on equal axes (Fig. 8b, c):
+    k as in the drift metric (10 of 100), so the eye sees what drift_pct compares."""
+    sig, seg = ch.signals, ch.segmentation
+    cycles = _ref_cycles(ch)
+    k = ch.repeatability.drift_cycles or min(10, len(cycles))
+    parts = (("first", cycles[:k]), ("last", cycles[-k:]))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+    twins = []
+    for ax, (which, group) in zip(axes, parts, strict=True):
+        a, b = group[0].window[0], group[-1].window[1]
+        idx = _thin(np.arange(a, b))
+        t = sig.t_s[idx] - sig.t_s[a]
+        ax.plot(t, sig.output_v[idx], lw=0.6, color="tab:red")
+        ax.set(xlabel="time from the group's first press [s]", ylabel="output change [V]",
+               title=f"{which} {len(group)} cycles (cycles "
+                     f"{cycles.index(group[0]) + 1}-{cycles.index(group[-1]) + 1})")
+        twin = ax.twinx()
+        twin.plot(t, sig.force_n[idx], lw=0.6, color="tab:gray")
+        twin.set_ylabel("force [N]")
+        twins.append(twin)
+    low = min(tw.get_ylim()[0] for tw in twins)
+    high = max(tw.get_ylim()[1] for tw in twins)
+    for twin in twins:
+        twin.set_ylim(low, high)
+    fig.suptitle(f"First and last cycles at {seg.reference_key} mm/s: output (red), "
+                 "force (grey) (cf. Fig. 8b, c)")
+    return _save(fig, path, top=0.82)
+
+
 def speeds(ch: Characterisation, path: Path) -> Path:
     sig, seg = ch.signals, ch.segmentation
     keys = sorted(seg.speed_groups, key=float)
@@ -133,6 +163,7 @@ def all_figures(ch: Characterisation, out_dir: Path) -> dict[str, Path]:
         "output_vs_indentation": output_vs_indentation,
         "output_vs_force": output_vs_force,
         "cycles": cycles_over_time,
+        "first_last_cycles": first_last_cycles,
         "speeds": speeds,
     }
     return {name: make(ch, out_dir / f"{name}.png") for name, make in makers.items()}

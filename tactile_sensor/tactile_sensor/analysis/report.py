@@ -31,7 +31,10 @@ def rows(ch: Characterisation) -> list[tuple[str, str, str]]:
         ("Drift (first vs last cycles)", _fmt(mt["drift_pct"], "%"), "none observed"),
     ]
     for key in sorted(mt["phase_lag_s"], key=float):
-        out.append((f"Phase lag at {key} mm/s", _fmt(mt["phase_lag_s"][key], "s"),
+        sem = mt["by_speed"].get(key, {}).get("phase_lag_sem_s")
+        out.append((f"Phase lag at {key} mm/s (onset)",
+                    _fmt(mt["phase_lag_s"][key], "s")
+                    + (f" ± {_fmt(sem, 's')}" if sem is not None else ""),
                     _fmt(paper["phase_lag_s"].get(key), "s")))
     cal = mt.get("calibration_error")
     if cal:

@@ -19,6 +19,7 @@ MIN_SPAN_M = 1e-5  # presses shallower than 10 µm are not presses
 MIN_RAMP_SAMPLES = 5
 SPEED_GROUP_RATIO = 1.25
 TRAVEL_TRIM = 0.01
+GAP_SHARE = 0.05  # a press is left out when its output or force lost more than this share
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,7 @@ class Segmentation:
     speed_groups: dict[str, list[int]]  # "1.0" -> indices into cycles, ordered by speed
     reference_key: str
     skipped: int  # presses cut off by the start/end of the recording or too short
+    in_position_gaps: int = 0  # presses left out because messages are missing in them
 
 
 def speed_key(speed_mm_s: float) -> str:
@@ -90,10 +92,13 @@ def segment(aligned: Aligned, reference_speed_mm_s: float = 1.0,
     cycles: list[Cycle] = []
     skipped = 0
     prev_end = 0
+    cut_level = lo_d + 0.1 * span
+    head_counted = tail_counted = False
     for k, up in enumerate(ups):
         later = [w for w in downs if w > up]
         if not later:
             skipped += 1
+            tail_counted = True
             break
         down = later[0]
         next_up = ups[k + 1] if k + 1 < len(ups) else d.size
@@ -103,8 +108,10 @@ def segment(aligned: Aligned, reference_speed_mm_s: float = 1.0,
             skipped += 1
             continue
         base_before, base_after = float(before.min()), float(after.min())
-        if max(base_before, base_after) > lo_d + 0.1 * span:
+        if max(base_before, base_after) > cut_level:
             skipped += 1  # cut off by the recording's start or end
+            head_counted |= base_before > cut_level and k == 0
+            tail_counted |= base_after > cut_level and k == len(ups) - 1
             prev_end = down
             continue
         peak_i = up + int(np.argmax(d[up:down]))
@@ -131,6 +138,14 @@ def segment(aligned: Aligned, reference_speed_mm_s: float = 1.0,
             unload_speed_mm_s=_speed_mm_s(t, d, unload_start, unload_stop),
             peak_indentation_m=peak))
         prev_end = unload_stop
+    # a press under way when the recording starts or ends, too short to cross the trigger
+    skipped += int(d[0] > cut_level and not head_counted)
+    skipped += int(d[-1] > cut_level and not tail_counted)
+    kept = [c for c in cycles if not _lost_in_gaps(aligned, t[c.window[0]], t[c.window[1] - 1])]
+    in_gaps = len(cycles) - len(kept)
+    if in_gaps:
+        cycles = [Cycle(i, c.load, c.unload, c.speed_mm_s, c.unload_speed_mm_s,
+                        c.peak_indentation_m) for i, c in enumerate(kept)]
     if not cycles:
         raise SegmentError(f"no complete loading and unloading cycle on {position_topic} "
                            "lies inside the span where all topics were recorded (an empty "
@@ -143,7 +158,18 @@ def segment(aligned: Aligned, reference_speed_mm_s: float = 1.0,
     groups = _group_by_speed(cycles)
     ref = min(groups, key=lambda k: abs(np.log10(float(k) / reference_speed_mm_s)))
     return Segmentation(cycles=cycles, rest=rest, speed_groups=groups, reference_key=ref,
-                        skipped=skipped)
+                        skipped=skipped, in_position_gaps=in_gaps)
+
+
+def _lost_in_gaps(aligned: Aligned, t0: float, t1: float) -> bool:
+    """Whether lost messages make a press unusable: any gap in the stage topic (its motion
+    there is invented by interpolation), or gaps in the output or force topics covering
+    more than GAP_SHARE of it (their values there are straight lines, not measurements)."""
+    for role, gaps in aligned.gaps_s.items():
+        covered = sum(max(0.0, min(b, t1) - max(a, t0)) for a, b in gaps)
+        if covered > (0.0 if role == "position" else GAP_SHARE * (t1 - t0)):
+            return True
+    return False
 
 
 def _group_by_speed(cycles: list[Cycle]) -> dict[str, list[int]]:

@@ -10,7 +10,7 @@ an unloading-only hysteresis bump, a per-cycle gain, Gaussian noise and an offse
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -186,8 +186,13 @@ class BagTopics:
 
 def write_press_bag(path: Path | str, signals: PressSignals, storage: str = "sqlite3",
                     topics: BagTopics = BagTopics(), start_ns: int = 1_700_000_000_000_000_000,
-                    progress: Callable[[float], None] | None = None) -> Path:
-    """Write the signals as a rosbag2 recording; the stage stream is offset by a third sample."""
+                    progress: Callable[[float], None] | None = None,
+                    lost: Mapping[str, Sequence[tuple[float, float]]] | None = None) -> Path:
+    """Write the signals as a rosbag2 recording; the stage stream is offset by a third sample.
+
+    ``lost`` leaves out the messages of a stream ('reading', 'reference' or 'position')
+    in time windows [s of ``signals.t_s``], as a starved recorder or publisher does.
+    """
     path = Path(path)
     store = writer_typestore()
     stamp = start_ns + np.round(signals.t_s * 1e9).astype(np.int64)
@@ -200,6 +205,13 @@ def write_press_bag(path: Path | str, signals: PressSignals, storage: str = "sql
         (topics.reference, WRENCH_TYPE, stamp, {"wrench.force.z": signals.force_n}),
         (topics.position, JOINT_TYPE, stage_stamp, {"position[0]": signals.indentation_m}),
     ]
+    for role, windows in (lost or {}).items():
+        i = ("reading", "reference", "position").index(role)
+        topic, msgtype, stamps, values = streams[i]
+        t = (stamps - start_ns) * 1e-9
+        keep = ~np.any([(t >= a) & (t < b) for a, b in windows], axis=0)
+        streams[i] = (topic, msgtype, stamps[keep], {k: np.asarray(v)[keep]
+                                                     for k, v in values.items()})
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     with Writer(path, version=9, storage_plugin=plugin) as writer:
         total = sum(s[2].size for s in streams)

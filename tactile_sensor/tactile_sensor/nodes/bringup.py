@@ -36,7 +36,9 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                         help="record the configuration's topics to this rosbag2 (MCAP) folder")
     parser.add_argument("--protocol", default=None,
                         help="bench: compression | repeatability | speeds "
-                             "(config/protocols.yaml); gripper: grasp | idle")
+                             "(config/protocols.yaml); gripper: grasp | idle; "
+                             "NAME:key=value,... overrides its fields, e.g. "
+                             "repeatability:cycles=5 or speeds:cycles=1,rest=0.5")
     parser.add_argument("--namespace", default="", help="ROS namespace of every node")
     parser.add_argument("--no-mock", action="store_true",
                         help="use real devices at the given ports instead of mock hardware")
@@ -48,18 +50,48 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
 
 
 def protocol_parameters(configuration: str, protocol: str | None) -> dict[str, Any]:
-    """The parameter set a protocol name stands for (config/protocols.yaml)."""
+    """The parameter set a protocol name stands for (config/protocols.yaml), with the
+    overrides of ``NAME:key=value,...`` (keys without ``protocol.``, values in the YAML's
+    units, several speeds joined by '/'), e.g. ``speeds:cycles=1`` for a short run."""
     table = yaml.safe_load((config_dir() / "protocols.yaml").read_text()) or {}
     protocols = table.get(configuration, {})
     if protocol is None:
         protocol = next(iter(protocols), None)
         if protocol is None:
             return {}
-    if protocol not in protocols:
+    name, _, overrides = protocol.partition(":")
+    if name not in protocols:
         raise BringupError(
-            f"Unknown {configuration} protocol '{protocol}'; choose one of "
+            f"Unknown {configuration} protocol '{name}'; choose one of "
             f"{', '.join(protocols) or 'none'} (config/protocols.yaml).")
-    return {"protocol.name": protocol, **(protocols[protocol] or {})}
+    params = {"protocol.name": name, **(protocols[name] or {})}
+    for item in filter(None, (i.strip() for i in overrides.split(","))):
+        params.update(_override(params, item, protocol))
+    return params
+
+
+def _override(params: dict[str, Any], item: str, spec: str) -> dict[str, Any]:
+    """One ``key=value`` of a protocol spec, typed like the value it replaces."""
+    key, sep, text = item.partition("=")
+    name = f"protocol.{key.strip()}"
+    if not sep or name not in params or name == "protocol.name":
+        keys = ", ".join(k.removeprefix("protocol.") for k in params if k != "protocol.name")
+        raise BringupError(f"Cannot read '{item}' in --protocol {spec!r}; use key=value with "
+                           f"keys {keys or '(none for this protocol)'}.")
+    old = params[name]
+    try:
+        if isinstance(old, list):
+            value: Any = [float(v) for v in text.split("/")]
+        elif isinstance(old, bool) or not isinstance(old, int | float):
+            value = text
+        elif isinstance(old, int):
+            value = int(text)
+        else:
+            value = float(text)
+    except ValueError:
+        raise BringupError(f"--protocol value '{item}' is not a number of the kind "
+                           f"'{key.strip()}' takes (as in config/protocols.yaml).") from None
+    return {name: value}
 
 
 def node_arguments(spec: NodeSpec, extra_config: Path | None) -> list[str]:

@@ -184,6 +184,7 @@ class MockHardwareNode(Node):
                                 output_play_m=physics.output_play)
         self.source = ProtocolSource(self.world)
         self._start_host_ns: int | None = None
+        self.published_until_ns = 0  # host time of the last stage/gauge sample published
         self._stage_pub = self.create_publisher(JointState, "~/stage/joint_states", 1000)
         self._gauge_pub = self.create_publisher(WrenchStamped, "~/gauge/wrench", 1000)
         self.create_service(Trigger, "~/start", self._on_start)
@@ -197,6 +198,11 @@ class MockHardwareNode(Node):
     @property
     def protocol_duration_s(self) -> float:
         return self.world.duration_s
+
+    @property
+    def protocol_start_ns(self) -> int | None:
+        """Host time [ns] at which the protocol started (None before)."""
+        return self._start_host_ns
 
     @property
     def protocol_elapsed_s(self) -> float | None:
@@ -247,6 +253,7 @@ class MockHardwareNode(Node):
                 gauge.wrench.force.z = float(self.world.force_n(t))
                 self._stage_pub.publish(stage)
                 self._gauge_pub.publish(gauge)
+                self.published_until_ns = next_ns
                 next_ns += period_ns
 
     # -- gripper -------------------------------------------------------------------------------

@@ -62,7 +62,7 @@ def test_fit_on_one_bag_evaluate_on_another_with_prediction_overlay(bags, tmp_pa
     names = {p.name for p in out_a.iterdir()}
     assert {"metrics.json", "calibration.json", "report.md", "report.html",
             "force_vs_indentation.png", "output_vs_indentation.png", "output_vs_force.png",
-            "cycles.png", "speeds.png"} <= names
+            "cycles.png", "first_last_cycles.png", "speeds.png"} <= names
     metrics = json.loads((out_a / "metrics.json").read_text())
     assert metrics.keys() >= EXPECTED_KEYS
     assert list(metrics["phase_lag_s"]) == ["10.0"]

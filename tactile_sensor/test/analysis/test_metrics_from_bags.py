@@ -92,10 +92,24 @@ def test_repeatability_and_drift(analysed):
     assert mt["drift_pct"] == pytest.approx(drift, abs=0.6)  # 0.6 percentage points
 
 
-@pytest.mark.parametrize(("key", "tol_s"), [("10.0", 0.003), ("1.0", 0.01), ("0.1", 0.1)])
+# The onset fit extrapolates the foot of the edge to the rest level, so it is noisier
+# than a mid-level crossing: with this fixture's noise one cycle scatters by ~14 ms at
+# 1 mm/s (200 Hz); the tolerances are ~3 standard deviations of the median over the
+# group's cycles (3 at 10 mm/s, 8 at 1 mm/s, 1 at 0.1 mm/s).
+@pytest.mark.parametrize(("key", "tol_s"), [("10.0", 0.004), ("1.0", 0.02), ("0.1", 0.2)])
 def test_phase_lag_per_speed(analysed, key, tol_s):
     lag = analysed[0].metrics["phase_lag_s"][key]
     assert lag == pytest.approx(TRUTH.lag_s[float(key)], abs=tol_s)
+
+
+def test_phase_lag_is_exact_for_a_delayed_output_without_noise(tmp_path):
+    truth = SensorTruth(noise_v=0.0)
+    signals = press_signals(PressProtocol(speeds_mm_s=(10.0, 1.0, 0.1), cycles=(2, 2, 1),
+                                          rate_hz=1000.0), truth, seed=0)
+    bag = write_press_bag(tmp_path / "clean", signals, storage="mcap")
+    lags = ch.analyse_bag(str(bag), ch.Options()).metrics["phase_lag_s"]
+    for key, tol_s in (("10.0", 0.001), ("1.0", 0.002), ("0.1", 0.01)):
+        assert lags[key] == pytest.approx(truth.lag_s[float(key)], abs=tol_s)
 
 
 def test_in_sample_calibration_error_is_noise_limited_at_the_fitted_speed(analysed):
