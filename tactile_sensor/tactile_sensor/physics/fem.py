@@ -18,6 +18,7 @@ back wall has the same window — see ``PhysicsParams.window_width``).
 from __future__ import annotations
 
 import itertools
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -53,54 +54,62 @@ class SweepResult:
 # mesh
 
 
-def _axis(breaks: list[float], n: int, grading: float = 1.0) -> np.ndarray:
+def _axis(breaks: list[float], n: int, refine: tuple[float, ...] = (), grading: float = 1.0,
+          length: float = 1.0) -> np.ndarray:
     """Node coordinates over sorted breakpoints with about n elements in total.
 
     Every breakpoint is a node (window edges and symmetry planes stay on element faces).
-    With grading > 1 the segment-wise uniform spacing is remapped so the first and last
-    elements are about ``grading`` times smaller than the middle ones.
+    The element size grows linearly with the distance from the nearest point of ``refine``,
+    from 1 there to ``grading`` at ``length`` and beyond: geometric grading toward edges where
+    the solution is singular (a clamped edge meeting a free surface), near which a uniform
+    mesh converges only as O(h). The size function is fixed and n only scales it, so doubling
+    n halves every element (the mesh study's "twice as fine").
     """
     breaks = sorted(set(breaks))
     lo, hi = breaks[0], breaks[-1]
-    if grading > 1.0:
-        # map s in [0,1] -> g(s) finer near both ends; breakpoints mapped through g^-1.
-        a = (grading - 1.0) / (grading + 1.0)
-
-        def g(s: np.ndarray) -> np.ndarray:
-            return s - a * np.sin(2 * np.pi * s) / (2 * np.pi)
-
-        fine = np.linspace(0.0, 1.0, 20001)
-        ginv = lambda y: np.interp(y, g(fine), fine)  # noqa: E731
-        sbreaks = [float(ginv((b - lo) / (hi - lo))) for b in breaks]
-    else:
-        sbreaks = [(b - lo) / (hi - lo) for b in breaks]
+    xs = np.linspace(lo, hi, 20001)
+    size = np.ones_like(xs)
+    if refine and grading > 1.0:
+        dist = np.min(np.abs(xs[:, None] - np.asarray(refine)[None, :]), axis=1)
+        size = np.minimum(grading, 1.0 + (grading - 1.0) * dist / length)
+    density = 1.0 / size                    # elements per unit length, up to a scale
+    count = np.concatenate([[0.0], np.cumsum(0.5 * (density[1:] + density[:-1])
+                                             * np.diff(xs))])
+    count *= n / count[-1]
     pts: list[np.ndarray] = []
-    for s0, s1 in itertools.pairwise(sbreaks):
-        k = max(1, round(n * (s1 - s0)))
-        pts.append(np.linspace(s0, s1, k + 1)[:-1])
-    s = np.concatenate([*pts, [1.0]])
-    if grading > 1.0:
-        s = g(s)
-    x = lo + (hi - lo) * s
-    for b in breaks:  # snap exactly
-        x[np.argmin(abs(x - b))] = b
-    return x
+    for b0, b1 in itertools.pairwise(breaks):
+        c0, c1 = np.interp([b0, b1], xs, count)
+        k = max(1, round(c1 - c0))
+        pts.append(np.interp(np.linspace(c0, c1, k + 1)[:-1], count, xs))
+        pts[-1][0] = b0                     # breakpoints exactly
+    return np.concatenate([*pts, [hi]])
 
 
 def build_mesh(params: PhysicsParams) -> skfem.MeshHex:
-    """Structured, graded hexahedral quarter mesh x in [0, W/2], y in [0, D/2], z in [0, H]."""
+    """Structured hexahedral quarter mesh x in [0, W/2], y in [0, D/2], z in [0, H].
+
+    Bonded with a module: graded toward the window's edges (x, z), the band's top edge (z),
+    the probe's edge (z) and the window's face (y), the singular edges and the face whose
+    displacement the photoreflector reads. Frictionless: uniform (the solution is).
+    """
     p = params
     hw, hd = p.width / 2, p.depth / 2
-    module = p.boundary == "bonded" and p.module_height > 0
-    xb = [0.0, hw]
-    zb = [0.0, p.height]
-    if module:
-        xb.append(p.window_width / 2)
-        zb += [p.window_center_z - p.window_height / 2, p.window_center_z + p.window_height / 2,
-               p.module_height]
-    x = _axis(xb, p.mesh_nx)
-    y = _axis([0.0, hd], p.mesh_ny)
-    z = _axis(zb, p.mesh_nz, p.mesh_grading if p.boundary == "bonded" else 1.0)
+    if p.boundary != "bonded":
+        return skfem.MeshHex.init_tensor(_axis([0.0, hw], p.mesh_nx),
+                                         _axis([0.0, hd], p.mesh_ny),
+                                         _axis([0.0, p.height], p.mesh_nz))
+    g, length = p.mesh_grading, p.mesh_grading_length
+    if p.module_height <= 0:
+        return skfem.MeshHex.init_tensor(_axis([0.0, hw], p.mesh_nx),
+                                         _axis([0.0, hd], p.mesh_ny),
+                                         _axis([0.0, p.height], p.mesh_nz, (p.height,), g,
+                                               length))
+    ww = p.window_width / 2
+    z0, z1 = p.window_center_z - p.window_height / 2, p.window_center_z + p.window_height / 2
+    x = _axis([0.0, ww, hw], p.mesh_nx, (ww,), g, length)
+    y = _axis([0.0, hd], p.mesh_ny, (hd,), g, length)
+    z = _axis([0.0, z0, z1, p.module_height, p.height], p.mesh_nz,
+              (z0, z1, p.module_height, p.height), g, length)
     return skfem.MeshHex.init_tensor(x, y, z)
 
 
@@ -469,6 +478,45 @@ class SkinModel:
         trial = u.copy()
         trial[self._free] += du_free
         return bool(np.all(_det(self._gradient.deformation(trial[self._edofs])) > 0.05))
+
+
+def extrapolated_sweep(params: PhysicsParams, progress: Progress | None = None
+                       ) -> SweepResult:
+    """The sweep on the parameters' mesh, Richardson-extrapolated with one half as fine.
+
+    Why: the window's bulge converges at about second order but with a large constant (the
+    default mesh alone reads ~6 % low; one fine enough on its own costs minutes), and the
+    half-as-fine sweep costs an eighth of the unknowns. With an error C h^p on both meshes,
+    f + (f - f_coarse) / (r^p - 1) cancels the leading term; ``benchmarks/bench_fem.py``
+    measures p from three meshes. ``mesh_extrapolation_order = 0`` gives the mesh alone.
+    """
+    order = params.mesh_extrapolation_order
+    if order == 0:
+        return SkinModel(params).sweep(progress)
+    counts = (params.mesh_nx, params.mesh_ny, params.mesh_nz)
+    halved = (max(1, math.ceil(params.mesh_nx / 2)), max(1, math.ceil(params.mesh_ny / 2)),
+              max(2, math.ceil(params.mesh_nz / 2)))
+    coarse_params = params.replace(mesh_nx=halved[0], mesh_ny=halved[1], mesh_nz=halved[2])
+    share = 0.15  # of the time, roughly, the coarse sweep takes
+
+    def stage(lo: float, hi: float, label: str) -> Progress | None:
+        if progress is None:
+            return None
+        return lambda f, msg: progress(lo + (hi - lo) * f, f"{label}: {msg}")
+
+    try:
+        coarse_model = SkinModel(coarse_params)
+    except PhysicsError as exc:
+        raise PhysicsError(f"The half-as-fine mesh the extrapolation needs ({halved[0]} x "
+                           f"{halved[1]} x {halved[2]} elements) is too coarse: {exc} Or set "
+                           "mesh_extrapolation_order to 0.") from None
+    coarse = coarse_model.sweep(stage(0.0, share, "half-as-fine mesh"))
+    fine = SkinModel(params).sweep(stage(share, 1.0, "mesh"))
+    ratio = float(np.prod(counts) / np.prod(halved)) ** (1.0 / 3.0)
+    k = 1.0 / (ratio**order - 1.0)
+    return SweepResult(fine.indentation_m, fine.force_n + k * (fine.force_n - coarse.force_n),
+                       fine.bulge_m + k * (fine.bulge_m - coarse.bulge_m), fine.nodes,
+                       fine.seconds + coarse.seconds)
 
 
 def _extrapolate(history: list[tuple[float, np.ndarray]], d: float) -> np.ndarray:

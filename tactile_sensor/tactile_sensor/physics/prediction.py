@@ -1,9 +1,10 @@
 """The prediction curve: indentation -> force, bulge, distance, voltage, module output.
 
-One FEM sweep (``fem.SkinModel``) plus the photoreflector optics gives the curve the model
-node serves, the mocks simulate and the analysis overlays. It is cached on disk under the
-hash of every parameter that changes it, so only the first run with new parameters pays
-for the sweep; the cache write is atomic (a crashed run never leaves half a file).
+One FEM sweep (``fem.extrapolated_sweep``: two meshes, Richardson-extrapolated) plus the
+photoreflector optics gives the curve the model node serves, the mocks simulate and the
+analysis overlays. It is cached on disk under the hash of every parameter that changes it,
+so only the first run with new parameters pays for the sweep; the cache write is atomic (a
+crashed run never leaves half a file).
 """
 
 from __future__ import annotations
@@ -139,9 +140,9 @@ def default_cache_dir() -> Path:
 
 
 def compute_curve(params: PhysicsParams, progress: Progress | None = None) -> PredictionCurve:
-    from .fem import SkinModel  # scikit-fem is only needed for a cold sweep
+    from .fem import extrapolated_sweep  # scikit-fem is only needed for a cold sweep
 
-    sweep = SkinModel(params).sweep(progress)
+    sweep = extrapolated_sweep(params, progress)
     return curve_from_sweep(params, sweep.indentation_m, sweep.force_n, sweep.bulge_m,
                             sweep.nodes, sweep.seconds)
 

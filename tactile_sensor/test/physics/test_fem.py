@@ -57,9 +57,47 @@ def test_bonded_force_and_bulge_rise_with_indentation():
     assert res.force_n[-1] > free
 
 
+@given(st.integers(8, 80), st.floats(1.0, 8.0), st.floats(0.1, 0.9))
+def test_graded_axis_keeps_breakpoints_and_grows_away_from_the_refined_point(n, grading, at):
+    axis = fem._axis([0.0, at, 1.0], n, (at,), grading, 0.3)
+    h = np.diff(axis)
+    assert np.all(h > 0)
+    assert axis[0] == 0.0 and axis[-1] == 1.0 and at in axis
+    assert abs(h.size - n) <= 2                                   # rounding per segment
+    i = int(np.flatnonzero(axis == at)[0])
+    near = min(h[i - 1], h[i])                                    # the two beside the point
+    assert near <= h.min() * (1 + 1e-9) or near < 1.5 * h.min()
+    assert h.max() / h.min() < grading * 1.6 + 0.5
+
+
+def test_doubling_the_count_halves_every_element():
+    """The mesh study's 'twice as fine': the same size function, every element halved."""
+    coarse = fem._axis([0.0, 0.3, 1.0], 20, (0.3,), 6.0, 0.3)
+    fine = fem._axis([0.0, 0.3, 1.0], 40, (0.3,), 6.0, 0.3)
+    mid = 0.5 * (fine[1:] + fine[:-1])
+    coarse_size = np.diff(coarse)[np.searchsorted(coarse, mid) - 1]
+    np.testing.assert_allclose(np.diff(fine) / coarse_size, 0.5, rtol=0.2)
+
+
+def test_bonded_mesh_is_finest_at_the_window_edges_and_frictionless_is_uniform():
+    p = PhysicsParams()
+    mesh = fem.build_mesh(p)
+    x, z = np.unique(mesh.p[0]), np.unique(mesh.p[2])
+    hx, hz = np.diff(x), np.diff(z)
+    edge_x = int(np.argmin(abs(x - p.window_width / 2)))
+    assert min(hx[edge_x - 1], hx[edge_x]) < 0.5 * hx.max()
+    z0 = p.window_center_z - p.window_height / 2
+    edge_z = int(np.argmin(abs(z - z0)))
+    assert min(hz[edge_z - 1], hz[edge_z]) < 0.5 * hz.max()
+    free = fem.build_mesh(p.replace(boundary="frictionless"))
+    for k in range(3):
+        np.testing.assert_allclose(np.diff(np.unique(free.p[k])),
+                                   np.diff(np.unique(free.p[k])).mean(), rtol=1e-9)
+
+
 def test_mesh_too_coarse_for_the_window_is_refused():
     with pytest.raises(PhysicsError, match="no node inside the photoreflector window"):
-        SkinModel(PhysicsParams(mesh_nx=4, mesh_ny=4, mesh_nz=8))
+        SkinModel(PhysicsParams(mesh_nx=4, mesh_ny=4, mesh_nz=8, mesh_grading=1.0))
 
 
 def test_progress_is_reported_per_step():
@@ -144,3 +182,47 @@ def test_a_krylov_step_that_would_invert_elements_falls_back_to_a_newton_step(mo
     monkeypatch.setattr(model, "_krylov", lambda u, r, lu, atol: np.full(r.shape, -1.0))
     res = model.sweep()    # every Krylov step would crush the block by a metre
     np.testing.assert_allclose(res.force_n, ref.force_n, rtol=1e-5)
+
+
+def test_extrapolation_off_is_the_mesh_alone():
+    p = PhysicsParams(mesh_nx=4, mesh_ny=3, mesh_nz=12, steps=3, max_indentation=0.001,
+                      mesh_extrapolation_order=0.0)
+    alone = SkinModel(p).sweep()
+    res = fem.extrapolated_sweep(p)
+    np.testing.assert_array_equal(res.force_n, alone.force_n)
+    np.testing.assert_array_equal(res.bulge_m, alone.bulge_m)
+
+
+def test_extrapolated_frictionless_block_still_matches_the_closed_form():
+    p = PhysicsParams(boundary="frictionless", height=0.02, steps=6, **COARSE)
+    res = fem.extrapolated_sweep(p)
+    expect = closed_form_force(p, res.indentation_m[1:])
+    assert np.all(np.abs(res.force_n[1:] / expect - 1.0) < 0.01)
+
+
+def test_extrapolation_makes_the_bulge_nearly_mesh_independent():
+    """Between a mesh and one twice as fine, the extrapolated bulge moves far less than the
+    raw one (the mesh study's point, on meshes small enough for a unit test)."""
+    p = PhysicsParams(mesh_nx=6, mesh_ny=6, mesh_nz=18, steps=1, max_indentation=5e-5)
+    fine = p.replace(mesh_nx=12, mesh_ny=12, mesh_nz=36)
+    raw_coarse, raw_fine = SkinModel(p).sweep(), SkinModel(fine).sweep()
+    ext_coarse, ext_fine = fem.extrapolated_sweep(p), fem.extrapolated_sweep(fine)
+    raw_change = abs(raw_fine.bulge_m[-1] / raw_coarse.bulge_m[-1] - 1)
+    ext_change = abs(ext_fine.bulge_m[-1] / ext_coarse.bulge_m[-1] - 1)
+    print(f"bulge change, raw {raw_change:.2%}, extrapolated {ext_change:.2%}")
+    assert ext_change < 0.4 * raw_change, (raw_change, ext_change)
+
+
+def test_extrapolated_sweep_reports_progress_over_both_meshes():
+    seen: list[float] = []
+    p = PhysicsParams(boundary="frictionless", steps=3, **COARSE)
+    fem.extrapolated_sweep(p, lambda f, msg: seen.append(f))
+    assert seen == sorted(seen) and seen[-1] == pytest.approx(1.0) and len(seen) == 6
+
+
+def test_a_half_mesh_too_coarse_for_the_window_names_the_way_out():
+    p = PhysicsParams(mesh_nx=2, mesh_ny=2, mesh_nz=12, steps=2, max_indentation=0.001)
+    SkinModel(p)  # the mesh itself resolves the window
+    with pytest.raises(PhysicsError, match=r"half-as-fine mesh .*1 x 1 x 6.*"
+                                           r"mesh_extrapolation_order to 0"):
+        fem.extrapolated_sweep(p)

@@ -28,7 +28,7 @@ from tactile_sensor.physics.prediction import (
 )
 
 COARSE = dict(boundary="frictionless", mesh_nx=2, mesh_ny=2, mesh_nz=4, steps=4)
-BONDED_COARSE = dict(boundary="bonded", mesh_nx=2, mesh_ny=2, mesh_nz=12, steps=6)
+BONDED_COARSE = dict(boundary="bonded", mesh_nx=4, mesh_ny=2, mesh_nz=18, steps=6)
 
 
 def synthetic(params: PhysicsParams | None = None, bulge_max_m: float = 0.3e-3
