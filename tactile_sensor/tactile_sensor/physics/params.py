@@ -64,7 +64,7 @@ class PhysicsParams:
                               "all four side faces from the base up and grips them (skin "
                               "under it does not move; a sliding grip made the skin fold "
                               "over the band edge); the low band and window near the fixed "
-                              "base keep the bulge the photoreflector sees small (~0.2 mm at "
+                              "base keep the bulge the photoreflector sees small (~0.26 mm at "
                               "3 mm), as the paper's 0.07 V/N implies; assumption; 0 = no "
                               "module", low=0.0)
     window_width: float = _f(0.009, "m", "width of the open window in the module's front "
@@ -100,7 +100,7 @@ class PhysicsParams:
     # --- mesh (quarter model, symmetric about x = 0 and y = 0) ------------------------------
     mesh_nx: int = _f(10, "1", "elements across the half width", low=1, high=200)
     mesh_ny: int = _f(10, "1", "elements across the half depth", low=1, high=200)
-    mesh_nz: int = _f(30, "1", "elements along the height", low=2, high=400)
+    mesh_nz: int = _f(26, "1", "elements along the height", low=2, high=400)
     mesh_grading: float = _f(6.0, "1", "ratio of largest to smallest element on each axis; "
                              "the smallest sit at the singular edges where the clamped "
                              "module meets the free window and at the band's and probe's "

@@ -161,8 +161,10 @@ def test_inexact_newton_agrees_with_refactorising_every_iteration(monkeypatch):
     fresh = SkinModel(p)
     ref = fresh.sweep()
     assert fresh.stats["factorisations"] > reused.stats["factorisations"]
-    np.testing.assert_allclose(res.force_n[1:], ref.force_n[1:], rtol=1e-5)
-    np.testing.assert_allclose(res.bulge_m[1:], ref.bulge_m[1:], rtol=1e-5)
+    # both are converged to the solver's out-of-balance tolerance, not further
+    tol_n = fem._RESIDUAL_TOL * p.shear_modulus * p.height**2
+    np.testing.assert_allclose(res.force_n[1:], ref.force_n[1:], rtol=0, atol=2 * tol_n)
+    np.testing.assert_allclose(res.bulge_m[1:], ref.bulge_m[1:], rtol=1e-4)
 
 
 @given(st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
