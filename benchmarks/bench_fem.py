@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
 from tactile_sensor.physics.errors import ConvergenceError
-from tactile_sensor.physics.fem import SkinModel, SweepResult
+from tactile_sensor.physics.fem import SkinModel, SweepResult, richardson
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import compute_curve, curve_from_sweep
 
@@ -55,9 +55,9 @@ def raw(params: PhysicsParams, label: str) -> SweepResult:
 
 def extrapolate(params: PhysicsParams, fine: SweepResult, coarse: SweepResult
                 ) -> tuple[float, float]:
-    k = 1.0 / (2.0**params.mesh_extrapolation_order - 1.0)
-    return (fine.force_n[-1] + k * (fine.force_n[-1] - coarse.force_n[-1]),
-            fine.bulge_m[-1] + k * (fine.bulge_m[-1] - coarse.bulge_m[-1]))
+    p = params.mesh_extrapolation_order
+    return (float(richardson(fine.force_n[-1], coarse.force_n[-1], 2.0, p)),
+            float(richardson(fine.bulge_m[-1], coarse.bulge_m[-1], 2.0, p)))
 
 
 def change(a: float, b: float) -> str:
