@@ -39,6 +39,9 @@ _RESIDUAL_TOL = 1e-6  # converged when |out-of-balance force| < this * mu * heig
 _KRYLOV_RTOL = 1e-3   # relative residual of each Newton correction (inexact Newton)
 _KRYLOV_MAX = 40      # GMRES iterations after which a correction is given up (refactorise)
 _KRYLOV_REFRESH = 12  # a correction that took more GMRES iterations ages the tangent out
+_NEWTON_MAX = 15      # Newton iterations per load step before the step is cut
+_NEWTON_DIVERGED = 10.0  # the step is cut once the residual grows this much over its start
+_MAX_CUTS = 4         # a failed load step is halved at most this often (to 1/16 of a step)
 
 
 @dataclass(frozen=True)
@@ -192,7 +195,8 @@ class SkinModel:
         self._setup_constraints()
         self._setup_pattern()
         self._stale = False
-        self.stats = {"factorisations": 0, "iterations": 0, "krylov": 0, "residuals": 0}
+        self.stats = {"factorisations": 0, "iterations": 0, "krylov": 0, "residuals": 0,
+                      "cuts": 0}
 
     # -- boundary conditions -------------------------------------------------------------------
     def _setup_constraints(self) -> None:
@@ -321,32 +325,55 @@ class SkinModel:
         u3[self._top, 2] = -d
 
     def sweep(self, progress: Progress | None = None) -> SweepResult:
-        """Press the top face from 0 to max_indentation in ``steps`` equal steps."""
+        """Press the top face from 0 to max_indentation in ``steps`` equal steps.
+
+        A step whose solve fails (an element would invert, or Newton stalls) is retried as two
+        halves from the last equilibrium, up to ``_MAX_CUTS`` times: on fine graded meshes the
+        smallest elements at the clamped edges are the first to invert, and a shorter
+        increment keeps them admissible without making every mesh pay for more steps.
+        The result still holds exactly the ``steps`` requested.
+        """
         p = self.params
         start = time.perf_counter()
         d_all = np.linspace(0.0, p.max_indentation, p.steps + 1)
         forces, bulges = [0.0], [0.0]
-        u = np.zeros(self.ndof)
-        history: list[tuple[float, np.ndarray]] = [(0.0, u)]
+        history: list[tuple[float, np.ndarray]] = [(0.0, np.zeros(self.ndof))]
         lu = None
-        Kp = self._perm
         for n in range(1, d_all.size):
-            d = d_all[n]
-            if n == 1:
-                u, lu = self._tangent_predictor(u, d, Kp)
-            else:
-                u = _extrapolate(history[-3:], d)
-            self._prescribe(u, d)
-            u, lu = self._newton(u, lu, Kp)
-            history.append((d, u))
+            cuts_before = self.stats["cuts"]
+            u, lu = self._advance(history, lu, d_all[n], 0)
             fint, _ = self._evaluate(u, tangent=False)
             forces.append(-4.0 * fint.reshape(-1, 3)[self._top, 2].sum())
             bulges.append(float(self._patch @ u.reshape(-1, 3)[:, 1]))
             if progress is not None:
+                cut = self.stats["cuts"] - cuts_before
+                note = f" ({cut} step cut{'s' if cut > 1 else ''})" if cut else ""
                 progress(n / p.steps, f"load step {n}/{p.steps}: indentation "
-                         f"{d * 1e3:.2f} mm, force {forces[-1]:.3f} N")
+                         f"{d_all[n] * 1e3:.2f} mm, force {forces[-1]:.3f} N{note}")
         return SweepResult(d_all, np.array(forces), np.array(bulges), self.nodes,
                            time.perf_counter() - start)
+
+    def _advance(self, history: list[tuple[float, np.ndarray]], lu: object, d: float,
+                 depth: int) -> tuple[np.ndarray, object]:
+        """Equilibrium at indentation d from the last one in ``history`` (appended to it)."""
+        d0, u0 = history[-1]
+        try:
+            if len(history) == 1:
+                u, lu = self._tangent_predictor(u0, d, self._perm)
+            else:
+                u = _extrapolate(history[-3:], d)
+            self._prescribe(u, d)
+            u, lu = self._newton(u, lu, self._perm)
+        except ConvergenceError:
+            if depth >= _MAX_CUTS:
+                raise
+            self.stats["cuts"] += 1
+            self._stale = True       # the tangent may have been factorised at a bad state
+            _, lu = self._advance(history, lu, 0.5 * (d0 + d), depth + 1)
+            return self._advance(history, lu, d, depth + 1)
+        history.append((d, u))
+        del history[:-3]
+        return u, lu
 
     def _factorise(self, u: np.ndarray, perm: np.ndarray) -> object:
         self.stats["factorisations"] += 1
@@ -402,9 +429,13 @@ class SkinModel:
         p = self.params
         tol_r = _RESIDUAL_TOL * p.shear_modulus * p.height**2    # [N], out-of-balance force
         r = self._internal_force(u)[free]
-        for _ in range(30):
-            if np.linalg.norm(r) < tol_r:
+        r_start = max(float(np.linalg.norm(r)), tol_r)
+        for _ in range(_NEWTON_MAX):
+            r_norm = float(np.linalg.norm(r))
+            if r_norm < tol_r:
                 return u, lu
+            if r_norm > _NEWTON_DIVERGED * r_start:
+                break                    # diverging: a shorter load step is cheaper (sweep)
             du = None if self._stale else self._krylov(u, r, lu, 0.5 * tol_r)
             alpha = None if du is None else self._step_length(u, du)
             if alpha is None:            # stale tangent or a Krylov step that inverts: Newton

@@ -114,6 +114,24 @@ def test_too_large_step_reports_convergence_error():
         SkinModel(p).sweep()
 
 
+def test_failed_load_step_is_cut_and_the_result_keeps_the_requested_steps(monkeypatch):
+    """One 3 mm step of a nearly incompressible block diverges; halving it twice converges,
+    and the sweep still reports the one requested step, on the closed form."""
+    p = PhysicsParams(boundary="frictionless", steps=1, max_indentation=0.003, height=0.02,
+                      **COARSE)
+    messages: list[str] = []
+    model = SkinModel(p)
+    res = model.sweep(lambda _f, msg: messages.append(msg))
+    assert model.stats["cuts"] >= 1
+    assert res.indentation_m.tolist() == [0.0, 0.003]
+    assert res.force_n[-1] == pytest.approx(closed_form_force(p, res.indentation_m[-1:])[0],
+                                            rel=0.01)
+    assert len(messages) == 1 and "step cut" in messages[0]
+    monkeypatch.setattr(fem, "_MAX_CUTS", 0)
+    with pytest.raises(ConvergenceError, match="load steps"):
+        SkinModel(p).sweep()
+
+
 def test_box_gradient_fast_path_matches_the_general_one():
     """The GEMM path for box elements must equal the general per-point contraction."""
     m = SkinModel(PhysicsParams(mesh_nx=2, mesh_ny=3, mesh_nz=5, module_height=0.0,
