@@ -109,12 +109,19 @@ class PhysicsParams:
     mesh_grading_length: float = _f(0.004, "m", "distance from those edges over which "
                                     "elements grow from the smallest to the largest",
                                     low=0.0, low_open=True)
-    mesh_extrapolation_order: float = _f(2.0, "1", "order p of the discretisation error "
-                                         "assumed when the sweep is Richardson-extrapolated "
-                                         "from this mesh and one with half the elements per "
-                                         "direction (measured ~2 for the bulge by "
-                                         "benchmarks/bench_fem.py); 0 = this mesh alone",
-                                         low=0.0, high=4.0)
+    mesh_extrapolation_order_force: float = _f(0.8, "1", "order p of the force's "
+                                               "discretisation error, assumed when the sweep "
+                                               "is Richardson-extrapolated from this mesh and "
+                                               "one with half the elements per direction "
+                                               "(benchmarks/bench_fem.py measured 0.70-0.89 "
+                                               "over the sweep, from the edge singularities); "
+                                               "0 = this mesh's force alone",
+                                               low=0.0, high=4.0)
+    mesh_extrapolation_order_bulge: float = _f(1.6, "1", "order p of the window bulge's "
+                                               "discretisation error, assumed likewise "
+                                               "(measured 1.56-1.65 over the sweep); 0 = this "
+                                               "mesh's bulge alone (both 0: no half mesh)",
+                                               low=0.0, high=4.0)
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

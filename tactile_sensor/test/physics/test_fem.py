@@ -206,7 +206,7 @@ def test_a_krylov_step_that_would_invert_elements_falls_back_to_a_newton_step(mo
 
 def test_extrapolation_off_is_the_mesh_alone():
     p = PhysicsParams(mesh_nx=4, mesh_ny=3, mesh_nz=12, steps=3, max_indentation=0.001,
-                      mesh_extrapolation_order=0.0)
+                      mesh_extrapolation_order_force=0.0, mesh_extrapolation_order_bulge=0.0)
     alone = SkinModel(p).sweep()
     res = fem.extrapolated_sweep(p)
     np.testing.assert_array_equal(res.force_n, alone.force_n)
@@ -244,5 +244,6 @@ def test_a_half_mesh_too_coarse_for_the_window_names_the_way_out():
     p = PhysicsParams(mesh_nx=2, mesh_ny=2, mesh_nz=12, steps=2, max_indentation=0.001)
     SkinModel(p)  # the mesh itself resolves the window
     with pytest.raises(PhysicsError, match=r"half-as-fine mesh .*1 x 1 x 6.*"
-                                           r"mesh_extrapolation_order to 0"):
+                                           r"mesh_extrapolation_order_force and "
+                                           r"mesh_extrapolation_order_bulge to 0"):
         fem.extrapolated_sweep(p)
