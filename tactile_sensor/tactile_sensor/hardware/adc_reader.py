@@ -1,10 +1,17 @@
 """Threaded reader of the ADC frame stream on a serial port (pyserial), unplug-proof.
 
-The reader owns one thread. It opens the port, parses frames (``adc_frame.FrameParser``),
-numbers them (sequence gaps, 64-bit device time) and hands each one to ``on_sample`` in
-that thread. Any port failure (cable pulled, device reset, port missing at start) becomes
-state ``DISCONNECTED`` with a reason, and the thread retries every ``reopen_interval_s``
-until the device is back. Nothing here raises after construction.
+The reader owns two threads. The serial thread opens the port, parses frames
+(``adc_frame.FrameParser``), numbers them (sequence gaps, 64-bit device time) and queues
+them; the dispatch thread hands them, in order and with the state changes between them,
+to ``on_sample`` / ``on_state``. The serial thread does nothing slow, so it drains the
+port even when the consumer (signal chain, ROS publishing: ~100x the cost of parsing) is
+starved of CPU: the device's and the OS's buffers hold only seconds, and a device whose
+host buffer is full drops whole batches of frames. The queue (``SampleBacklog``) holds
+a minute by default; beyond its capacity new samples are dropped and counted
+(``ReaderStats.backlog_dropped``), never silently. Any port failure (cable pulled,
+device reset, port missing at start) becomes state ``DISCONNECTED`` with a reason, and
+the serial thread retries every ``reopen_interval_s`` until the device is back. Nothing
+here raises after construction.
 
 A ROS node uses it like this::
 
@@ -16,15 +23,16 @@ A ROS node uses it like this::
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import enum
 import errno
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from types import TracebackType
-from typing import NamedTuple
+from typing import Generic, NamedTuple, TypeVar
 
 import serial
 
@@ -34,6 +42,8 @@ from tactile_sensor.hardware.errors import SerialPortError
 DEFAULT_BAUDRATE = 1_000_000
 MIN_BAUDRATE = 50
 MAX_BAUDRATE = 12_000_000
+DEFAULT_BACKLOG = 60_000  # samples: 1 min at 1 kHz (~16 MB); a process starved longer is mis-sized
+DISPATCH_BATCH = 256  # samples handed over per lock acquisition
 
 
 class ConnectionState(enum.Enum):
@@ -78,10 +88,93 @@ class ReaderStats:
     bytes_discarded: int
     connections: int
     last_frame_age_s: float  # inf before the first frame
+    backlog: int = 0  # samples parsed but not yet handed to on_sample
+    backlog_peak: int = 0  # the most ever waiting at once
+    backlog_dropped: int = 0  # samples dropped because the backlog was full
+    discarded_at_stop: int = 0  # samples still queued when stop() ran out of time
 
 
 SampleCallback = Callable[[Sample], None]
 StateCallback = Callable[[ConnectionState, str], None]
+
+T = TypeVar("T")
+
+
+class SampleBacklog(Generic[T]):
+    """Bounded FIFO from the serial thread to the consumer's thread (pure, testable).
+
+    ``put`` never blocks: samples beyond ``capacity`` are refused and counted in
+    ``dropped`` (the newest go, so what was delivered stays contiguous); items for which
+    ``is_sample`` is False (state changes) are always taken, so the consumer sees every
+    connection change in order with the data.
+    """
+
+    def __init__(self, capacity: int, is_sample: Callable[[T], bool] = lambda _: True
+                 ) -> None:
+        if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 1:
+            raise SerialPortError(f"backlog capacity must be a positive number of samples, "
+                                  f"got {capacity!r}.")
+        self.capacity = capacity
+        self._is_sample = is_sample
+        self._items: collections.deque[T] = collections.deque()
+        self._samples = 0
+        self._ready = threading.Condition(threading.Lock())
+        self._closed = False
+        self.dropped = 0
+        self.peak = 0
+
+    def __len__(self) -> int:
+        return self._samples
+
+    def put(self, items: Iterable[T]) -> int:
+        """Queue ``items`` in order; returns how many samples were refused (backlog full)."""
+        refused = 0
+        with self._ready:
+            for item in items:
+                if self._is_sample(item):
+                    if self._samples >= self.capacity:
+                        refused += 1
+                        continue
+                    self._samples += 1
+                self._items.append(item)
+            self.dropped += refused
+            self.peak = max(self.peak, self._samples)
+            self._ready.notify()
+        return refused
+
+    def take(self, limit: int, timeout_s: float) -> list[T]:
+        """Up to ``limit`` items in order, waiting up to ``timeout_s`` for the first;
+        [] on timeout or once closed and empty."""
+        with self._ready:
+            if not self._items and not self._closed:
+                self._ready.wait(timeout_s)
+            n = min(limit, len(self._items))
+            out = [self._items.popleft() for _ in range(n)]
+            self._samples -= sum(1 for item in out if self._is_sample(item))
+            return out
+
+    def close(self) -> None:
+        """Wake a waiting ``take`` (the consumer is being stopped)."""
+        with self._ready:
+            self._closed = True
+            self._ready.notify_all()
+
+    def reopen(self) -> None:
+        with self._ready:
+            self._closed = False
+
+    def clear(self) -> int:
+        """Forget every queued item; returns how many samples were thrown away."""
+        with self._ready:
+            n = self._samples
+            self._items.clear()
+            self._samples = 0
+            return n
+
+
+class _StateChange(NamedTuple):
+    state: ConnectionState
+    reason: str
 
 
 class _Sequencer:
@@ -124,9 +217,10 @@ class AdcStreamReader:
     """Reads ADC frames from ``port`` in its own thread and survives unplug/replug.
 
     ``port`` is a device path or any pyserial URL. ``channels`` (if given) rejects frames
-    with another channel count. Callbacks run in the reader thread: keep them short
-    (hand samples to a queue or a ``SignalChain`` and return) and do not let them raise:
-    an exception escaping a callback stops the reader (state STOPPED, reason says why).
+    with another channel count. Callbacks run in the reader's dispatch thread, one at a
+    time and in stream order; they may be slow (the serial thread keeps reading meanwhile,
+    up to ``backlog`` samples ahead) but must not raise: an exception escaping a callback
+    stops the reader (state STOPPED, reason says why).
     """
 
     def __init__(
@@ -139,6 +233,7 @@ class AdcStreamReader:
         channels: int | None = None,
         read_timeout_s: float = 0.05,
         silence_timeout_s: float = 1.0,
+        backlog: int = DEFAULT_BACKLOG,
     ) -> None:
         if not isinstance(port, str) or not port:
             raise SerialPortError(f"port must be a device path such as /dev/ttyACM0, got {port!r}.")
@@ -165,11 +260,17 @@ class AdcStreamReader:
         self._reopen_s = float(reopen_interval_s)
         self._read_timeout_s = float(read_timeout_s)
         self._silence_s = float(silence_timeout_s)
+        self._backlog: SampleBacklog[Sample | _StateChange] = SampleBacklog(
+            backlog, lambda item: type(item) is Sample)
         self._parser = FrameParser(channels)
         self._seq = _Sequencer()
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._dispatcher: threading.Thread | None = None
+        self._dispatch_stop = threading.Event()
+        self._abandon = False  # stop() ran out of time: deliver nothing more
+        self._discarded = 0
         self._state = ConnectionState.STOPPED
         self._reason = "not started"
         self._bytes = 0
@@ -198,25 +299,51 @@ class AdcStreamReader:
                 sequence_resets=self._seq.resets, resyncs=p.resyncs,
                 bytes_received=self._bytes, bytes_discarded=p.bytes_discarded,
                 connections=self._connections, last_frame_age_s=age,
+                backlog=len(self._backlog), backlog_peak=self._backlog.peak,
+                backlog_dropped=self._backlog.dropped, discarded_at_stop=self._discarded,
             )
 
     def start(self) -> None:
-        """Start the reader thread (idempotent)."""
+        """Start the reader's threads (idempotent)."""
         if self._thread is not None and self._thread.is_alive():
             return
         self._stop.clear()
+        self._dispatch_stop.clear()
+        self._abandon = False
+        self._backlog.reopen()
+        self._dispatcher = threading.Thread(target=self._dispatch,
+                                            name=f"adc-dispatch:{self.port}", daemon=True)
+        self._dispatcher.start()
         self._set_state(ConnectionState.CONNECTING, f"opening {self.port}")
-        self._thread = threading.Thread(target=self._run, name=f"adc-reader:{self.port}",
+        self._thread = threading.Thread(target=self._loop, name=f"adc-reader:{self.port}",
                                         daemon=True)
         self._thread.start()
 
     def stop(self, timeout_s: float = 2.0) -> None:
-        """Stop the thread and close the port; returns within about ``read_timeout_s``."""
+        """Stop reading, close the port and deliver what is still queued, for at most
+        about ``timeout_s``; samples not delivered by then are counted
+        (``ReaderStats.discarded_at_stop``)."""
+        deadline = time.monotonic() + timeout_s
         self._stop.set()
         thread, self._thread = self._thread, None
         if thread is not None and thread is not threading.current_thread():
             thread.join(timeout_s)
-        self._set_state(ConnectionState.STOPPED, "stopped")
+        dispatcher, self._dispatcher = self._dispatcher, None
+        self._dispatch_stop.set()
+        self._backlog.close()
+        if dispatcher is not None and dispatcher is not threading.current_thread():
+            dispatcher.join(max(0.0, deadline - time.monotonic()))
+            if dispatcher.is_alive():
+                self._abandon = True
+                discarded = self._backlog.clear()
+                with self._lock:
+                    self._discarded += discarded
+                dispatcher.join(0.5)
+        with self._lock:
+            changed = self._state is not ConnectionState.STOPPED
+            self._state, self._reason = ConnectionState.STOPPED, "stopped"
+        if changed and self._on_state is not None:
+            self._on_state(ConnectionState.STOPPED, "stopped")
 
     def __enter__(self) -> AdcStreamReader:
         self.start()
@@ -229,12 +356,39 @@ class AdcStreamReader:
     # -- thread ----------------------------------------------------------------------------
 
     def _set_state(self, state: ConnectionState, reason: str) -> None:
+        """New state now; its callback in order with the samples (dispatch thread)."""
         if state is self._state and reason == self._reason:
             return
         with self._lock:
             self._state, self._reason = state, reason
         if self._on_state is not None:
-            self._on_state(state, reason)
+            self._backlog.put((_StateChange(state, reason),))
+
+    def _dispatch(self) -> None:
+        """Dispatch thread: hand queued samples and state changes to the callbacks."""
+        backlog, on_sample, on_state = self._backlog, self._on_sample, self._on_state
+        try:
+            while not self._abandon:
+                items = backlog.take(DISPATCH_BATCH, 0.1)
+                if not items:
+                    if self._dispatch_stop.is_set():
+                        return
+                    continue
+                for item in items:
+                    if self._abandon:
+                        return
+                    if type(item) is Sample:
+                        on_sample(item)
+                    elif on_state is not None:
+                        on_state(*item)
+        except BaseException as exc:
+            # Make the dead consumer visible in the state and stop reading (nobody would
+            # take the samples), then let threading.excepthook print the traceback.
+            with self._lock:
+                self._state = ConnectionState.STOPPED
+                self._reason = f"reader stopped by an error in a callback: {exc!r}"
+            self._stop.set()
+            raise
 
     def _open(self) -> serial.SerialBase | None:
         try:
@@ -262,16 +416,6 @@ class AdcStreamReader:
         if code == errno.EBUSY:
             return f"{self.port} is busy (another program has it open); {retry}"
         return f"cannot open {self.port}: {exc}; {retry}"
-
-    def _run(self) -> None:
-        try:
-            self._loop()
-        except BaseException as exc:
-            # Only a callback can get here (port errors are states). Make the dead thread
-            # visible in the state, then let threading.excepthook print the traceback.
-            self._set_state(ConnectionState.STOPPED,
-                            f"reader stopped by an error in a callback: {exc!r}")
-            raise
 
     def _loop(self) -> None:
         port: serial.SerialBase | None = None
@@ -325,6 +469,4 @@ class AdcStreamReader:
             self._last_frame_mono = time.monotonic()
         if self._state is not ConnectionState.CONNECTED:
             self._set_state(ConnectionState.CONNECTED, f"receiving frames from {self.port}")
-        on_sample = self._on_sample
-        for sample in samples:
-            on_sample(sample)
+        self._backlog.put(samples)

@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from tactile_sensor.nodes.bringup_runner import BringupRunner
 
 READY_TIMEOUT_S = 120.0  # a cold FEM sweep plus the driver's tare
-DRAIN_TIMEOUT_S = 30.0  # how long the streams may trail the protocol's end on a busy machine
+DRAIN_STALL_S = 30.0  # give up waiting for the streams once they have not advanced for this long
 
 
 def run_protocol(runner: BringupRunner, duration: float | None) -> int:
@@ -62,27 +62,9 @@ def _wait_until(runner: BringupRunner, predicate: Any, timeout_s: float, what: s
     return True
 
 
-class _LatestStamp:
-    """Header stamp [ns] of the newest message seen on a topic."""
-
-    def __init__(self) -> None:
-        self.ns = 0
-
-    def __call__(self, msg: WrenchStamped) -> None:
-        stamp = msg.header.stamp
-        self.ns = max(self.ns, stamp.sec * 1_000_000_000 + stamp.nanosec)
-
-
 def _run_bench(runner: BringupRunner, bench: Any, duration: float | None) -> int:
     from tactile_sensor.nodes.bringup_runner import say
 
-    # The driver's stamps are the ADC's sample times: on a starved machine they trail the
-    # protocol's clock by seconds, and stopping at the clock's end cut the last presses
-    # (the 10 mm/s ones of 'speeds') out of the recording.
-    latest = _LatestStamp()
-    driver = runner.nodes.get("driver")
-    if driver is not None:
-        driver.create_subscription(WrenchStamped, "~/wrench", latest, 1000)
     bench.start_protocol()
     total = bench.protocol_duration_s + 0.5
     limit = total if duration is None else min(duration, total)
@@ -98,27 +80,42 @@ def _run_bench(runner: BringupRunner, bench: Any, duration: float | None) -> int
             break
     else:
         return 0  # stopped
-    return _drain(runner, bench, latest if driver is not None else None, limit)
+    return _drain(runner, bench, runner.nodes.get("driver"), limit)
 
 
-def _drain(runner: BringupRunner, bench: Any, latest: _LatestStamp | None,
-           limit_s: float) -> int:
+def _drain(runner: BringupRunner, bench: Any, driver: Any, limit_s: float) -> int:
     """Keep running until the stage, gauge and driver have published up to the protocol's
-    end (their stamps, not the clock), so the recording holds every press."""
+    end (their stamps, not the clock), so the recording holds every press.
+
+    The driver's stamps are the ADC's sample times: on a starved machine its backlog
+    trails the protocol's clock by seconds to minutes, and stopping at the clock's end
+    cut the last presses out of the recording. So wait as long as the streams advance.
+    """
     from tactile_sensor.nodes.bringup_runner import say
 
     end_ns = bench.protocol_start_ns + int(limit_s * 1e9)
 
-    def caught_up() -> bool:
-        return bench.published_until_ns >= end_ns and (latest is None or latest.ns >= end_ns)
+    def position() -> tuple[int, int]:
+        return (bench.published_until_ns,
+                end_ns if driver is None else driver.published_until_ns)
 
-    if not caught_up():
+    if min(position()) < end_ns:
         say("waiting for the recorded streams to reach the protocol's end ...")
-        if not _wait_until(runner, caught_up, DRAIN_TIMEOUT_S, "the streams to catch up"):
-            behind = (end_ns - (latest.ns if latest else end_ns)) * 1e-9
-            say(f"the streams still trail the protocol's end (driver {behind:.1f} s behind); "
-                "the last presses may be missing from the recording")
-            return 0
+        last, moved, said = position(), runner.now(), runner.now()
+        while min(last) < end_ns:
+            if not runner.wait(0.05):
+                return 0  # stopped
+            now = position()
+            if now != last:
+                last, moved = now, runner.now()
+            elif runner.now() - moved > DRAIN_STALL_S:
+                say(f"the streams stopped {(end_ns - min(last)) * 1e-9:.1f} s before the "
+                    "protocol's end; the last presses are missing from the recording")
+                return 0
+            if runner.now() - said > 5.0:
+                said = runner.now()
+                say(f"driver {max(end_ns - last[1], 0) * 1e-9:.1f} s, gauge "
+                    f"{max(end_ns - last[0], 0) * 1e-9:.1f} s behind the protocol's end ...")
     runner.wait(0.3)  # let the recorder take the last messages
     return 0
 

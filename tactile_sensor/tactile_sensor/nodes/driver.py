@@ -2,7 +2,10 @@
 
 Wiring only: parameters, the reader (hardware/), the signal chain (sensing/), topics,
 the tare service and diagnostics. Samples are processed and published from the reader's
-thread, so the executor never sits between the serial port and the force topic.
+dispatch thread, so the executor never sits between the serial port and the force topic,
+and the reader's serial thread keeps draining the port while publishing is starved.
+ADC frames lost anyway (sequence gaps, a full backlog) are counted in /diagnostics and
+logged as a warning.
 """
 
 from __future__ import annotations
@@ -18,7 +21,13 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from std_srvs.srv import Trigger
 
-from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState, Sample
+from tactile_sensor.hardware.adc_reader import (
+    DEFAULT_BACKLOG,
+    AdcStreamReader,
+    ConnectionState,
+    ReaderStats,
+    Sample,
+)
 from tactile_sensor.hardware.errors import HardwareError
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
@@ -78,6 +87,10 @@ SPECS = [
     ParamSpec("tare_max_spread", 0.05, "tare is refused if the voltage spread in the window "
               "exceeds this [V] (not at rest)", minimum=0.0, exclusive_minimum=True),
     ParamSpec("auto_tare", True, "tare by itself on the first window found at rest"),
+    ParamSpec("reader_backlog", DEFAULT_BACKLOG, "samples read from the port but not yet "
+              "processed that the driver may hold while starved of CPU; beyond it new ones "
+              "are dropped and counted (diagnostics 'frames_overflowed')", minimum=1,
+              maximum=10_000_000),
     ParamSpec("diagnostics_period", 1.0, "period of /diagnostics [s] (also sent at once on "
               "a connection change)", minimum=0.05, maximum=60.0),
 ]
@@ -121,6 +134,9 @@ class DriverNode(Node):
         self._next_publish_ns = 0
         self._last_diag = (time.monotonic(), 0)  # (when, frames then) for the sample rate
         self._lock = threading.Lock()
+        self.published_readings = 0  # ~/reading messages published since construction
+        self.published_until_ns = 0  # stamp of the newest reading published
+        self._lost_reported = 0  # ADC frames lost, as last logged
         self._wrench_pub = self._reading_pub = self._diag_pub = None
         self._tare_srv = self._calibration_sub = self._diag_timer = None
 
@@ -139,12 +155,14 @@ class DriverNode(Node):
                            if values["calibration_source"] == "file" else None)
             chain = SignalChain(config, calibration)
             reader = AdcStreamReader(values["port"], self._on_sample, self._on_state,
-                                     baudrate=values["baud_rate"])
+                                     baudrate=values["baud_rate"],
+                                     backlog=values["reader_backlog"])
         except (ParameterError, SensingError, HardwareError) as exc:
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
         self._values, self._chain, self._reader = values, chain, reader
         self._clock_map = DeviceClock()
+        self._lost_reported = 0
         rate = values["publish_rate"]
         self._publish_every_ns = int(1e9 / rate) if rate > 0 else 0
         self._wrench_pub = self.create_lifecycle_publisher(WrenchStamped, "~/wrench", 100)
@@ -170,6 +188,10 @@ class DriverNode(Node):
     def on_deactivate(self, state: State) -> TransitionCallbackReturn:
         if self._reader is not None:
             self._reader.stop()
+            discarded = self._reader.stats().discarded_at_stop
+            if discarded:
+                self.get_logger().info(f"stopped with {discarded} ADC sample(s) read but not "
+                                       "yet processed; they were not published")
         return super().on_deactivate(state)
 
     def on_cleanup(self, state: State) -> TransitionCallbackReturn:
@@ -218,6 +240,7 @@ class DriverNode(Node):
         self._publish(reading, stamp_ns)
 
     def _publish(self, reading: Reading, stamp_ns: int) -> None:
+        self.published_until_ns = stamp_ns
         stamp = Time(nanoseconds=stamp_ns).to_msg()
         frame = self._values["frame_id"]
         msg = TactileReading(voltage=reading.voltage_v, output=reading.output_v,
@@ -225,6 +248,7 @@ class DriverNode(Node):
         msg.header.stamp, msg.header.frame_id = stamp, frame
         if self._reading_pub is not None:
             self._reading_pub.publish(msg)
+            self.published_readings += 1
         if reading.force_n == reading.force_n and self._wrench_pub is not None:  # not NaN
             wrench = WrenchStamped()
             wrench.header.stamp, wrench.header.frame_id = stamp, frame
@@ -282,6 +306,7 @@ class DriverNode(Node):
             then, frames_then = self._last_diag
             self._last_diag = (now, stats.frames)
         rate = max(0, stats.frames - frames_then) / max(now - then, 1e-3)
+        lost_now = self._report_loss(stats)
         status = DiagnosticStatus(name=f"{self.get_fully_qualified_name()}: tactile ADC",
                                   hardware_id=str(self._values["port"]))
         if stats.state is ConnectionState.CONNECTED:
@@ -289,6 +314,9 @@ class DriverNode(Node):
                 status.level, status.message = DiagnosticStatus.WARN, "not tared yet"
             elif chain.calibration is None:
                 status.level, status.message = DiagnosticStatus.WARN, "no calibration yet"
+            elif lost_now:
+                status.level = DiagnosticStatus.WARN
+                status.message = f"streaming; {lost_now} ADC frame(s) lost since the last report"
             else:
                 status.level, status.message = DiagnosticStatus.OK, "streaming"
         elif stats.state is ConnectionState.DISCONNECTED:
@@ -298,6 +326,8 @@ class DriverNode(Node):
         values = {
             "connection": stats.state.value, "sample_rate_hz": f"{rate:.1f}",
             "frames": stats.frames, "frames_dropped": stats.dropped_frames,
+            "frames_overflowed": stats.backlog_dropped, "frames_backlog": stats.backlog,
+            "frames_backlog_peak": stats.backlog_peak,
             "sequence_gaps": stats.sequence_gaps, "crc_errors": stats.crc_errors,
             "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
             "calibration_source": chain.calibration_source,
@@ -307,6 +337,18 @@ class DriverNode(Node):
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
         pub.publish(array)
+
+    def _report_loss(self, stats: ReaderStats) -> int:
+        """Log ADC frames lost since the last report (never silent); returns how many."""
+        lost = stats.dropped_frames + stats.backlog_dropped
+        with self._lock:
+            new, self._lost_reported = lost - self._lost_reported, lost
+        if new > 0:
+            self.get_logger().warning(
+                f"{new} ADC frame(s) lost ({stats.dropped_frames} missing in the sequence, "
+                f"{stats.backlog_dropped} dropped with a full backlog, since start); the "
+                "device or the port overflowed: this process gets too little CPU")
+        return max(new, 0)
 
 
 def main(args: list[str] | None = None) -> None:

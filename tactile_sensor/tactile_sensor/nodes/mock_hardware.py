@@ -185,6 +185,7 @@ class MockHardwareNode(Node):
         self.source = ProtocolSource(self.world)
         self._start_host_ns: int | None = None
         self.published_until_ns = 0  # host time of the last stage/gauge sample published
+        self.gauge_published = 0  # gauge samples published (the stage publishes as many)
         self._stage_pub = self.create_publisher(JointState, "~/stage/joint_states", 1000)
         self._gauge_pub = self.create_publisher(WrenchStamped, "~/gauge/wrench", 1000)
         self.create_service(Trigger, "~/start", self._on_start)
@@ -242,7 +243,7 @@ class MockHardwareNode(Node):
                 self._stop.wait(min((next_ns - now) * 1e-9, 0.01))
                 continue
             start = self._start_host_ns
-            while next_ns <= now:
+            while next_ns <= now and not self._stop.is_set():  # catch up after a stall
                 t = 0.0 if start is None else max(0.0, (next_ns - start) * 1e-9)
                 stamp = Time(nanoseconds=next_ns).to_msg()
                 stage = JointState(name=["stage_z"],
@@ -254,6 +255,7 @@ class MockHardwareNode(Node):
                 self._stage_pub.publish(stage)
                 self._gauge_pub.publish(gauge)
                 self.published_until_ns = next_ns
+                self.gauge_published += 1
                 next_ns += period_ns
 
     # -- gripper -------------------------------------------------------------------------------
@@ -291,7 +293,7 @@ class MockHardwareNode(Node):
     def _close_devices(self) -> None:
         self._stop.set()
         for thread in self._threads:
-            thread.join(timeout=1.0)
+            thread.join(timeout=5.0)  # before the publishers it uses are destroyed
         for device in (getattr(self, "adc", None), self.emulator):
             if device is not None:
                 device.stop()

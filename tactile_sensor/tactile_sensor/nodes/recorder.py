@@ -184,6 +184,11 @@ class RecorderNode(Node):
         """Messages written to the bag so far, per topic."""
         return self._bag.counts if self._bag is not None else {}
 
+    @property
+    def pending(self) -> int:
+        """Messages taken from the middleware but not yet written to storage."""
+        return self._bag.pending if self._bag is not None else 0
+
     def _discover(self) -> None:
         """Subscribe to every requested topic that now has a publisher (and so a type)."""
         waiting = self._pending - set(self._subscriptions_by_topic)

@@ -287,6 +287,11 @@ class MockAdcDevice:
             self._drop_pending += n
 
     @property
+    def backlog_bytes(self) -> int:
+        """Bytes generated but not yet taken by the host (waiting in the device)."""
+        return len(self._backlog)
+
+    @property
     def busy(self) -> bool:
         """True while an injected fault is still being served."""
         with self._lock:

@@ -164,6 +164,7 @@ def test_silence_sends_the_state_back_to_connecting(tmp_path):
     ({"channels": 0}, "channels"),
     ({"port": ""}, "port"),
     ({"on_sample": None}, "callable"),
+    ({"backlog": 0}, "backlog capacity"),
 ])
 def test_bad_configuration_is_refused_at_construction(kwargs, match):
     args = {"port": "/dev/ttyACM0", "on_sample": print, **kwargs}
@@ -186,3 +187,81 @@ def test_a_raising_callback_stops_the_reader_visibly(tmp_path):
             assert "consumer bug" in reader.reason
     finally:
         threading.excepthook = hook
+
+
+class StalledConsumer(Recorder):
+    """A consumer starved of CPU: its first sample blocks until ``release`` is set."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.release = threading.Event()
+
+    def on_sample(self, sample: Sample) -> None:
+        self.release.wait(10.0)
+        super().on_sample(sample)
+
+
+def test_a_stalled_consumer_loses_no_frame(tmp_path):
+    # The device keeps no backlog of its own, so anything the pseudo-terminal (~18 KB,
+    # 1.4 s of frames) cannot hold is lost. A reader that processed samples in its serial
+    # thread lost ~1 s of frames here; the serial thread now keeps draining the port.
+    path = tmp_path / "adc"
+    rec = StalledConsumer()
+    with MockAdcDevice(path, code_ramp, noise=QUIET, host_buffer_bytes=0) as device, \
+            reader_for(path, rec) as reader:
+        assert wait_until(lambda: reader.stats().frames > 0, 2.0)
+        time.sleep(2.5)
+        assert reader.stats().backlog > 2000  # parsed and waiting, not lost
+        rec.release.set()
+        assert wait_until(lambda: reader.stats().backlog == 0, 5.0)
+        stats = reader.stats()
+    assert device.stats().bytes_lost == 0
+    assert stats.dropped_frames == 0 and stats.backlog_dropped == 0
+    assert stats.backlog_peak > 2000
+    with rec.lock:
+        seqs = np.array([s.seq for s in rec.samples])
+    assert len(seqs) >= stats.frames - 1  # at most one still inside the callback
+    assert np.all(np.diff(seqs) % 65536 == 1)
+
+
+def test_a_full_backlog_drops_new_samples_and_counts_them(tmp_path):
+    path = tmp_path / "adc"
+    rec = StalledConsumer()
+    with MockAdcDevice(path, code_ramp, noise=QUIET), \
+            reader_for(path, rec, backlog=100) as reader:
+        assert wait_until(lambda: reader.stats().backlog_dropped > 50, 3.0)
+        rec.release.set()
+        assert wait_until(lambda: reader.stats().backlog == 0, 2.0)
+        stats = reader.stats()
+        delivered = rec.count()
+    assert stats.backlog_peak == 100
+    # every parsed frame was either delivered or counted (one may be in the callback)
+    assert stats.frames - 1 <= delivered + stats.backlog_dropped <= stats.frames
+
+
+def test_stop_delivers_what_is_queued_or_counts_it(tmp_path):
+    path = tmp_path / "adc"
+    rec = StalledConsumer()
+    with MockAdcDevice(path, code_ramp, noise=QUIET):
+        reader = reader_for(path, rec)
+        reader.start()
+        assert wait_until(lambda: reader.stats().backlog > 200, 2.0)
+        start = time.monotonic()
+        reader.stop(timeout_s=0.3)  # the consumer never gets going: give up, count
+        assert time.monotonic() - start < 1.5
+        stats = reader.stats()
+        assert stats.discarded_at_stop >= 200 and stats.backlog_dropped == 0
+        assert reader.state is ConnectionState.STOPPED
+        rec.release.set()
+        time.sleep(0.1)
+        assert rec.count() <= 1  # nothing delivered after stop() returned
+
+        rec2 = Recorder()
+        reader = reader_for(path, rec2)
+        reader.start()
+        assert wait_until(lambda: rec2.count() > 20, 2.0)
+        reader.stop()
+        stats = reader.stats()
+    assert stats.backlog_dropped == 0
+    assert rec2.count() == stats.frames  # everything parsed was delivered
+    assert rec2.states[-1][1] is ConnectionState.STOPPED

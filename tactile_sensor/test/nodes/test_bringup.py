@@ -40,11 +40,15 @@ def test_bench_compression_records_plausible_data(spawn, ros_domain, tmp_path):
     for topic in ("/driver/reading", "/driver/wrench", "/bench/stage/joint_states",
                   "/bench/gauge/wrench", "/diagnostics", "/calibration_curve"):
         assert topic in data, (topic, sorted(data))
-    # rates: 1 kHz from the ADC (driver) and from the gauge, over the protocol
-    for topic in ("/driver/reading", "/bench/gauge/wrench"):
+    # rates: 1 kHz from the ADC (driver) and from the gauge, over the protocol, and no
+    # reading lost anywhere between the device and the bag (no step beyond one sample)
+    for topic in ("/driver/reading", "/bench/gauge/wrench", "/bench/stage/joint_states"):
         stamps = data[topic][0]
         rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
         assert 900 < rate < 1100, (topic, rate)
+        steps = np.diff(stamps)
+        assert steps.max() < 1.5 * np.median(steps), (topic, steps.max())
+    assert "ADC frame(s) lost" not in run.output()
     gauge_t, gauge = data["/bench/gauge/wrench"]
     gauge_f = np.array([m.wrench.force.z for m in gauge])
     _, stage = data["/bench/stage/joint_states"]
