@@ -16,4 +16,5 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export MPLBACKEND=Agg
 export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
 echo "[test] pytest (ROS_DOMAIN_ID base $base, localhost discovery)" >&2
-exec python -m pytest "$@"
+# A rerun attempt's failure is printed too, so a flaky test shows why it failed.
+exec python -m pytest --rerun-show-tracebacks "$@"
