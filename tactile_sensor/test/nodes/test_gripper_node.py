@@ -192,8 +192,14 @@ def test_cancel_stops_the_fingers_promptly(rig):
         cancel = _wait(handle.cancel_goal_async(), 5)
         result = _wait(handle.get_result_async(), 5).result
         assert cancel.goals_canceling and "cancel" in result.message, result.message
-        time.sleep(0.3)
+        # 0.3 s of joint states after the cancel (waited for, not slept: on a loaded
+        # machine the stream itself can pause for longer than that)
+        deadline = time.monotonic() + 5
+        while (time.monotonic() < deadline
+               and not any(t >= canceled_at + 0.3 for t, _ in client.opening[-100:])):
+            time.sleep(0.01)
         after = [(t, o) for t, o in client.opening if t >= canceled_at]
+        assert after, "no ~/joint_states for 5 s after the cancel"
         final = after[-1][1]
         assert final < moving_before  # it was closing
         # stopped = the first sample from which on the opening stays within 0.05 mm of
