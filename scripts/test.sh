@@ -10,7 +10,8 @@ bash scripts/setup.sh
 echo "[test] ruff check" >&2
 ruff check .
 # A run-unique block of domain ids: each test takes its own from it (tactile_sensor/test/conftest.py).
-base=$(( (RANDOM % 9) * 10 + 20 ))
+# TACTILE_TEST_DOMAIN_BASE set by the caller wins (several checkouts testing at once).
+base=${TACTILE_TEST_DOMAIN_BASE:-$(( (RANDOM % 9) * 10 + 20 ))}
 export TACTILE_TEST_DOMAIN_BASE="$base" ROS_DOMAIN_ID="$base"
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export MPLBACKEND=Agg
