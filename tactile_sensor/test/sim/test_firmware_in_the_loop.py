@@ -35,36 +35,34 @@ def build_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 class Stream:
-    """The reader's output, collected."""
+    """The reader's output, collected; ``wait`` wakes on every sample and info."""
 
     def __init__(self) -> None:
         self.samples: list[Sample] = []
         self.infos: list[DeviceInfo] = []
-        self.lock = threading.Lock()
+        self.changed = threading.Condition()
 
     def on_sample(self, sample: Sample) -> None:
-        with self.lock:
+        with self.changed:
             self.samples.append(sample)
+            self.changed.notify_all()
 
     def on_info(self, info: DeviceInfo) -> None:
-        self.infos.append(info)
+        with self.changed:
+            self.infos.append(info)
+            self.changed.notify_all()
+
+    def wait(self, predicate, timeout_s: float = 3.0) -> bool:
+        with self.changed:
+            return self.changed.wait_for(predicate, timeout_s)
 
     def count(self) -> int:
-        with self.lock:
+        with self.changed:
             return len(self.samples)
 
     def since(self, start: int) -> list[Sample]:
-        with self.lock:
+        with self.changed:
             return self.samples[start:]
-
-
-def wait_until(predicate, timeout_s: float) -> bool:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return bool(predicate())
 
 
 def settled_counts(device: HostFirmware, stream: Stream, volts: float,
@@ -73,7 +71,7 @@ def settled_counts(device: HostFirmware, stream: Stream, volts: float,
     device.set_voltage(volts, channel)
     time.sleep(0.03)
     start = stream.count()
-    assert wait_until(lambda: stream.count() > start + 50, 3.0)
+    assert stream.wait(lambda: len(stream.samples) > start + 50)
     return [s.counts for s in stream.since(start)]
 
 
@@ -83,7 +81,7 @@ def test_each_board_states_what_it_sends(build_dir, tmp_path, board: Board):
     stream = Stream()
     with HostFirmware(exe, tmp_path / "adc", board), \
             AdcStreamReader(str(tmp_path / "adc"), stream.on_sample, on_info=stream.on_info):
-        assert wait_until(lambda: stream.count() > 20, 3.0)
+        assert stream.wait(lambda: len(stream.samples) > 20)
     assert stream.infos[0] == DeviceInfo(2, 1, board.adc_bits, board.vref_v, 1000,
                                          "avr" if board is UNO else "rp2040")
     assert len(stream.infos) == 1  # repeated, unchanged: handed on once
@@ -97,7 +95,7 @@ def test_volts_match_the_stimulus_within_one_code(build_dir, tmp_path, board: Bo
     errors = []
     with HostFirmware(exe, tmp_path / "adc", board) as device, \
             AdcStreamReader(str(tmp_path / "adc"), stream.on_sample, on_info=stream.on_info):
-        assert wait_until(lambda: stream.infos, 3.0)
+        assert stream.wait(lambda: stream.infos)
         adc = resolve_adc(stream.infos[0])  # nothing configured: from the device
         assert adc.source is Source.DEVICE and adc.conversion is not None
         for volts in np.linspace(0.05, 3.25, 9):
@@ -123,13 +121,13 @@ def force_after_a_step(exe: Path, link: Path, board: Board, rest_v: float,
         chain.set_conversion(adc.conversion)
 
     def on_sample(sample: Sample) -> None:
-        stream.on_sample(sample)
         chain.process(sample)
+        stream.on_sample(sample)
 
     with HostFirmware(exe, link, board) as device, \
             AdcStreamReader(str(link), on_sample, on_info=on_info):
         device.set_voltage(rest_v)
-        assert wait_until(lambda: chain.tared, 5.0)
+        assert stream.wait(lambda: chain.tared, 5.0)
         assert chain.baseline_v == pytest.approx(rest_v, abs=board.vref_v / (1 << board.adc_bits))
         settled_counts(device, stream, pressed_v)
         time.sleep(0.1)  # the savgol window (40 samples) is past the step
@@ -157,7 +155,7 @@ def test_three_channels_parse_and_each_is_its_own_pin(build_dir, tmp_path):
             AdcStreamReader(str(tmp_path / "adc"), stream.on_sample, on_info=stream.on_info):
         for channel, volts in enumerate((1.0, 2.0, 4.0)):
             device.set_voltage(volts, channel)
-        assert wait_until(lambda: stream.infos, 3.0)
+        assert stream.wait(lambda: stream.infos)
         counts = settled_counts(device, stream, 4.0, 2)
     assert stream.infos[0].channels == 3
     assert counts[-1] == (204, 409, 819)  # floor(V / 5 V * 1024)
@@ -210,7 +208,7 @@ def test_the_device_clock_wraps_and_is_unwrapped(build_dir, tmp_path):
     with HostFirmware(build(UNO, build_dir), tmp_path / "adc", UNO,
                       micros_offset=(1 << 32) - 300_000), \
             AdcStreamReader(str(tmp_path / "adc"), stream.on_sample):
-        assert wait_until(lambda: stream.count() > 800, 5.0)
+        assert stream.wait(lambda: len(stream.samples) > 800, 5.0)
     times = np.array([s.device_time_us for s in stream.samples])
     assert times[-1] > 1 << 32
     assert np.all(np.diff(times) > 0)
