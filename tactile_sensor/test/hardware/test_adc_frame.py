@@ -1,6 +1,8 @@
 from __future__ import annotations
 
 import random
+import re
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -75,6 +77,25 @@ def test_the_documented_examples(item, text):
     assert encode(item) == data
     assert decode_frame(data) == item
     assert FrameParser().feed(data) == [item]
+
+
+def _doc_blocks() -> list[bytes]:
+    """The first line of every hex code block in docs/serial-frame.md, as bytes."""
+    doc = (Path(__file__).resolve().parents[3] / "docs" / "serial-frame.md").read_text()
+    blocks = []
+    for block in re.findall(r"```\n(.*?)```", doc, re.S):
+        first = block.splitlines()[0].replace("|", " ")
+        if re.fullmatch(r"[0-9a-f ]+", first):
+            blocks.append(bytes.fromhex(first))
+    return blocks
+
+
+def test_the_document_shows_exactly_these_examples():
+    blocks = _doc_blocks()
+    assert sorted(blocks) == sorted(bytes.fromhex(text) for _, text in DOC_EXAMPLES)
+    for data in blocks:
+        parser = FrameParser()
+        assert len(parser.feed(data)) == 1 and parser.stats().bytes_discarded == 0
 
 
 @given(frame_st)
