@@ -54,6 +54,7 @@ _HEAD = struct.Struct("<2sBHI")
 _CRC = struct.Struct("<H")
 _COUNTS = [struct.Struct(f"<{n}H") for n in range(MAX_CHANNELS + 1)]
 _INFO = struct.Struct("<BBHIB")
+_VERSIONS = frozenset(SUPPORTED_VERSIONS)
 
 
 class Frame(NamedTuple):
@@ -261,22 +262,6 @@ class FrameParser:
             self.resyncs += 1
             self._in_sync = False
 
-    def _frame_size(self, header: int, length: int | None) -> int:
-        """Bytes of the frame a header announces: > 0 size, 0 need more bytes, < 0 invalid."""
-        n = header & 0x0F
-        if n == 0:
-            if header != INFO_HEADER:
-                return -1
-            if length is None:
-                return 0
-            if not INFO_FIXED_SIZE <= length <= INFO_MAX_PAYLOAD:
-                return -1
-            return 4 + length + CRC_SIZE
-        if (header >> 4 not in SUPPORTED_VERSIONS or n > MAX_CHANNELS
-                or (self._channels is not None and n != self._channels)):
-            return -1
-        return HEADER_SIZE + 2 * n + CRC_SIZE
-
     def feed(self, data: bytes | bytearray) -> list[Frame | DeviceInfo]:
         """Append ``data`` and return every complete valid frame now available."""
         buf = self._buf
@@ -285,6 +270,7 @@ class FrameParser:
         end = len(buf)
         i = 0
         frames = 0
+        want = self._channels
         while True:
             j = buf.find(SYNC, i)
             if j < 0:
@@ -298,13 +284,24 @@ class FrameParser:
             if end - j < 3:
                 break
             header = buf[j + 2]
-            size = self._frame_size(header, buf[j + 3] if end - j > 3 else None)
-            if size < 0:
+            n = header & 0x0F
+            if (n and n <= MAX_CHANNELS and (header >> 4) in _VERSIONS
+                    and (want is None or n == want)):
+                size = HEADER_SIZE + 2 * n + CRC_SIZE  # a data frame (the common case)
+            elif header == INFO_HEADER:
+                if end - j < 4:
+                    break
+                length = buf[j + 3]
+                size = (4 + length + CRC_SIZE
+                        if INFO_FIXED_SIZE <= length <= INFO_MAX_PAYLOAD else 0)
+            else:
+                size = 0
+            if not size:
                 self.header_errors += 1
                 self._discard(1)
                 i = j + 1
                 continue
-            if size == 0 or end - j < size:
+            if end - j < size:
                 break
             crc_at = j + size - CRC_SIZE
             if buf[crc_at] | (buf[crc_at + 1] << 8) != binascii.crc_hqx(

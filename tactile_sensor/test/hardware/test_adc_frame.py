@@ -188,6 +188,9 @@ def test_decode_says_what_is_wrong(data, match):
         decode_frame(data)
 
 
+# Correctness, not speed (that is benchmarks/bench_adc.py): no per-example deadline, which
+# a loaded shared CPU exceeds (316 ms seen against the default 200 ms).
+@settings(deadline=None)
 @given(st.lists(frame_st | info_st, min_size=1, max_size=30), st.integers(1, 40))
 def test_parser_is_chunking_invariant(frames, chunk):
     stream = b"".join(encode(f) for f in frames)
@@ -199,7 +202,7 @@ def test_parser_is_chunking_invariant(frames, chunk):
     assert parser.stats().bytes_discarded == 0
 
 
-@settings(max_examples=200)
+@settings(max_examples=200, deadline=None)
 @given(st.lists(st.tuples(frame_st | info_st, st.binary(max_size=40)), min_size=1,
                 max_size=30))
 def test_parser_only_accepts_frames_that_were_sent(items):
