@@ -197,8 +197,11 @@ def test_a_host_that_stops_reading_sees_gaps_the_sketch_never_blocks(build_dir, 
     gaps = np.flatnonzero(steps > 1)
     assert len(gaps) >= 1, "no frame was dropped: did the sketch block on the host?"
     # The sketch kept sampling through the stall: the clock advanced with the sequence.
+    # (A loaded host delays loop() now and then, and the sketch catches up with frames
+    # stamped when they were taken, so the stamps stray from seq x 1 ms by that delay.)
     for g in gaps:
-        assert times[g + 1] - times[g] == pytest.approx(steps[g] * 1000, abs=20_000)
+        expected = steps[g] * 1000
+        assert times[g + 1] - times[g] == pytest.approx(expected, abs=0.05 * expected + 1e5)
     assert int(steps.sum()) >= 3000  # ~3.8 s of sampling went by
     assert stats["blocked_us"] == 0  # it never waited in Serial.write
 
