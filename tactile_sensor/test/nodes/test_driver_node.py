@@ -18,10 +18,12 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from std_srvs.srv import Trigger
 
+from tactile_sensor.hardware.adc_frame import crc16, encode_frame
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sim import firmware_host
 from tactile_sensor.sim.firmware_host import PICO, UNO, HostFirmware
 from tactile_sensor.sim.profiles import parse_profile
+from tactile_sensor.sim.pty_link import PtyLink
 from tactile_sensor_interfaces.msg import TactileReading
 
 FULL_SCALE_N = 7.0
@@ -318,3 +320,35 @@ def test_a_version_1_device_works_with_one_warning(spawn, ros, files):
     log = driver.output()
     assert log.count("does not state its resolution: using the configured 12 bit and 5 V") == 1
     assert "[WARN]" in log.split("does not state its resolution")[0].rsplit("\n", 1)[-1]
+
+
+def test_a_device_whose_info_is_unusable_is_a_warning_that_says_why(spawn, ros, files):
+    # Version-2 data frames, but the info frame (good CRC) states a 0-bit ADC.
+    bad = b"\xa5\x5a\x20\x09" + bytes([0, 1, 0x88, 0x13, 0xE8, 3, 0, 0, 0])
+    bad += crc16(bad[2:]).to_bytes(2, "little")
+    stop = threading.Event()
+    with PtyLink(files["link"]) as link:
+
+        def device() -> None:
+            k = 0
+            while not stop.is_set():
+                link.write_all(bad + b"".join(encode_frame(k + i, (k + i) * 1000, [500])
+                                              for i in range(50)))
+                k += 50
+                time.sleep(0.05)
+
+        thread = threading.Thread(target=device, daemon=True)
+        thread.start()
+        driver = start_driver(spawn, files["link"], files["calibration"])
+        assert driver.wait_for_output("active", 30), driver.output()
+        try:
+            assert ros.wait_for(lambda: any(
+                "waiting for the device's info frame" in s.message
+                and "its last was unusable: adc_bits 0 is not 1..16" in s.message
+                for _, s in ros.diagnostics), 10), [s.message for _, s in ros.diagnostics]
+        finally:
+            stop.set()
+            thread.join(2.0)
+    warn = next(s for _, s in ros.diagnostics if "unusable" in s.message)
+    assert warn.level == DiagnosticStatus.WARN
+    assert ros.wrenches == [] and ros.readings == []
