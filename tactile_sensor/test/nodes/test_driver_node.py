@@ -252,11 +252,19 @@ def firmware_builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]
 
 
 def _steady_force(ros, volts: float, device: HostFirmware) -> float:
+    """Median force of 100 readings from 100 samples after the driver first saw ``volts``
+    (synchronised on the data, not the clock: a starved driver may lag the device)."""
     device.set_voltage(volts)
-    time.sleep(0.3)  # the savgol window (40 ms) and the step are past
-    start = len(ros.wrenches)
-    assert ros.wait_for(lambda: len(ros.wrenches) > start + 100, 5)
-    return float(np.median([f for _, f in ros.wrenches[start:]]))
+    start = len(ros.readings)
+
+    def first_at_level() -> int | None:
+        return next((i for i, (_, m) in enumerate(ros.readings[start:], start)
+                     if abs(m.voltage - volts) < 0.01), None)
+
+    assert ros.wait_for(lambda: first_at_level() is not None, 10)
+    first = first_at_level()
+    assert ros.wait_for(lambda: len(ros.readings) > first + 200, 10)
+    return float(np.median([m.force for _, m in ros.readings[first + 100:first + 200]]))
 
 
 @needs_gxx
