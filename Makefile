@@ -2,7 +2,7 @@
 SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
-.PHONY: help setup build test lint demo demo-gripper bench clean
+.PHONY: help setup build test lint firmware demo demo-gripper bench clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -14,6 +14,9 @@ build: setup  ## alias of setup
 
 test:  ## setup if needed, ruff, pytest with ROS isolated per run
 	@bash scripts/test.sh
+
+firmware:  ## cross-compile the ADC sketch for Uno, Mega, Leonardo (avr-g++, -Werror), print sizes
+	@bash firmware/build-avr.sh
 
 lint: setup  ## ruff only
 	@. scripts/env.sh && ruff check .

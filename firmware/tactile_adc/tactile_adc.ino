@@ -1,27 +1,83 @@
-// Reference firmware: QTR-1A photoreflector -> ADC -> framed samples on USB serial.
+// Reference firmware: QTR-1A photoreflectors -> ADC -> framed samples on USB serial.
 //
-// Frame layout (docs/serial-frame.md, protocol version 1), little-endian:
-//   a5 5a | 0x10|n | seq u16 | t_us u32 | n x u16 counts | CRC-16/CCITT-FALSE u16
-// The CRC covers the header byte through the last count.
+// Protocol version 2 (docs/serial-frame.md), little-endian, CRC-16/CCITT-FALSE over
+// everything after the sync bytes:
+//   data frame: a5 5a | 0x20|n | seq u16 | t_us u32 | n x u16 counts | crc u16
+//   info frame: a5 5a | 0x20 | len u8 | adc_bits u8 | channels u8 | vref_mv u16 |
+//               period_us u32 | name_len u8 | board name | crc u16
+// The info frame says what the codes mean, so the host never has to be told: it is sent
+// at start and every INFO_PERIOD_US.
 //
-// Wiring: QTR-1A OUT -> A0 (more modules: A1.., raise CHANNELS), VIN -> 5 V, GND -> GND.
-// Boards: any Arduino-compatible; on an Uno/Nano (UART bridge) 1 000 000 baud is exact
-// at 16 MHz; on native-USB boards (Leonardo, RP2040, Teensy) the baud rate is ignored.
+// Wiring: QTR-1A OUT -> A0 (more modules: A1.., raise CHANNELS), VIN -> the board's ADC
+// reference (5 V on an Uno, 3.3 V on 3.3 V boards), GND -> GND. Channel c is pin A0 + c.
+// Boards: the resolution, reference and name come from the boards' own macros below; on an
+// Uno/Nano (UART bridge) 1 000 000 baud is exact at 16 MHz; on native-USB boards
+// (Leonardo, SAMD, RP2040, Teensy) the baud rate is ignored.
 //
 // Sampling never waits for the host: a frame that does not fit in the transmit buffer
 // is dropped, and the host sees the gap in the sequence number.
 
 #include <Arduino.h>
 
-static const uint8_t CHANNELS = 1;               // 1..8
-static const uint8_t PINS[CHANNELS] = {A0};
-static const uint32_t PERIOD_US = 1000;           // 1 kHz
+#ifndef TACTILE_CHANNELS
+#define TACTILE_CHANNELS 1
+#endif
+
+// What this board's ADC gives. Another board: define all three when compiling, e.g.
+// -DTACTILE_ADC_BITS=12 -DTACTILE_VREF_MV=3300 -DTACTILE_BOARD='"esp32"', and make
+// setup() switch the ADC to that resolution.
+#if defined(TACTILE_ADC_BITS)
+#elif defined(ARDUINO_ARCH_AVR)       // Uno, Nano, Mega, Leonardo: 10-bit ADC, AVcc reference
+#define TACTILE_ADC_BITS 10
+#define TACTILE_BOARD "avr"
+#elif defined(ARDUINO_ARCH_RENESAS)   // Uno R4: 5 V like the Uno, 12 bit on request
+#define TACTILE_ADC_BITS 12
+#define TACTILE_BOARD "renesas"
+#elif defined(ARDUINO_ARCH_SAMD)      // Zero, MKR, Nano 33 IoT: 3.3 V
+#define TACTILE_ADC_BITS 12
+#define TACTILE_BOARD "samd"
+#elif defined(ARDUINO_ARCH_SAM)       // Due: 3.3 V
+#define TACTILE_ADC_BITS 12
+#define TACTILE_BOARD "sam"
+#elif defined(ARDUINO_ARCH_RP2040)    // Raspberry Pi Pico (arduino-pico, mbed): 3.3 V
+#define TACTILE_ADC_BITS 12
+#define TACTILE_BOARD "rp2040"
+#elif defined(TEENSYDUINO)            // Teensy 3.x/4.x: 3.3 V
+#define TACTILE_ADC_BITS 12
+#define TACTILE_BOARD "teensy"
+#else
+#error "Unknown board: define TACTILE_ADC_BITS, TACTILE_VREF_MV and TACTILE_BOARD."
+#endif
+
+#ifndef TACTILE_BOARD
+#define TACTILE_BOARD "custom"
+#endif
+#ifndef TACTILE_VREF_MV
+#if defined(ARDUINO_ARCH_AVR) || defined(ARDUINO_ARCH_RENESAS)
+#define TACTILE_VREF_MV 5000          // a 3.3 V AVR board (Pro Mini 8 MHz): -DTACTILE_VREF_MV=3300
+#else
+#define TACTILE_VREF_MV 3300
+#endif
+#endif
+
+static const uint8_t CHANNELS = TACTILE_CHANNELS;  // 1..8, pins A0..A(CHANNELS-1)
+static const uint32_t PERIOD_US = 1000;             // 1 kHz
+static const uint32_t INFO_PERIOD_US = 250000;      // info frame 4x per second
 static const uint32_t BAUD = 1000000;
-static const uint8_t VERSION = 1;
+static const uint8_t VERSION = 2;
 static const uint8_t FRAME_SIZE = 11 + 2 * CHANNELS;
+static const char BOARD[] = TACTILE_BOARD;
+static const uint8_t NAME_LEN = sizeof(BOARD) - 1;
+static const uint8_t INFO_PAYLOAD = 9 + NAME_LEN;
+static const uint8_t INFO_SIZE = 4 + INFO_PAYLOAD + 2;
+
+static_assert(CHANNELS >= 1 && CHANNELS <= 8, "CHANNELS must be 1..8");
+static_assert(TACTILE_ADC_BITS >= 1 && TACTILE_ADC_BITS <= 16, "ADC bits must be 1..16");
+static_assert(NAME_LEN <= 31, "the board name has at most 31 characters");
 
 static uint16_t seq = 0;
 static uint32_t next_us = 0;
+static uint32_t next_info_us = 0;
 
 // CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no final xor.
 static uint16_t crc16(const uint8_t *data, uint8_t len) {
@@ -41,17 +97,41 @@ static void put32(uint8_t *p, uint32_t v) {
   p[0] = v & 0xFF; p[1] = (v >> 8) & 0xFF; p[2] = (v >> 16) & 0xFF; p[3] = v >> 24;
 }
 
+// Send the info frame if it fits now; false means try again on the next loop.
+static bool send_info() {
+  if (Serial.availableForWrite() < INFO_SIZE) return false;
+  uint8_t frame[INFO_SIZE];
+  frame[0] = 0xA5;
+  frame[1] = 0x5A;
+  frame[2] = (uint8_t)(VERSION << 4);              // channel count 0: info frame
+  frame[3] = INFO_PAYLOAD;
+  frame[4] = TACTILE_ADC_BITS;
+  frame[5] = CHANNELS;
+  put16(frame + 6, TACTILE_VREF_MV);
+  put32(frame + 8, PERIOD_US);
+  frame[12] = NAME_LEN;
+  for (uint8_t i = 0; i < NAME_LEN; i++) frame[13 + i] = (uint8_t)BOARD[i];
+  put16(frame + 4 + INFO_PAYLOAD, crc16(frame + 2, 2 + INFO_PAYLOAD));
+  Serial.write(frame, INFO_SIZE);
+  return true;
+}
+
 void setup() {
   Serial.begin(BAUD);
-#if defined(analogReadResolution)
-  analogReadResolution(12);                        // SAMD/RP2040/Teensy: 12-bit codes
+#if TACTILE_ADC_BITS != 10
+  analogReadResolution(TACTILE_ADC_BITS);         // every core above starts at 10 bit
 #endif
   next_us = micros();
+  next_info_us = next_us;
 }
 
 void loop() {
+  const uint32_t now = micros();
+  if ((int32_t)(now - next_info_us) >= 0 && send_info()) {
+    next_info_us = now + INFO_PERIOD_US;
+  }
   // Wait for the next period (wrap-safe unsigned arithmetic).
-  if ((int32_t)(micros() - next_us) < 0) return;
+  if ((int32_t)(now - next_us) < 0) return;
   next_us += PERIOD_US;
 
   uint8_t frame[FRAME_SIZE];
@@ -62,7 +142,7 @@ void loop() {
   put16(frame + 3, seq);
   put32(frame + 5, t_us);
   for (uint8_t ch = 0; ch < CHANNELS; ch++) {
-    put16(frame + 9 + 2 * ch, (uint16_t)analogRead(PINS[ch]));
+    put16(frame + 9 + 2 * ch, (uint16_t)analogRead(A0 + ch));
   }
   put16(frame + 9 + 2 * CHANNELS, crc16(frame + 2, 7 + 2 * CHANNELS));
 

@@ -1,15 +1,31 @@
-"""The ADC serial frame (docs/serial-frame.md): encoding, strict decoding, stream parsing.
+"""The ADC serial stream (docs/serial-frame.md): encoding, strict decoding, stream parsing.
 
-Layout, little-endian, ``11 + 2·n`` bytes for ``n`` channels::
+Protocol version 2 (version 1 is still read). Little-endian. A **data frame** with ``n``
+channels is ``11 + 2·n`` bytes::
 
     0  2   sync        0xA5 0x5A
-    2  1   header      high nibble: protocol version (1); low nibble: channel count 1..8
-    3  2   seq         uint16, +1 per frame, wraps at 2^16
+    2  1   header      high nibble: protocol version (2, or 1); low nibble: channels 1..8
+    3  2   seq         uint16, +1 per sampled frame, wraps at 2^16
     5  4   t_us        uint32 device clock [µs] since boot, wraps at 2^32
-    9  2n  counts      uint16 raw ADC counts, channel 0 first
+    9  2n  counts      uint16 raw ADC codes, channel 0 first
     .  2   crc         CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF) over header..counts
 
-The CRC is ``binascii.crc_hqx`` (C speed), so parsing costs a few microseconds per frame.
+A version-2 device also sends an **info frame** (header ``0x20``: channel count 0) at start
+and every 0.25 s, saying what its codes mean, so firmware and host cannot disagree::
+
+    0  2   sync        0xA5 0x5A
+    2  1   header      0x20
+    3  1   length L    payload bytes, 9..40
+    4  1   adc_bits    resolution of the codes [bit], 1..16
+    5  1   channels    channels in every data frame, 1..8
+    6  2   vref_mv     uint16 ADC reference (full scale) [mV]
+    8  4   period_us   uint32 nominal sample period [µs]
+    12 1   name_len    bytes of the board name that follow (0..L-9)
+    13 .   board       ASCII board family, e.g. "avr", "rp2040" (bytes after it: reserved)
+    4+L 2  crc         CRC-16/CCITT-FALSE over header..payload
+
+Info frames are not numbered (``seq`` counts samples only). The CRC is
+``binascii.crc_hqx`` (C speed), so parsing costs a few microseconds per frame.
 """
 
 from __future__ import annotations
@@ -21,29 +37,68 @@ from typing import NamedTuple
 from tactile_sensor.hardware.errors import FrameError
 
 SYNC = b"\xa5\x5a"
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
+SUPPORTED_VERSIONS = (1, 2)
 MAX_CHANNELS = 8
 HEADER_SIZE = 9  # sync + header byte + seq + t_us
 CRC_SIZE = 2
 CRC_INIT = 0xFFFF
 SEQ_MODULO = 1 << 16
 TIME_MODULO = 1 << 32
+INFO_HEADER = PROTOCOL_VERSION << 4  # channel count 0 marks an info frame
+INFO_FIXED_SIZE = 9  # adc_bits, channels, vref_mv, period_us, name_len
+INFO_MAX_PAYLOAD = 40
+MAX_ADC_BITS = 16
 
 _HEAD = struct.Struct("<2sBHI")
 _CRC = struct.Struct("<H")
 _COUNTS = [struct.Struct(f"<{n}H") for n in range(MAX_CHANNELS + 1)]
+_INFO = struct.Struct("<BBHIB")
+_VERSIONS = frozenset(SUPPORTED_VERSIONS)
 
 
 class Frame(NamedTuple):
-    """One decoded frame, fields exactly as on the wire (nothing unwrapped)."""
+    """One decoded data frame, fields exactly as on the wire (nothing unwrapped)."""
 
     seq: int
     t_us: int
     counts: tuple[int, ...]
+    version: int = PROTOCOL_VERSION
+
+
+class DeviceInfo(NamedTuple):
+    """What the device says about its codes. A version-2 device states everything in its
+    info frame; for a version-1 stream only ``version`` and ``channels`` are known (from
+    the data frames' header) and the rest is None."""
+
+    version: int
+    channels: int
+    adc_bits: int | None = None
+    vref_v: float | None = None
+    period_us: int | None = None
+    board: str = ""
+
+    @property
+    def described(self) -> bool:
+        """True when the device stated its resolution and reference (version 2)."""
+        return self.adc_bits is not None and self.vref_v is not None
+
+    @property
+    def rate_hz(self) -> float | None:
+        return 1e6 / self.period_us if self.period_us else None
+
+    def summary(self) -> str:
+        """One line for logs and diagnostics."""
+        if not self.described:
+            return (f"protocol {self.version}, {self.channels} channel(s), resolution and "
+                    "reference not stated")
+        rate = f"{self.rate_hz:g} Hz" if self.rate_hz else "rate not stated"
+        return (f"protocol {self.version}, {self.board or 'unnamed board'}, {self.adc_bits} "
+                f"bit, {self.vref_v:g} V, {self.channels} channel(s), {rate}")
 
 
 def frame_size(channels: int) -> int:
-    """Bytes in a frame carrying ``channels`` channels."""
+    """Bytes in a data frame carrying ``channels`` channels."""
     return HEADER_SIZE + 2 * channels + CRC_SIZE
 
 
@@ -52,8 +107,9 @@ def crc16(data: bytes | bytearray | memoryview) -> int:
     return binascii.crc_hqx(data, CRC_INIT)
 
 
-def encode_frame(seq: int, t_us: int, counts: tuple[int, ...] | list[int]) -> bytes:
-    """Bytes of one frame; ``seq`` and ``t_us`` are wrapped to their field widths."""
+def encode_frame(seq: int, t_us: int, counts: tuple[int, ...] | list[int],
+                 version: int = PROTOCOL_VERSION) -> bytes:
+    """Bytes of one data frame; ``seq`` and ``t_us`` are wrapped to their field widths."""
     n = len(counts)
     if not 1 <= n <= MAX_CHANNELS:
         raise FrameError(
@@ -63,31 +119,91 @@ def encode_frame(seq: int, t_us: int, counts: tuple[int, ...] | list[int]) -> by
         raise FrameError(
             f"ADC counts must fit in 16 bits (0..65535), got {list(counts)}; clip them first."
         )
-    body = _HEAD.pack(SYNC, (PROTOCOL_VERSION << 4) | n, seq % SEQ_MODULO,
+    if version not in SUPPORTED_VERSIONS:
+        raise FrameError(f"Protocol version must be one of {SUPPORTED_VERSIONS}, got {version!r}.")
+    body = _HEAD.pack(SYNC, (version << 4) | n, seq % SEQ_MODULO,
                       t_us % TIME_MODULO) + _COUNTS[n].pack(*counts)
     return body + _CRC.pack(crc16(body[2:]))
 
 
-def decode_frame(data: bytes | bytearray) -> Frame:
-    """Decode exactly one frame or raise ``FrameError`` saying what is wrong."""
-    if len(data) < HEADER_SIZE + 2 + CRC_SIZE:
+def info_problem(adc_bits: int, channels: int, vref_mv: int, period_us: int) -> str | None:
+    """Why these info fields cannot describe a stream, or None if they can."""
+    if not 1 <= adc_bits <= MAX_ADC_BITS:
+        return f"adc_bits {adc_bits} is not 1..{MAX_ADC_BITS}"
+    if not 1 <= channels <= MAX_CHANNELS:
+        return f"channels {channels} is not 1..{MAX_CHANNELS}"
+    if vref_mv == 0:
+        return "vref_mv is 0"
+    if period_us == 0:
+        return "period_us is 0"
+    return None
+
+
+def encode_info(adc_bits: int, channels: int, vref_v: float, period_us: int,
+                board: str = "") -> bytes:
+    """Bytes of one version-2 info frame."""
+    vref_mv = round(vref_v * 1000)
+    name = board.encode("ascii", "replace")
+    if not 0 <= vref_mv <= 0xFFFF or not 0 <= period_us < TIME_MODULO:
+        raise FrameError(f"vref_v {vref_v!r} V must be 0.001..65.535 and period_us "
+                         f"{period_us!r} must fit in 32 bits.")
+    problem = info_problem(adc_bits, channels, vref_mv, period_us)
+    if problem:
+        raise FrameError(f"Cannot encode the device info: {problem}.")
+    if len(name) > INFO_MAX_PAYLOAD - INFO_FIXED_SIZE:
+        raise FrameError(f"A board name has at most {INFO_MAX_PAYLOAD - INFO_FIXED_SIZE} "
+                         f"ASCII characters, got {board!r}.")
+    payload = _INFO.pack(adc_bits, channels, vref_mv, period_us, len(name)) + name
+    body = SYNC + bytes([INFO_HEADER, len(payload)]) + payload
+    return body + _CRC.pack(crc16(body[2:]))
+
+
+def _parse_info(payload: bytes | bytearray | memoryview) -> DeviceInfo | str:
+    """The info frame's payload as DeviceInfo, or the reason it is unusable."""
+    adc_bits, channels, vref_mv, period_us, name_len = _INFO.unpack_from(payload, 0)
+    problem = info_problem(adc_bits, channels, vref_mv, period_us)
+    if problem is None and INFO_FIXED_SIZE + name_len > len(payload):
+        problem = f"board name of {name_len} bytes overruns the {len(payload)}-byte payload"
+    if problem:
+        return problem
+    board = bytes(payload[INFO_FIXED_SIZE:INFO_FIXED_SIZE + name_len]).decode("ascii",
+                                                                              "replace")
+    return DeviceInfo(PROTOCOL_VERSION, channels, adc_bits, vref_mv / 1000.0, period_us, board)
+
+
+def decode_frame(data: bytes | bytearray) -> Frame | DeviceInfo:
+    """Decode exactly one data or info frame or raise ``FrameError`` saying what is wrong."""
+    if len(data) < frame_size(1):
         raise FrameError(f"A frame is at least {frame_size(1)} bytes, got {len(data)}.")
     if data[:2] != SYNC:
         raise FrameError(f"A frame starts with sync bytes a5 5a, got {bytes(data[:2]).hex(' ')}.")
     version, n = data[2] >> 4, data[2] & 0x0F
-    if version != PROTOCOL_VERSION or not 1 <= n <= MAX_CHANNELS:
+    if data[2] == INFO_HEADER:
+        length = data[3]
+        if not INFO_FIXED_SIZE <= length <= INFO_MAX_PAYLOAD:
+            raise FrameError(f"An info frame's payload is {INFO_FIXED_SIZE}..{INFO_MAX_PAYLOAD} "
+                             f"bytes, its length byte says {length}.")
+        size = 4 + length + CRC_SIZE
+    elif version in SUPPORTED_VERSIONS and 1 <= n <= MAX_CHANNELS:
+        size = frame_size(n)
+    else:
         raise FrameError(
-            f"Header byte 0x{data[2]:02x} is not protocol version {PROTOCOL_VERSION} with "
-            f"1..{MAX_CHANNELS} channels; update the firmware or the driver to match."
+            f"Header byte 0x{data[2]:02x} is not protocol version {SUPPORTED_VERSIONS} with "
+            f"1..{MAX_CHANNELS} channels (or 0x{INFO_HEADER:02x}, an info frame); update the "
+            "firmware or the driver to match."
         )
-    size = frame_size(n)
     if len(data) != size:
-        raise FrameError(f"A {n}-channel frame is {size} bytes, got {len(data)}.")
+        raise FrameError(f"This frame is {size} bytes, got {len(data)}.")
     (crc,) = _CRC.unpack_from(data, size - CRC_SIZE)
     if crc != crc16(data[2:size - CRC_SIZE]):
         raise FrameError("The frame's CRC does not match its content (corrupted in transit).")
+    if data[2] == INFO_HEADER:
+        info = _parse_info(data[4:size - CRC_SIZE])
+        if isinstance(info, str):
+            raise FrameError(f"The device's info frame is unusable: {info}; fix the firmware.")
+        return info
     _, _, seq, t_us = _HEAD.unpack_from(data, 0)
-    return Frame(seq, t_us, _COUNTS[n].unpack_from(data, HEADER_SIZE))
+    return Frame(seq, t_us, _COUNTS[n].unpack_from(data, HEADER_SIZE), version)
 
 
 class ParserStats(NamedTuple):
@@ -98,14 +214,18 @@ class ParserStats(NamedTuple):
     header_errors: int
     resyncs: int
     bytes_discarded: int
+    info_frames: int = 0
+    info_errors: int = 0  # info frames with a valid CRC but impossible content
+    last_info_error: str = ""
 
 
 class FrameParser:
     """Incremental frame finder: feed arbitrary chunks, get the valid frames back.
 
-    After garbage it slides byte by byte to the next sync pattern whose header and CRC
-    check out, so a corrupted or truncated frame costs only itself. ``channels`` (if
-    given) rejects frames with another channel count, one more guard against garbage.
+    ``feed`` returns data frames (``Frame``) and info frames (``DeviceInfo``) in stream
+    order. After garbage it slides byte by byte to the next sync pattern whose header and
+    CRC check out, so a corrupted or truncated frame costs only itself. ``channels`` (if
+    given) rejects data frames with another channel count, one more guard against garbage.
     """
 
     def __init__(self, channels: int | None = None) -> None:
@@ -119,10 +239,14 @@ class FrameParser:
         self.header_errors = 0
         self.resyncs = 0
         self.bytes_discarded = 0
+        self.info_frames = 0
+        self.info_errors = 0
+        self.last_info_error = ""
 
     def stats(self) -> ParserStats:
         return ParserStats(self.frames, self.crc_errors, self.header_errors, self.resyncs,
-                           self.bytes_discarded)
+                           self.bytes_discarded, self.info_frames, self.info_errors,
+                           self.last_info_error)
 
     def reset(self) -> None:
         """Forget partial data (after a reconnect the old tail is meaningless)."""
@@ -138,13 +262,14 @@ class FrameParser:
             self.resyncs += 1
             self._in_sync = False
 
-    def feed(self, data: bytes | bytearray) -> list[Frame]:
+    def feed(self, data: bytes | bytearray) -> list[Frame | DeviceInfo]:
         """Append ``data`` and return every complete valid frame now available."""
         buf = self._buf
         buf += data
-        out: list[Frame] = []
+        out: list[Frame | DeviceInfo] = []
         end = len(buf)
         i = 0
+        frames = 0
         want = self._channels
         while True:
             j = buf.find(SYNC, i)
@@ -160,13 +285,22 @@ class FrameParser:
                 break
             header = buf[j + 2]
             n = header & 0x0F
-            if (header >> 4 != PROTOCOL_VERSION or not 1 <= n <= MAX_CHANNELS
-                    or (want is not None and n != want)):
+            if (n and n <= MAX_CHANNELS and (header >> 4) in _VERSIONS
+                    and (want is None or n == want)):
+                size = HEADER_SIZE + 2 * n + CRC_SIZE  # a data frame (the common case)
+            elif header == INFO_HEADER:
+                if end - j < 4:
+                    break
+                length = buf[j + 3]
+                size = (4 + length + CRC_SIZE
+                        if INFO_FIXED_SIZE <= length <= INFO_MAX_PAYLOAD else 0)
+            else:
+                size = 0
+            if not size:
                 self.header_errors += 1
                 self._discard(1)
                 i = j + 1
                 continue
-            size = HEADER_SIZE + 2 * n + CRC_SIZE
             if end - j < size:
                 break
             crc_at = j + size - CRC_SIZE
@@ -176,11 +310,22 @@ class FrameParser:
                 self._discard(1)
                 i = j + 1
                 continue
-            _, _, seq, t_us = _HEAD.unpack_from(buf, j)
-            out.append(Frame(seq, t_us, _COUNTS[n].unpack_from(buf, j + HEADER_SIZE)))
+            if header == INFO_HEADER:
+                info = _parse_info(buf[j + 4:crc_at])
+                if isinstance(info, str):
+                    self.info_errors += 1
+                    self.last_info_error = info
+                else:
+                    self.info_frames += 1
+                    out.append(info)
+            else:
+                _, _, seq, t_us = _HEAD.unpack_from(buf, j)
+                out.append(Frame(seq, t_us, _COUNTS[header & 0x0F].unpack_from(
+                    buf, j + HEADER_SIZE), header >> 4))
+                frames += 1
             self._in_sync = True
             i = j + size
         if i:
             del buf[:i]
-        self.frames += len(out)
+        self.frames += frames
         return out

@@ -3,7 +3,11 @@
 The reader owns two threads. The serial thread opens the port, parses frames
 (``adc_frame.FrameParser``), numbers them (sequence gaps, 64-bit device time) and queues
 them; the dispatch thread hands them, in order and with the state changes between them,
-to ``on_sample`` / ``on_state``. The serial thread does nothing slow, so it drains the
+to ``on_sample`` / ``on_state``. What the device says about its codes (``DeviceInfo``:
+resolution, reference, channels, rate) goes to ``on_info`` before the first sample it
+describes: a version-2 device's samples wait (in order, up to ``MAX_AWAITING_INFO``) for
+its next info frame, sent every 0.25 s; a version-1 stream gets an info that states only
+the version and channel count. The serial thread does nothing slow, so it drains the
 port even when the consumer (signal chain, ROS publishing: ~100x the cost of parsing) is
 starved of CPU: the device's and the OS's buffers hold only seconds, and a device whose
 host buffer is full drops whole batches of frames. The queue (``SampleBacklog``) holds
@@ -36,7 +40,14 @@ from typing import Generic, NamedTuple, TypeVar
 
 import serial
 
-from tactile_sensor.hardware.adc_frame import MAX_CHANNELS, SEQ_MODULO, TIME_MODULO, FrameParser
+from tactile_sensor.hardware.adc_frame import (
+    MAX_CHANNELS,
+    SEQ_MODULO,
+    TIME_MODULO,
+    DeviceInfo,
+    Frame,
+    FrameParser,
+)
 from tactile_sensor.hardware.errors import SerialPortError
 
 DEFAULT_BAUDRATE = 1_000_000
@@ -44,6 +55,7 @@ MIN_BAUDRATE = 50
 MAX_BAUDRATE = 12_000_000
 DEFAULT_BACKLOG = 60_000  # samples: 1 min at 1 kHz (~16 MB); a process starved longer is mis-sized
 DISPATCH_BATCH = 256  # samples handed over per lock acquisition
+MAX_AWAITING_INFO = 10_000  # samples held per connection until the device's info arrives
 
 
 class ConnectionState(enum.Enum):
@@ -92,10 +104,18 @@ class ReaderStats:
     backlog_peak: int = 0  # the most ever waiting at once
     backlog_dropped: int = 0  # samples dropped because the backlog was full
     discarded_at_stop: int = 0  # samples still queued when stop() ran out of time
+    device_info: DeviceInfo | None = None  # what the device last said (this connection)
+    info_frames: int = 0
+    info_errors: int = 0  # info frames with impossible content (firmware bug)
+    last_info_error: str = ""
+    awaiting_info: int = 0  # samples held now until the device's info frame arrives
+    dropped_awaiting_info: int = 0  # samples thrown away: no info frame came in time
+    channel_mismatches: int = 0  # data frames whose channel count contradicts the info
 
 
 SampleCallback = Callable[[Sample], None]
 StateCallback = Callable[[ConnectionState, str], None]
+InfoCallback = Callable[[DeviceInfo], None]
 
 T = TypeVar("T")
 
@@ -177,6 +197,62 @@ class _StateChange(NamedTuple):
     reason: str
 
 
+class _InfoChange(NamedTuple):
+    info: DeviceInfo
+
+
+class _InfoGate:
+    """Per-connection: which info describes the samples, and the samples waiting for it.
+
+    Pure (no threads, no I/O) so the rules are easy to test: a version-2 sample is
+    released only after an info frame of this connection; a version-1 sample describes
+    itself (version and channel count); a sample whose channel count contradicts the
+    stated one is refused.
+    """
+
+    def __init__(self, max_waiting: int = MAX_AWAITING_INFO) -> None:
+        self.info: DeviceInfo | None = None
+        self.waiting: collections.deque[Sample] = collections.deque()
+        self.max_waiting = max_waiting
+        self.dropped = 0
+        self.mismatches = 0
+
+    def restart(self) -> None:
+        self.dropped += len(self.waiting)
+        self.waiting.clear()
+        self.info = None
+
+    def on_info(self, info: DeviceInfo) -> list[Sample | _InfoChange]:
+        out: list[Sample | _InfoChange] = []
+        if info != self.info:
+            self.info = info
+            out.append(_InfoChange(info))
+        waiting, self.waiting = self.waiting, collections.deque()
+        for sample in waiting:
+            if len(sample.counts) == info.channels:
+                out.append(sample)
+            else:
+                self.mismatches += 1
+        return out
+
+    def on_sample(self, sample: Sample, version: int) -> list[Sample | _InfoChange]:
+        info = self.info
+        if version == 1:
+            if info is None or info.version != 1 or info.channels != len(sample.counts):
+                return [*self.on_info(DeviceInfo(1, len(sample.counts))), sample]
+            return [sample]
+        if info is None or info.version != version:
+            if len(self.waiting) >= self.max_waiting:
+                self.waiting.popleft()
+                self.dropped += 1
+            self.waiting.append(sample)
+            return []
+        if len(sample.counts) != info.channels:
+            self.mismatches += 1
+            return []
+        return [sample]
+
+
 class _Sequencer:
     """Per-connection sequence and clock bookkeeping (pure, so it is easy to test)."""
 
@@ -217,10 +293,12 @@ class AdcStreamReader:
     """Reads ADC frames from ``port`` in its own thread and survives unplug/replug.
 
     ``port`` is a device path or any pyserial URL. ``channels`` (if given) rejects frames
-    with another channel count. Callbacks run in the reader's dispatch thread, one at a
-    time and in stream order; they may be slow (the serial thread keeps reading meanwhile,
-    up to ``backlog`` samples ahead) but must not raise: an exception escaping a callback
-    stops the reader (state STOPPED, reason says why).
+    with another channel count. ``on_info`` (if given) receives the device's info before
+    the first sample of each connection and whenever it changes. Callbacks run in the
+    reader's dispatch thread, one at a time and in stream order; they may be slow (the
+    serial thread keeps reading meanwhile, up to ``backlog`` samples ahead) but must not
+    raise: an exception escaping a callback stops the reader (state STOPPED, reason says
+    why).
     """
 
     def __init__(
@@ -234,6 +312,7 @@ class AdcStreamReader:
         read_timeout_s: float = 0.05,
         silence_timeout_s: float = 1.0,
         backlog: int = DEFAULT_BACKLOG,
+        on_info: InfoCallback | None = None,
     ) -> None:
         if not isinstance(port, str) or not port:
             raise SerialPortError(f"port must be a device path such as /dev/ttyACM0, got {port!r}.")
@@ -251,19 +330,22 @@ class AdcStreamReader:
         if channels is not None and (not isinstance(channels, int)
                                      or not 1 <= channels <= MAX_CHANNELS):
             raise SerialPortError(f"channels must be 1..{MAX_CHANNELS} or None, got {channels!r}.")
-        if not callable(on_sample) or (on_state is not None and not callable(on_state)):
-            raise SerialPortError("on_sample and on_state must be callables.")
+        if not callable(on_sample) or any(cb is not None and not callable(cb)
+                                          for cb in (on_state, on_info)):
+            raise SerialPortError("on_sample, on_state and on_info must be callables.")
         self.port = port
         self.baudrate = baudrate
         self._on_sample = on_sample
         self._on_state = on_state
+        self._on_info = on_info
         self._reopen_s = float(reopen_interval_s)
         self._read_timeout_s = float(read_timeout_s)
         self._silence_s = float(silence_timeout_s)
-        self._backlog: SampleBacklog[Sample | _StateChange] = SampleBacklog(
+        self._backlog: SampleBacklog[Sample | _StateChange | _InfoChange] = SampleBacklog(
             backlog, lambda item: type(item) is Sample)
         self._parser = FrameParser(channels)
         self._seq = _Sequencer()
+        self._gate = _InfoGate()
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -287,6 +369,11 @@ class AdcStreamReader:
     def reason(self) -> str:
         return self._reason
 
+    @property
+    def device_info(self) -> DeviceInfo | None:
+        """What the connected device said about its codes (None before it said anything)."""
+        return self._gate.info
+
     def stats(self) -> ReaderStats:
         with self._lock:
             p = self._parser
@@ -301,6 +388,10 @@ class AdcStreamReader:
                 connections=self._connections, last_frame_age_s=age,
                 backlog=len(self._backlog), backlog_peak=self._backlog.peak,
                 backlog_dropped=self._backlog.dropped, discarded_at_stop=self._discarded,
+                device_info=self._gate.info, info_frames=p.info_frames,
+                info_errors=p.info_errors, last_info_error=p.last_info_error,
+                awaiting_info=len(self._gate.waiting), dropped_awaiting_info=self._gate.dropped,
+                channel_mismatches=self._gate.mismatches,
             )
 
     def start(self) -> None:
@@ -367,6 +458,7 @@ class AdcStreamReader:
     def _dispatch(self) -> None:
         """Dispatch thread: hand queued samples and state changes to the callbacks."""
         backlog, on_sample, on_state = self._backlog, self._on_sample, self._on_state
+        on_info = self._on_info
         try:
             while not self._abandon:
                 items = backlog.take(DISPATCH_BATCH, 0.1)
@@ -379,6 +471,9 @@ class AdcStreamReader:
                         return
                     if type(item) is Sample:
                         on_sample(item)
+                    elif type(item) is _InfoChange:
+                        if on_info is not None:
+                            on_info(item.info)
                     elif on_state is not None:
                         on_state(*item)
         except BaseException as exc:
@@ -402,6 +497,7 @@ class AdcStreamReader:
             self._connections += 1
             self._parser.reset()
             self._seq.restart()
+            self._gate.restart()
         self._set_state(ConnectionState.CONNECTING, f"{self.port} open, waiting for frames")
         return port
 
@@ -462,10 +558,15 @@ class AdcStreamReader:
             frames = self._parser.feed(data)
             if not frames:
                 return
-            seqr = self._seq
+            seqr, gate = self._seq, self._gate
             epoch = self._connections
-            samples = [Sample(f.seq, seqr.advance(f.seq, f.t_us), host_ns, f.counts, epoch)
-                       for f in frames]
+            samples: list[Sample | _InfoChange] = []
+            for f in frames:
+                if type(f) is Frame:
+                    samples += gate.on_sample(Sample(f.seq, seqr.advance(f.seq, f.t_us),
+                                                     host_ns, f.counts, epoch), f.version)
+                else:
+                    samples += gate.on_info(f)
             self._last_frame_mono = time.monotonic()
         if self._state is not ConnectionState.CONNECTED:
             self._set_state(ConnectionState.CONNECTED, f"receiving frames from {self.port}")

@@ -5,7 +5,9 @@ the tare service and diagnostics. Samples are processed and published from the r
 dispatch thread, so the executor never sits between the serial port and the force topic,
 and the reader's serial thread keeps draining the port while publishing is starved.
 ADC frames lost anyway (sequence gaps, a full backlog) are counted in /diagnostics and
-logged as a warning.
+logged as a warning. The ADC's resolution and reference come from the device's info
+frame unless configured (sensing/adc_settings.py); a contradiction is a diagnostics ERROR
+and no force is published.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from std_srvs.srv import Trigger
 
+from tactile_sensor.hardware.adc_frame import DeviceInfo
 from tactile_sensor.hardware.adc_reader import (
     DEFAULT_BACKLOG,
     AdcStreamReader,
@@ -36,6 +39,7 @@ from tactile_sensor.nodes.parameters import (
     declare_parameters,
     read_parameters,
 )
+from tactile_sensor.sensing.adc_settings import AdcSettings, resolve_adc
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import ChainConfig, Reading, SignalChain
 from tactile_sensor.sensing.device_clock import DeviceClock
@@ -51,9 +55,11 @@ SPECS = [
     ParamSpec("baud_rate", 1_000_000, "serial baud rate [bit/s] the firmware uses",
               minimum=50, maximum=12_000_000),
     ParamSpec("channel", 0, "ADC channel wired to the photoreflector", minimum=0, maximum=7),
-    ParamSpec("adc_bits", 12, "ADC resolution [bit]", minimum=1, maximum=24),
-    ParamSpec("reference_voltage", 5.0, "ADC reference voltage [V] (full scale)",
-              minimum=0.0, exclusive_minimum=True, maximum=50.0),
+    ParamSpec("adc_bits", 0, "ADC resolution [bit]; 0 = as the device states (protocol 2); "
+              "a value the device contradicts is an error", minimum=0, maximum=16),
+    ParamSpec("reference_voltage", 0.0, "ADC reference voltage [V] (full scale); 0 = as the "
+              "device states (protocol 2); a value the device contradicts is an error",
+              minimum=0.0, maximum=50.0),
     ParamSpec("sample_rate", 1000.0, "nominal device sample rate [Hz] the filters and tare "
               "window are designed for", minimum=0.0, exclusive_minimum=True,
               maximum=100_000.0),
@@ -114,8 +120,9 @@ def chain_config(values: dict[str, Any]) -> ChainConfig:
         raise ParameterError("Parameter 'calibration_file' is empty but calibration_source "
                              "is 'file'; give the calibration JSON's path.")
     return ChainConfig(
-        rate_hz=values["sample_rate"], adc_bits=values["adc_bits"],
-        vref_v=values["reference_voltage"], channel=values["channel"], filter_name=name,
+        rate_hz=values["sample_rate"], adc_bits=values["adc_bits"] or ChainConfig.adc_bits,
+        vref_v=values["reference_voltage"] or ChainConfig.vref_v, channel=values["channel"],
+        filter_name=name,
         filter_params=params, tare_window_s=values["tare_window"],
         tare_max_spread_v=values["tare_max_spread"], auto_tare=values["auto_tare"],
         contact_on_n=values["contact_on_force"], contact_off_n=values["contact_off_force"],
@@ -137,6 +144,8 @@ class DriverNode(Node):
         self.published_readings = 0  # ~/reading messages published since construction
         self.published_until_ns = 0  # stamp of the newest reading published
         self._lost_reported = 0  # ADC frames lost, as last logged
+        self._adc: AdcSettings | None = None  # decided on the device's info, per connection
+        self._info_logged: DeviceInfo | None = None
         self._wrench_pub = self._reading_pub = self._diag_pub = None
         self._tare_srv = self._calibration_sub = self._diag_timer = None
 
@@ -156,13 +165,15 @@ class DriverNode(Node):
             chain = SignalChain(config, calibration)
             reader = AdcStreamReader(values["port"], self._on_sample, self._on_state,
                                      baudrate=values["baud_rate"],
-                                     backlog=values["reader_backlog"])
+                                     backlog=values["reader_backlog"],
+                                     on_info=self._on_info)
         except (ParameterError, SensingError, HardwareError) as exc:
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
         self._values, self._chain, self._reader = values, chain, reader
         self._clock_map = DeviceClock()
         self._lost_reported = 0
+        self._adc = self._info_logged = None
         rate = values["publish_rate"]
         self._publish_every_ns = int(1e9 / rate) if rate > 0 else 0
         self._wrench_pub = self.create_lifecycle_publisher(WrenchStamped, "~/wrench", 100)
@@ -223,9 +234,9 @@ class DriverNode(Node):
 
     # -- data path (reader thread) -----------------------------------------------------------
     def _on_sample(self, sample: Sample) -> None:
-        chain = self._chain
-        if chain is None:
-            return
+        chain, adc = self._chain, self._adc
+        if chain is None or adc is None or not adc.usable:
+            return  # the device contradicts the configuration: no force (diagnostics ERROR)
         try:
             reading = chain.process(sample)
         except SensingError as exc:
@@ -254,6 +265,24 @@ class DriverNode(Node):
             wrench.header.stamp, wrench.header.frame_id = stamp, frame
             wrench.wrench.force.z = reading.force_n
             self._wrench_pub.publish(wrench)
+
+    def _on_info(self, info: DeviceInfo) -> None:
+        """The device said what its codes mean (before its first sample, on each connection)."""
+        values = self._values
+        adc = resolve_adc(info, values["adc_bits"] or None, values["reference_voltage"] or None,
+                          values["channel"], values["sample_rate"])
+        if adc.conversion is not None and self._chain is not None:
+            self._chain.set_conversion(adc.conversion)
+        self._adc = adc
+        if info != self._info_logged:  # once per device, not once per reconnection
+            self._info_logged = info
+            log = self.get_logger()
+            log.info(f"ADC device: {info.summary()}; counts -> volts {adc.source.value}")
+            if not adc.usable:
+                log.error(adc.problem)
+            elif adc.problem:
+                log.warning(adc.problem)
+        self._publish_diagnostics()
 
     def _on_state(self, state: ConnectionState, reason: str) -> None:
         log = self.get_logger()
@@ -309,8 +338,17 @@ class DriverNode(Node):
         lost_now = self._report_loss(stats)
         status = DiagnosticStatus(name=f"{self.get_fully_qualified_name()}: tactile ADC",
                                   hardware_id=str(self._values["port"]))
+        adc = self._adc
         if stats.state is ConnectionState.CONNECTED:
-            if not chain.tared:
+            if adc is None:
+                status.level = DiagnosticStatus.WARN
+                status.message = (f"waiting for the device's info frame ({stats.awaiting_info} "
+                                  "sample(s) held)")
+                if stats.info_errors:
+                    status.message += f"; its last was unusable: {stats.last_info_error}"
+            elif not adc.usable:
+                status.level, status.message = DiagnosticStatus.ERROR, adc.problem
+            elif not chain.tared:
                 status.level, status.message = DiagnosticStatus.WARN, "not tared yet"
             elif chain.calibration is None:
                 status.level, status.message = DiagnosticStatus.WARN, "no calibration yet"
@@ -332,6 +370,11 @@ class DriverNode(Node):
             "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
             "calibration_source": chain.calibration_source,
             "baseline_v": "none" if chain.baseline_v is None else f"{chain.baseline_v:.4f}",
+            "device": stats.device_info.summary() if stats.device_info else "not stated yet",
+            "adc_settings": adc.source.value if adc else "not decided yet",
+            "adc_bits": chain.conversion.bits if adc and adc.usable else "none",
+            "reference_voltage": (f"{chain.conversion.vref_v:g}" if adc and adc.usable
+                                  else "none"),
         }
         status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         array = DiagnosticArray(status=[status])

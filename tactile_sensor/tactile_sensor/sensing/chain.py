@@ -111,6 +111,7 @@ class SignalChain:
         self.config = config or ChainConfig()
         self.config.validate()
         parts = _Parts(self.config)
+        self._conversion = parts.adc
         self._volts_per_count = parts.adc.volts_per_count
         self._filter = parts.filter
         self._tare = parts.tare
@@ -161,6 +162,21 @@ class SignalChain:
             raise TareError(f"A baseline must be a finite voltage, got {baseline_v!r}.")
         with self._lock:
             self._baseline_v = float(baseline_v)
+
+    @property
+    def conversion(self) -> AdcConversion:
+        return self._conversion
+
+    def set_conversion(self, conversion: AdcConversion) -> None:
+        """Use another counts -> volts conversion (the device stated its ADC); a change
+        forgets the filter and tare window, whose volts meant something else."""
+        with self._lock:
+            if conversion == self._conversion:
+                return
+            self._conversion = conversion
+            self._volts_per_count = conversion.volts_per_count
+            self._filter.reset()
+            self._tare.clear()
 
     def reset(self) -> None:
         """Forget filter, tare window and contact state (after a reconnect), keep baseline."""

@@ -5,6 +5,10 @@ and a slow ambient drift, quantises like a ``adc_bits`` ADC referenced to ``vref
 writes frames (``hardware.adc_frame``) at ``rate_hz``, paced by the monotonic clock and
 written in batches of at most ~1 ms so it holds 1 kHz and reaches tens of kHz.
 
+It speaks protocol version 2 like the reference firmware: an info frame stating its
+``adc_bits``, ``vref_v``, channels and rate at start and every ``info_period_s`` (0.25 s,
+as the firmware); ``protocol=1`` makes it a version-1 device that states nothing.
+
 Like the firmware it never blocks on a slow host. A pseudo-terminal buffers only ~18 KB,
 a real USB serial port (ttyACM, tty flip buffers) about 64 KB more, so the device keeps
 up to ``host_buffer_bytes`` of backlog that it hands to the pseudo-terminal as the host
@@ -37,7 +41,14 @@ from typing import Any
 
 import numpy as np
 
-from tactile_sensor.hardware.adc_frame import CRC_INIT, MAX_CHANNELS, PROTOCOL_VERSION, SYNC
+from tactile_sensor.hardware.adc_frame import (
+    CRC_INIT,
+    MAX_CHANNELS,
+    PROTOCOL_VERSION,
+    SUPPORTED_VERSIONS,
+    SYNC,
+    encode_info,
+)
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.pty_link import PtyLink
 
@@ -186,6 +197,9 @@ class MockAdcDevice:
         clock_offset_us: int = 0,
         seed: int | None = None,
         host_buffer_bytes: int = 65536,
+        protocol: int = PROTOCOL_VERSION,
+        info_period_s: float = 0.25,
+        board: str = "mock",
     ) -> None:
         if not isinstance(rate_hz, int | float) or not 1.0 <= rate_hz <= 200_000.0:
             raise SimError(f"The ADC rate must be in [1, 200000] Hz, got {rate_hz!r}.")
@@ -200,6 +214,10 @@ class MockAdcDevice:
         if isinstance(host_buffer_bytes, bool) or not isinstance(host_buffer_bytes, int) or \
                 not 0 <= host_buffer_bytes <= 1 << 26:
             raise SimError(f"host_buffer_bytes must be 0..64 MiB, got {host_buffer_bytes!r}.")
+        if protocol not in SUPPORTED_VERSIONS:
+            raise SimError(f"protocol must be one of {SUPPORTED_VERSIONS}, got {protocol!r}.")
+        if not isinstance(info_period_s, int | float) or not 0.0 < info_period_s <= 60.0:
+            raise SimError(f"info_period_s must be in (0, 60] s, got {info_period_s!r}.")
         if not callable(voltage_source):
             raise SimError("voltage_source must be a callable t [s] -> V.")
         self.link = PtyLink(link_path)
@@ -216,7 +234,12 @@ class MockAdcDevice:
         self._backlog_limit = host_buffer_bytes
         self._sampler = AdcSampler(rate_hz, self.noise, adc_bits, vref_v, channels, self._rng)
         self._frame = struct.Struct(f"<2sBHI{channels}H")
-        self._header = (PROTOCOL_VERSION << 4) | channels
+        self.protocol = protocol
+        self._header = (protocol << 4) | channels
+        # The firmware's info frame: every info_every-th frame is preceded by it.
+        self._info = (encode_info(adc_bits, channels, vref_v, round(1e6 / rate_hz), board)
+                      if protocol >= 2 else b"")
+        self._info_every = max(1, round(info_period_s * rate_hz))
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -394,7 +417,12 @@ class MockAdcDevice:
             self._dropped += drop
         pack, sync, header = self._frame.pack, SYNC, self._header
         parts = []
-        for i in range(drop, n):
+        info, every = self._info, self._info_every
+        for i in range(n):
+            if info and (k + i) % every == 0:
+                parts.append(info)  # the info is sent even when frames are dropped
+            if i < drop:
+                continue
             body = pack(sync, header, (k + i) & 0xFFFF, int(t_us[i]), *counts[i].tolist())
             parts.append(body + (crc_hqx(body[2:], CRC_INIT)).to_bytes(2, "little"))
         data = b"".join(parts)
@@ -467,6 +495,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--channels", type=int, default=1, help="channels per frame (1..8)")
     parser.add_argument("--adc-bits", type=int, default=12)
     parser.add_argument("--vref", type=float, default=5.0, help="ADC reference [V]")
+    parser.add_argument("--protocol", type=int, default=PROTOCOL_VERSION,
+                        choices=SUPPORTED_VERSIONS, help="serial protocol version: 2 states "
+                        "bits, reference, channels and rate; 1 states nothing (default "
+                        "%(default)s)")
     parser.add_argument("--noise", type=float, default=AdcNoise().white_v,
                         help="white noise sigma [V] (default: the paper's 31.5 dB, %(default).4f)")
     parser.add_argument("--drift", type=float, default=AdcNoise().drift_v,
@@ -560,7 +592,8 @@ def main(argv: list[str] | None = None) -> int:
         world = BenchWorld(profile, skin, loop=args.loop)
         device = MockAdcDevice(args.link, world.photoreflector_voltage, rate_hz=args.rate,
                                noise=noise, adc_bits=args.adc_bits, vref_v=args.vref,
-                               channels=args.channels, seed=args.seed)
+                               channels=args.channels, seed=args.seed,
+                               protocol=args.protocol)
         device.start()
     except SimError as exc:
         print(f"tactile-sensor mock adc: {exc}", file=sys.stderr)

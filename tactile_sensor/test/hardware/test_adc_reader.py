@@ -9,8 +9,14 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from tactile_sensor.hardware.adc_frame import encode_frame
-from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState, Sample
+from tactile_sensor.hardware.adc_frame import DeviceInfo, crc16, encode_frame, encode_info
+from tactile_sensor.hardware.adc_reader import (
+    AdcStreamReader,
+    ConnectionState,
+    Sample,
+    _InfoChange,
+    _InfoGate,
+)
 from tactile_sensor.hardware.errors import SerialPortError
 from tactile_sensor.sim.adc_device import QUIET, MockAdcDevice
 from tactile_sensor.sim.pty_link import PtyLink
@@ -140,6 +146,95 @@ def test_device_time_is_unwrapped_past_32_bits(tmp_path):
         times = np.array([s.device_time_us for s in rec.samples])
     assert times[-1] > 1 << 32
     assert np.all(np.diff(times) == 1000)
+
+
+class Events:
+    """Samples and infos in the order the reader handed them over."""
+
+    def __init__(self) -> None:
+        self.items: list[tuple[str, object]] = []
+        self.lock = threading.Lock()
+
+    def on_sample(self, sample: Sample) -> None:
+        with self.lock:
+            self.items.append(("sample", sample))
+
+    def on_info(self, info: DeviceInfo) -> None:
+        with self.lock:
+            self.items.append(("info", info))
+
+    def samples(self, epoch: int | None = None) -> list[Sample]:
+        with self.lock:
+            return [s for kind, s in self.items
+                    if kind == "sample" and (epoch is None or s.epoch == epoch)]
+
+
+def test_the_devices_info_comes_before_its_first_sample_on_every_connection(tmp_path):
+    path = tmp_path / "adc"
+    events = Events()
+    with MockAdcDevice(path, code_ramp, noise=QUIET, vref_v=3.3) as device, \
+            AdcStreamReader(str(path), events.on_sample, on_info=events.on_info) as reader:
+        assert wait_until(lambda: len(events.samples()) > 50, 2.0)
+        device.unplug(0.3)
+        assert wait_until(lambda: len(events.samples(2)) > 50, 3.0)
+        assert reader.device_info == DeviceInfo(2, 1, 12, 3.3, 1000, "mock")
+    info = ("info", DeviceInfo(2, 1, 12, 3.3, 1000, "mock"))
+    with events.lock:
+        items = list(events.items)
+    assert items[0] == info
+    second = next(i for i, (kind, s) in enumerate(items) if kind == "sample" and s.epoch == 2)
+    assert items[second - 1] == info
+    assert sum(1 for item in items if item == info) == 2  # once per connection
+
+
+def test_a_version_1_device_gets_an_info_that_states_nothing(tmp_path):
+    path = tmp_path / "adc"
+    events = Events()
+    with MockAdcDevice(path, code_ramp, noise=QUIET, protocol=1), \
+            AdcStreamReader(str(path), events.on_sample, on_info=events.on_info):
+        assert wait_until(lambda: len(events.samples()) > 20, 2.0)
+    assert events.items[0] == ("info", DeviceInfo(1, 1))
+    assert not events.items[0][1].described
+
+
+def test_samples_wait_for_the_info_and_none_is_lost(tmp_path):
+    path = tmp_path / "adc"
+    events = Events()
+    bad_info = b"\xa5\x5a\x20\x09" + bytes([0, 1, 0x88, 0x13, 0xE8, 3, 0, 0, 0])
+    with PtyLink(path) as link, \
+            AdcStreamReader(str(path), events.on_sample, on_info=events.on_info) as reader:
+        assert wait_until(lambda: reader.state is ConnectionState.CONNECTING, 1.0)
+        time.sleep(0.2)  # let the reader open the port before writing
+        assert link.write_all(b"".join(encode_frame(k, k * 1000, [k]) for k in range(5)))
+        assert link.write_all(bad_info + crc16(bad_info[2:]).to_bytes(2, "little"))
+        assert wait_until(lambda: reader.stats().awaiting_info == 5, 1.0)
+        assert events.items == []
+        stats = reader.stats()
+        assert stats.info_errors == 1 and "adc_bits 0" in stats.last_info_error
+        assert link.write_all(encode_info(10, 1, 5.0, 1000, "avr") + encode_frame(5, 5000, [5]))
+        assert wait_until(lambda: len(events.samples()) == 6, 1.0)
+        assert reader.stats().awaiting_info == 0
+    assert events.items[0] == ("info", DeviceInfo(2, 1, 10, 5.0, 1000, "avr"))
+    assert [s.seq for s in events.samples()] == list(range(6))
+
+
+def _sample(seq: int, channels: int = 1) -> Sample:
+    return Sample(seq, seq * 1000, 0, (seq,) * channels, 1)
+
+
+def test_the_info_gate_bounds_what_waits_and_refuses_a_contradicting_channel_count():
+    gate = _InfoGate(max_waiting=3)
+    assert all(gate.on_sample(_sample(k), 2) == [] for k in range(5))
+    assert gate.dropped == 2
+    info = DeviceInfo(2, 1, 12, 3.3, 1000)
+    assert gate.on_info(info) == [_InfoChange(info), *(_sample(k) for k in (2, 3, 4))]
+    assert gate.on_info(info) == []  # unchanged: not handed on again
+    assert gate.on_sample(_sample(5, channels=2), 2) == []
+    assert gate.mismatches == 1
+    gate.on_sample(_sample(6), 1)  # a version-1 frame on the same link: the v1 rules apply
+    assert gate.info == DeviceInfo(1, 1)
+    gate.restart()
+    assert gate.info is None and not gate.waiting
 
 
 def test_silence_sends_the_state_back_to_connecting(tmp_path):

@@ -18,8 +18,12 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from std_srvs.srv import Trigger
 
+from tactile_sensor.hardware.adc_frame import crc16, encode_frame
 from tactile_sensor.sensing.calibration import Calibration
+from tactile_sensor.sim import firmware_host
+from tactile_sensor.sim.firmware_host import PICO, UNO, HostFirmware
 from tactile_sensor.sim.profiles import parse_profile
+from tactile_sensor.sim.pty_link import PtyLink
 from tactile_sensor_interfaces.msg import TactileReading
 
 FULL_SCALE_N = 7.0
@@ -215,7 +219,7 @@ def _value(status: DiagnosticStatus, key: str) -> str:
 
 
 @pytest.mark.parametrize(("parameter", "value"), [
-    ("adc_bits", "0"), ("filter_type", "kalman"), ("contact_off_force", "2.0"),
+    ("adc_bits", "17"), ("filter_type", "kalman"), ("contact_off_force", "2.0"),
     ("baud_rate", "'fast'"),
 ])
 def test_a_bad_parameter_fails_configure_naming_it(spawn, ros_domain, files, parameter, value):
@@ -233,3 +237,126 @@ def test_a_missing_calibration_file_fails_configure_with_the_path(spawn, ros_dom
     assert driver.wait_for_output("configure transition failed", 30), driver.output()
     assert "nope.json" in driver.output()
     assert "Traceback" not in driver.output()
+
+
+# -- the real firmware (compiled for this computer) in the loop ----------------------------
+
+needs_gxx = pytest.mark.skipif(firmware_host.compiler() is None,
+                               reason="no g++ on this computer (apt-get install g++)")
+
+
+@pytest.fixture(scope="session")
+def firmware_builds(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    out = tmp_path_factory.getbasetemp() / "firmware-build"
+    return {board.name: firmware_host.build(board, out) for board in (UNO, PICO)}
+
+
+def _steady_force(ros, volts: float, device: HostFirmware) -> float:
+    """Median force of 100 readings from 100 samples after the driver first saw ``volts``
+    (synchronised on the data, not the clock: a starved driver may lag the device)."""
+    device.set_voltage(volts)
+    start = len(ros.readings)
+
+    def first_at_level() -> int | None:
+        return next((i for i, (_, m) in enumerate(ros.readings[start:], start)
+                     if abs(m.voltage - volts) < 0.01), None)
+
+    assert ros.wait_for(lambda: first_at_level() is not None, 10)
+    first = first_at_level()
+    assert ros.wait_for(lambda: len(ros.readings) > first + 200, 10)
+    return float(np.median([m.force for _, m in ros.readings[first + 100:first + 200]]))
+
+
+@needs_gxx
+def test_a_10_and_a_12_bit_board_give_the_same_force_with_nothing_configured(
+        spawn, ros, files, firmware_builds):
+    # The user swaps an Uno (10 bit, 5 V) for a Pico (12 bit, 3.3 V) under a running driver.
+    pressed_v, rest_v = REST_V - 0.3, REST_V
+    _, force, voltage = skin_table()
+    truth = float(np.interp(pressed_v, voltage[::-1], force[::-1]))
+    driver = start_driver(spawn, files["link"], files["calibration"])
+    assert driver.wait_for_output("active", 30), driver.output()
+    forces = {}
+    for board in (UNO, PICO):
+        with HostFirmware(firmware_builds[board.name], files["link"], board) as device:
+            device.set_voltage(rest_v)
+            name = "avr" if board is UNO else "rp2040"
+            assert ros.wait_for(lambda n=name: any(
+                n in _value(s, "device") for _, s in ros.diagnostics[-3:]), 10)
+            forces[board.name] = _steady_force(ros, pressed_v, device)
+            assert _steady_force(ros, rest_v, device) == pytest.approx(0.0, abs=0.05)
+    print(f"force for a {rest_v - pressed_v:.1f} V press: {forces}, truth {truth:.3f} N")
+    # 1 code of the 10-bit board (4.9 mV) is 0.08 N on this curve
+    assert forces["uno"] == pytest.approx(truth, abs=0.15)
+    assert forces["pico"] == pytest.approx(truth, abs=0.15)
+    assert abs(forces["uno"] - forces["pico"]) < 0.15
+    assert driver.output().count("ADC device: protocol 2") == 2
+    assert "rp2040, 12 bit, 3.3 V" in driver.output()
+
+
+@needs_gxx
+def test_a_configuration_the_device_contradicts_is_an_error_and_no_force(
+        spawn, ros, files, firmware_builds):
+    with HostFirmware(firmware_builds["uno"], files["link"], UNO) as device:
+        device.set_voltage(REST_V)
+        driver = start_driver(spawn, files["link"], files["calibration"],
+                              "-p", "adc_bits:=12")
+        assert driver.wait_for_output("active", 30), driver.output()
+        assert ros.wait_for(lambda: any(s.level == DiagnosticStatus.ERROR
+                                        for _, s in ros.diagnostics), 10)
+        time.sleep(1.0)
+    error = next(s for _, s in ros.diagnostics if s.level == DiagnosticStatus.ERROR)
+    assert error.message.startswith("adc_bits is configured as 12 bit but the device sends "
+                                    "10-bit codes: no force is published")
+    assert _value(error, "device").startswith("protocol 2, avr, 10 bit, 5 V")
+    assert ros.wrenches == [] and ros.readings == []
+    assert driver.output().count("adc_bits is configured as 12 bit") == 1  # logged once
+    assert "Traceback" not in driver.output()
+
+
+def test_a_version_1_device_works_with_one_warning(spawn, ros, files):
+    driver = start_driver(spawn, files["link"], files["calibration"],
+                          "-p", "adc_bits:=12", "-p", "reference_voltage:=5.0")
+    assert driver.wait_for_output("active", 30), driver.output()
+    start_mock(spawn, files, "ramp:depth=0.001,speed=0.001,cycles=1,hold=0,rest=1",
+               "--protocol", "1", "--loop")
+    assert ros.wait_for(lambda: len(ros.wrenches) > 500, 15), driver.output()
+    files["control"].write_text("unplug 0.5\n")  # a reconnection: the same device again
+    time.sleep(0.6)
+    count = len(ros.wrenches)
+    assert ros.wait_for(lambda: len(ros.wrenches) > count + 500, 15)
+    log = driver.output()
+    assert log.count("does not state its resolution: using the configured 12 bit and 5 V") == 1
+    assert "[WARN]" in log.split("does not state its resolution")[0].rsplit("\n", 1)[-1]
+
+
+def test_a_device_whose_info_is_unusable_is_a_warning_that_says_why(spawn, ros, files):
+    # Version-2 data frames, but the info frame (good CRC) states a 0-bit ADC.
+    bad = b"\xa5\x5a\x20\x09" + bytes([0, 1, 0x88, 0x13, 0xE8, 3, 0, 0, 0])
+    bad += crc16(bad[2:]).to_bytes(2, "little")
+    stop = threading.Event()
+    with PtyLink(files["link"]) as link:
+
+        def device() -> None:
+            k = 0
+            while not stop.is_set():
+                link.write_all(bad + b"".join(encode_frame(k + i, (k + i) * 1000, [500])
+                                              for i in range(50)))
+                k += 50
+                time.sleep(0.05)
+
+        thread = threading.Thread(target=device, daemon=True)
+        thread.start()
+        driver = start_driver(spawn, files["link"], files["calibration"])
+        assert driver.wait_for_output("active", 30), driver.output()
+        try:
+            assert ros.wait_for(lambda: any(
+                "waiting for the device's info frame" in s.message
+                and "its last was unusable: adc_bits 0 is not 1..16" in s.message
+                for _, s in ros.diagnostics), 10), [s.message for _, s in ros.diagnostics]
+        finally:
+            stop.set()
+            thread.join(2.0)
+    warn = next(s for _, s in ros.diagnostics if "unusable" in s.message)
+    assert warn.level == DiagnosticStatus.WARN
+    assert ros.wrenches == [] and ros.readings == []

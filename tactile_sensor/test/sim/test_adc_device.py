@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tactile_sensor.hardware.adc_frame import DeviceInfo, Frame, FrameParser
 from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.filters import make_filter
@@ -74,6 +75,42 @@ def test_quiet_device_streams_the_source_exactly_at_its_rate(tmp_path):
     assert elapsed > 0.25  # paced in real time, not as fast as possible
 
 
+def raw_stream(path, seconds):
+    """Everything the device sent for ``seconds``, parsed (no reader in between)."""
+    parser, out = FrameParser(), []
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
+    try:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            try:
+                out += parser.feed(os.read(fd, 65536))
+            except BlockingIOError:
+                time.sleep(0.01)
+    finally:
+        os.close(fd)
+    return out
+
+
+def test_version_2_states_its_adc_four_times_a_second(tmp_path):
+    path = tmp_path / "adc"
+    with MockAdcDevice(path, lambda t: 1.0, noise=QUIET, adc_bits=10, vref_v=3.3,
+                       channels=2, rate_hz=500.0):
+        items = raw_stream(path, 1.1)
+    infos = [i for i in items if isinstance(i, DeviceInfo)]
+    frames = [i for i in items if isinstance(i, Frame)]
+    assert set(infos) == {DeviceInfo(2, 2, 10, 3.3, 2000, "mock")}
+    assert 4 <= len(infos) <= 5
+    assert {f.version for f in frames} == {2}
+    assert frames[-1].counts == (310, 310)  # round(1.0 V / 3.3 V * 1023)
+
+
+def test_version_1_states_nothing(tmp_path):
+    path = tmp_path / "adc"
+    with MockAdcDevice(path, lambda t: 1.0, noise=QUIET, protocol=1):
+        items = raw_stream(path, 0.6)
+    assert items and all(isinstance(i, Frame) and i.version == 1 for i in items)
+
+
 def test_commands_and_their_errors(tmp_path):
     device = MockAdcDevice(tmp_path / "adc", lambda t: 1.0)
     assert device.command("drop 3") == "ok drop 3 frames"
@@ -89,6 +126,7 @@ def test_commands_and_their_errors(tmp_path):
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({"rate_hz": 0.0}, "rate"), ({"adc_bits": 20}, "adc_bits"), ({"vref_v": 0}, "vref_v"),
     ({"channels": 9}, "channels"), ({"voltage_source": 3.0}, "callable"),
+    ({"protocol": 3}, "protocol"), ({"info_period_s": 0}, "info_period_s"),
     ({"noise": None, "link_path": "/nonexistent-dir/adc"}, "does not exist"),
 ])
 def test_bad_device_settings(tmp_path, kwargs, match):

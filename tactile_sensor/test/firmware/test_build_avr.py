@@ -1,0 +1,60 @@
+"""``make firmware`` (firmware/build-avr.sh): its refusals, and -Werror biting for real.
+
+The successful cross-build is CI's own step (``.ci/run`` runs ``make firmware``); these
+check that a broken sketch or a missing toolchain fails it with one clear sentence.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[3]
+SCRIPT = REPO / "firmware" / "build-avr.sh"
+has_avr = pytest.mark.skipif(shutil.which("avr-g++") is None,
+                             reason="no avr-g++ (apt-get install gcc-avr avr-libc "
+                                    "arduino-core-avr)")
+
+
+def run(tmp_path: Path, **env: str) -> subprocess.CompletedProcess[str]:
+    full = {**os.environ, "FIRMWARE_OUT": str(tmp_path / "out"), **env}
+    return subprocess.run(["bash", str(SCRIPT)], env=full, capture_output=True, text=True,
+                          timeout=300, check=False)
+
+
+def test_a_missing_toolchain_names_the_packages(tmp_path):
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    for tool in ("bash", "dirname"):
+        (bin_dir / tool).symlink_to(shutil.which(tool))
+    result = run(tmp_path, PATH=str(bin_dir))
+    assert result.returncode == 1
+    assert "apt-get install gcc-avr avr-libc arduino-core-avr" in result.stderr
+
+
+@has_avr
+def test_a_missing_core_names_the_package_and_the_override(tmp_path):
+    result = run(tmp_path, ARDUINO_AVR_DIR=str(tmp_path))
+    assert result.returncode == 1
+    assert "arduino-core-avr" in result.stderr and "ARDUINO_AVR_DIR" in result.stderr
+
+
+@has_avr
+def test_an_unknown_board_is_refused(tmp_path):
+    result = run(tmp_path, FIRMWARE_BOARDS="esp32")
+    assert result.returncode == 1
+    assert "unknown board 'esp32'; use uno, mega or leonardo" in result.stderr
+
+
+@has_avr
+def test_a_warning_in_the_sketch_fails_the_build(tmp_path):
+    sketch = tmp_path / "tactile_adc.ino"
+    source = (REPO / "firmware" / "tactile_adc" / "tactile_adc.ino").read_text()
+    sketch.write_text(source.replace("void loop() {", "void loop() {\n  int unused = 0;"))
+    result = run(tmp_path, FIRMWARE_SKETCH=str(sketch), FIRMWARE_BOARDS="uno")
+    assert result.returncode != 0
+    assert "[-Werror=unused-variable]" in result.stderr
