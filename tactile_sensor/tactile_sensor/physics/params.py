@@ -127,12 +127,12 @@ class PhysicsParams:
     array_shear_levels: int = _f(3, "1", "non-zero shear magnitudes per direction, evenly "
                                  "spaced up to array_shear_ratio x indentation",
                                  curve=False, grid=True, low=1, high=20)
-    array_shear_ratio: float = _f(1.0, "1", "largest lateral probe displacement of the "
-                                  "grid per unit indentation: the skin slides off a real "
-                                  "probe once the lateral force reaches mu times the normal "
-                                  "force; at 1.0 the FEM's lateral/normal force ratio at the "
-                                  "grid's edge is ~0.5, under the static friction of "
-                                  "silicone on a probe (mu ~ 0.5-1; see docs/array.md)",
+    array_shear_ratio: float = _f(3.0, "1", "largest lateral probe displacement of the "
+                                  "grid per unit indentation, where the skin starts to slide "
+                                  "on the probe: static friction of silicone on a smooth "
+                                  "probe mu ~ 0.5 (silicone rubber 0.25 to over 0.75, tacky "
+                                  "Ecoflex ~1), and the FEM's lateral/normal force at this "
+                                  "ratio is 0.43-0.57 over the indentations (docs/array.md)",
                                   curve=False, grid=True, low=0.0, low_open=True, high=10.0)
     array_mesh_scale: float = _f(0.5, "1", "elements per direction of the grid's mesh "
                                  "relative to mesh_nx/ny/nz, solved alone (a shear path on "
