@@ -4,7 +4,9 @@ shown), the fit's held-out error per axis, and the default single-module sweep b
 
 Runs the default four-module grid cold (no cache) with ``--workers`` processes (default: 1
 and 2, one after the other), then fits it. Say whether the machine was busy: the load
-average is printed before and after.
+average is printed before and after. Then (unless ``--no-off-grid``) a test between the
+grid's directions: paths at 22.5 deg, which no grid direction or mirror image reaches, at
+every shear level, against the calibration fitted on the whole grid.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_array_grid.py [--workers 2] [--quiet]
 """
@@ -17,12 +19,15 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
-from tactile_sensor.physics.array_grid import compute_grid
+from tactile_sensor.physics.array_grid import ArrayGrid, LoadPath, compute_grid, solve_path
 from tactile_sensor.physics.array_report import fit_grid, summary
 from tactile_sensor.physics.params import PhysicsParams
-from tactile_sensor.physics.prediction import compute_curve
+from tactile_sensor.physics.prediction import compute_curve, module_output
+from tactile_sensor.sensing.array_calibration import ArrayCalibration
 
 
 def load() -> str:
@@ -49,6 +54,8 @@ def main() -> None:
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--degree", type=int, default=3)
     parser.add_argument("--quiet", action="store_true", help="no per-step progress")
+    parser.add_argument("--no-off-grid", action="store_true",
+                        help="skip the test at 22.5 deg between the grid's directions")
     args = parser.parse_args()
     print(load(), flush=True)
     start = time.perf_counter()
@@ -62,8 +69,34 @@ def main() -> None:
         seconds = time.perf_counter() - start
         print(f"grid with {workers} worker(s): {seconds:.1f} s for {grid.paths} paths, "
               f"{grid.indentation_m.size} points (goal <= 300 s); {load()}", flush=True)
-    _, report = fit_grid(grid, args.degree)
+    calibration, report = fit_grid(grid, args.degree)
     print(summary(report, params, "off (benchmark)"))
+    if not args.no_off_grid:
+        off_grid(params, calibration, grid)
+
+
+def off_grid(params: PhysicsParams, calibration: ArrayCalibration, grid: ArrayGrid) -> None:
+    """The calibration's error at 22.5 deg, halfway between two grid directions."""
+    theta = np.radians(22.5)
+    start = time.perf_counter()
+    errors = []
+    for level in range(1, params.array_shear_levels + 1):
+        s = params.array_shear_ratio * level / params.array_shear_levels
+        s *= params.max_indentation
+        path = LoadPath(0, level, s * np.cos(theta), s * np.sin(theta))
+        res = solve_path(params, path)
+        outputs = np.stack([module_output(params, res["bulges_m"][f])[2]
+                            for f in calibration.faces], axis=1)[1:]
+        forces = np.stack([res["force_x_n"], res["force_y_n"], res["force_n"]], axis=1)[1:]
+        errors.append(calibration.forces(outputs) - forces)
+    error = np.concatenate(errors)
+    span = np.ptp(grid.force_matrix(), axis=0)
+    rmse = np.sqrt(np.mean(error**2, axis=0))
+    print(f"off-grid direction 22.5 deg ({error.shape[0]} points, "
+          f"{time.perf_counter() - start:.1f} s): " + ", ".join(
+              f"{axis} rmse {r * 1e3:.1f} mN ({100 * r / w:.2f} % of range), max "
+              f"{np.abs(e).max() * 1e3:.1f} mN"
+              for axis, r, w, e in zip("xyz", rmse, span, error.T, strict=True)))
 
 
 if __name__ == "__main__":

@@ -28,6 +28,7 @@ import json
 import math
 import multiprocessing
 import os
+import queue as queue_module
 import tempfile
 import time
 from collections.abc import Callable, Iterator
@@ -274,7 +275,7 @@ def solve_paths(params: PhysicsParams, paths: list[LoadPath], workers: int,
         futures = {int(i): pool.submit(_worker, values, paths[i], int(i), queue)
                    for i in order}
         while not all(f.done() for f in futures.values()):
-            with contextlib.suppress(Exception):
+            with contextlib.suppress(queue_module.Empty):
                 report(*queue.get(timeout=0.5))
         while not queue.empty():
             report(*queue.get())
