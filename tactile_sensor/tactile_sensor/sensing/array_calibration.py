@@ -2,19 +2,25 @@
 
 The physics (docs/array.md): a lateral probe displacement bulges the face it moves toward and
 draws in the opposite one, so opposite modules' difference reads shear and their sum normal
-force; both relations bend with load, so each force component is a full polynomial of
-``degree`` in every module's output, fitted by least squares (the FEM's grid by default:
-``tactile-sensor model array-calibration``). Outputs are divided by ``output_scale_v`` (the
-fit data's largest output) first, which keeps the normal equations well conditioned.
+force. The polynomial's variables are therefore those features, ``feature_matrix`` @
+(outputs / ``output_scale_v``): per pair of opposite modules their sum and their difference
+(positive face minus negative face), a module without its opposite as it is. Mirroring the
+skin about x = 0 flips the x difference and Fx and nothing else (likewise y), so when every
+module has its opposite Fx keeps only the monomials odd in the x difference and even in the
+y difference, Fy the reverse, Fz those even in both. A full polynomial in the raw outputs
+fitted the grid's held-out points as well but was wrong by up to 30 N at a shear direction
+between the grid's (its extra terms are free off the grid's directions); the symmetric one
+is not. Scaling by the fit data's largest output keeps the least squares well conditioned.
 
 Force convention: the probe's force on the skin along +x, +y and -z (pressing positive), as
 the FEM's sweep reports it; faces as in physics (front +y, back -y, left -x, right +x).
 Beyond the fitted outputs the polynomial extrapolates; ``in_range`` tells the caller.
 
 File (JSON): ``{"format": "tactile_sensor/array_calibration", "version": 1, "faces": [...],
-"degree": d, "output_scale_v": s, "terms": [[e_1, ..., e_m], ...], "force_x_n": [...],
-"force_y_n": [...], "force_z_n": [...], "output_max_v": [...], "source": "...",
-"fit": {...}}``: force_k = sum_t coef_k[t] prod_i (o_i / s) ** terms[t][i].
+"feature_matrix": [[...], ...], "degree": d, "output_scale_v": s, "terms": [[e_1, ...,
+e_m], ...], "force_x_n": [...], "force_y_n": [...], "force_z_n": [...], "output_max_v":
+[...], "source": "...", "fit": {...}}``: with z = feature_matrix @ (o / s),
+force_k = sum_t coef_k[t] prod_j z_j ** terms[t][j].
 """
 
 from __future__ import annotations
@@ -35,6 +41,34 @@ FILE_FORMAT = "tactile_sensor/array_calibration"
 FILE_VERSION = 1
 FACES = ("front", "back", "left", "right")
 AXES = ("force_x_n", "force_y_n", "force_z_n")
+_PAIRS = (("right", "left"), ("front", "back"))   # (positive, negative) face along x, y
+
+
+def symmetric_features(faces: Sequence[str]) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """(feature matrix over the outputs in ``faces`` order, per feature its (x, y) parity:
+    1 where mirroring that axis flips the feature's sign). Parities are all 0 when a module
+    lacks its opposite (no mirror of the array is an array)."""
+    index = {f: i for i, f in enumerate(faces)}
+    rows: list[np.ndarray] = []
+    parity: list[tuple[int, int]] = []
+    paired: set[str] = set()
+    for axis, (pos, neg) in enumerate(_PAIRS):
+        if pos in index and neg in index:
+            for sign in (1.0, -1.0):
+                row = np.zeros(len(faces))
+                row[index[pos]], row[index[neg]] = 1.0, sign
+                rows.append(row)
+                parity.append((int(sign < 0 and axis == 0), int(sign < 0 and axis == 1)))
+            paired |= {pos, neg}
+    for face in faces:
+        if face not in paired:
+            row = np.zeros(len(faces))
+            row[index[face]] = 1.0
+            rows.append(row)
+            parity.append((0, 0))
+    if len(paired) != len(faces):
+        parity = [(0, 0)] * len(rows)
+    return np.stack(rows), parity
 
 
 def polynomial_terms(modules: int, degree: int) -> list[tuple[int, ...]]:
@@ -47,9 +81,9 @@ def polynomial_terms(modules: int, degree: int) -> list[tuple[int, ...]]:
 class ArrayCalibration:
     """An immutable, validated outputs -> (Fx, Fy, Fz) polynomial."""
 
-    def __init__(self, faces: Sequence[str], terms: Sequence[Sequence[int]],
-                 coefficients: Sequence[Sequence[float]], output_scale_v: float,
-                 output_max_v: Sequence[float], source: str) -> None:
+    def __init__(self, faces: Sequence[str], feature_matrix: Sequence[Sequence[float]],
+                 terms: Sequence[Sequence[int]], coefficients: Sequence[Sequence[float]],
+                 output_scale_v: float, output_max_v: Sequence[float], source: str) -> None:
         where = source or "the array calibration"
         self.faces = tuple(str(f) for f in faces)
         if not self.faces or len(set(self.faces)) != len(self.faces) or any(
@@ -57,6 +91,7 @@ class ArrayCalibration:
             raise CalibrationError(f"{where}: 'faces' must be distinct names out of "
                                    f"{', '.join(FACES)}; got {list(self.faces)}.")
         try:
+            self.feature_matrix = np.asarray(feature_matrix, dtype=float)
             self.terms = np.asarray(terms, dtype=int).reshape(-1, len(self.faces))
             rows = [np.asarray(c, dtype=float).ravel() for c in coefficients]
             self.output_max_v = np.asarray(output_max_v, dtype=float)
@@ -69,6 +104,10 @@ class ArrayCalibration:
             raise CalibrationError(f"{where}: needs one coefficient per term for each of "
                                    f"x, y and z; refit it.")
         self.coefficients = np.stack(rows)
+        if self.feature_matrix.shape != (len(self.faces),) * 2 or not np.all(
+                np.isfinite(self.feature_matrix)):
+            raise CalibrationError(f"{where}: 'feature_matrix' must be square with one row "
+                                   "and column per face, of finite numbers; refit it.")
         if self.output_max_v.shape != (len(self.faces),):
             raise CalibrationError(f"{where}: 'output_max_v' needs one value per face.")
         if np.any(self.terms < 0) or not (math.isfinite(scale) and scale > 0) or not np.all(
@@ -83,8 +122,8 @@ class ArrayCalibration:
         return int(self.terms.sum(axis=1).max())
 
     def _basis(self, outputs: np.ndarray) -> np.ndarray:
-        x = np.atleast_2d(outputs) / self.output_scale_v                # (n, m)
-        return np.prod(x[:, None, :] ** self.terms[None, :, :], axis=2)  # (n, terms)
+        z = (np.atleast_2d(outputs) / self.output_scale_v) @ self.feature_matrix.T  # (n, m)
+        return np.prod(z[:, None, :] ** self.terms[None, :, :], axis=2)        # (n, terms)
 
     def forces(self, outputs: np.ndarray) -> np.ndarray:
         """(n, 3) forces [N] for (n, modules) outputs [V] in ``faces`` order."""
@@ -118,7 +157,8 @@ class ArrayCalibration:
     @classmethod
     def fit(cls, faces: Sequence[str], outputs: np.ndarray, forces: np.ndarray, degree: int,
             source: str) -> ArrayCalibration:
-        """Least squares of each force component on every monomial up to ``degree``."""
+        """Least squares of each force component on the monomials up to ``degree`` of the
+        features that the array's mirror symmetry allows it (module docstring)."""
         outputs = np.asarray(outputs, dtype=float)
         forces = np.asarray(forces, dtype=float)
         if degree < 1:
@@ -133,16 +173,26 @@ class ArrayCalibration:
                                    f"{len(terms)} terms but only {outputs.shape[0]} points; "
                                    "lower the degree or add grid points.")
         scale = float(np.abs(outputs).max()) or 1.0
-        probe = cls(faces, terms, np.zeros((3, len(terms))), scale, outputs.max(axis=0),
-                    source)
-        coef, *_ = np.linalg.lstsq(probe._basis(outputs), forces, rcond=None)
-        return cls(faces, terms, coef.T, scale, outputs.max(axis=0), source)
+        matrix, parity = symmetric_features(faces)
+        probe = cls(faces, matrix, terms, np.zeros((3, len(terms))), scale,
+                    outputs.max(axis=0), source)
+        basis = probe._basis(outputs)
+        odd = np.array(terms) @ np.array(parity) % 2               # (terms, 2): x, y parity
+        coef = np.zeros((3, len(terms)))
+        for k, want in enumerate(((1, 0), (0, 1), (0, 0))):
+            keep = np.all(odd == want, axis=1) if np.any(parity) else np.ones(len(terms),
+                                                                               bool)
+            if keep.any():
+                coef[k, keep] = np.linalg.lstsq(basis[:, keep], forces[:, k], rcond=None)[0]
+        return cls(faces, matrix, terms, coef, scale, outputs.max(axis=0), source)
 
     # -- files -------------------------------------------------------------------------------
 
     def to_dict(self, fit: Mapping[str, Any] | None = None) -> dict[str, Any]:
         data: dict[str, Any] = {"format": FILE_FORMAT, "version": FILE_VERSION,
-                                "faces": list(self.faces), "degree": self.degree,
+                                "faces": list(self.faces),
+                                "feature_matrix": self.feature_matrix.tolist(),
+                                "degree": self.degree,
                                 "output_scale_v": self.output_scale_v,
                                 "terms": self.terms.tolist(),
                                 "output_max_v": self.output_max_v.tolist(),
@@ -164,14 +214,15 @@ class ArrayCalibration:
             raise CalibrationError(f"{source}: array calibration version "
                                    f"{data.get('version')!r} is not supported (expected "
                                    f"{FILE_VERSION}); refit it.")
-        missing = [k for k in ("faces", "terms", "output_scale_v", "output_max_v", *AXES)
-                   if k not in data]
+        missing = [k for k in ("faces", "feature_matrix", "terms", "output_scale_v",
+                               "output_max_v", *AXES) if k not in data]
         if missing:
             raise CalibrationError(f"{source}: missing {', '.join(missing)}; refit it.")
         if not isinstance(data["faces"], list):
             raise CalibrationError(f"{source}: 'faces' must be a list of face names.")
-        return cls(data["faces"], data["terms"], [data[a] for a in AXES],
-                   data["output_scale_v"], data["output_max_v"], source)
+        return cls(data["faces"], data["feature_matrix"], data["terms"],
+                   [data[a] for a in AXES], data["output_scale_v"], data["output_max_v"],
+                   source)
 
     @classmethod
     def from_file(cls, path: Path | str) -> ArrayCalibration:

@@ -86,6 +86,7 @@ def valid() -> dict:
     ({"terms": [["a"]]}, "must be numbers"),
     ({"output_scale_v": 0.0}, "output scale > 0"),
     ({"output_max_v": [1.0]}, "one value per face"),
+    ({"feature_matrix": [[1.0]]}, "must be square"),
     ({"force_z_n": None}, "one coefficient per term"),
     ({"force_z_n": "abc"}, "must be numbers"),
 ])
@@ -130,3 +131,31 @@ def test_bad_readings_and_fits_are_refused():
         ArrayCalibration.fit(FACES, outputs[:10], forces[:10], 3, "")
     with pytest.raises(CalibrationError, match="same points"):
         ArrayCalibration.fit(FACES, outputs, forces[:5], 2, "")
+
+
+def test_features_are_pair_sums_and_differences_with_their_mirror_parity():
+    from tactile_sensor.sensing.array_calibration import symmetric_features
+
+    matrix, parity = symmetric_features(("front", "back", "left", "right"))
+    assert matrix.tolist() == [[0, 0, 1, 1], [0, 0, -1, 1], [1, 1, 0, 0], [1, -1, 0, 0]]
+    assert parity == [(0, 0), (1, 0), (0, 0), (0, 1)]
+    matrix, parity = symmetric_features(("front", "left", "right"))
+    assert matrix.tolist() == [[0, 1, 1], [0, -1, 1], [1, 0, 0]]
+    assert parity == [(0, 0)] * 3            # front has no back: no mirror parity to use
+
+
+def test_a_fit_is_mirror_symmetric_even_on_noisy_data():
+    """Swapping left/right outputs flips Fx and keeps Fy, Fz: by construction, not by luck."""
+    outputs, forces = synthetic()
+    noisy = forces + np.random.default_rng(5).normal(scale=0.05, size=forces.shape)
+    cal = ArrayCalibration.fit(FACES, outputs, noisy, 3, "")
+    mirrored = outputs[:, [0, 1, 3, 2]]      # left <-> right
+    a, b = cal.forces(outputs), cal.forces(mirrored)
+    np.testing.assert_allclose(b[:, 0], -a[:, 0], atol=1e-9)
+    np.testing.assert_allclose(b[:, 1:], a[:, 1:], atol=1e-9)
+
+
+def test_modules_without_their_opposite_get_the_full_polynomial():
+    outputs, forces = synthetic()
+    cal = ArrayCalibration.fit(("front", "left", "right"), outputs[:, 1:], forces, 2, "")
+    assert np.count_nonzero(cal.coefficients[0]) == len(polynomial_terms(3, 2))
