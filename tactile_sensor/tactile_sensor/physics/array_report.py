@@ -33,7 +33,9 @@ def fit_grid(grid: ArrayGrid, degree: int) -> tuple[ArrayCalibration, dict[str, 
     lateral = np.hypot(grid.force_x_n, grid.force_y_n)
     pressed = grid.force_n > 0
     report = {
-        "degree": degree, "terms": int(trial.terms.shape[0]), "faces": list(grid.faces),
+        "degree": degree, "faces": list(grid.faces),
+        "terms": dict(zip(AXIS_NAMES, np.count_nonzero(trial.coefficients, axis=1).tolist(),
+                          strict=True)),
         "points": int(held.size), "fitted_points": int((~held).sum()),
         "held_out_points": int(held.sum()),
         "held_out_rmse_n": dict(zip(AXIS_NAMES, rmse.tolist(), strict=True)),
@@ -62,7 +64,8 @@ def summary(report: dict[str, Any], params: PhysicsParams, cache: str) -> str:
         f"{report['grid_seconds']:.1f} s",
         f"friction needed max |F_lateral| / F_normal = "
         f"{report['max_lateral_over_normal_force']:.2f} (the skin slides beyond)",
-        f"fit             degree {report['degree']} ({report['terms']} terms) on "
+        f"fit             degree {report['degree']} in pair sums and differences ("
+        + ", ".join(f"{k} {v}" for k, v in report["terms"].items()) + " terms) on "
         f"{report['fitted_points']} points, tested on {report['held_out_points']} held out",
     ]
     for axis in AXIS_NAMES:
