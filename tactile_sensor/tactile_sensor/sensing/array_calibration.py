@@ -116,6 +116,10 @@ class ArrayCalibration:
                                    "and every number finite; refit it.")
         self.output_scale_v = scale
         self.source = str(source)
+        # one reading at 1 kHz: the scale folded into the mixing, powers looked up, not raised
+        self._mix = self.feature_matrix / scale
+        self._degrees = np.arange(int(self.terms.max()) + 1)[:, None]
+        self._columns = np.broadcast_to(np.arange(len(self.faces)), self.terms.shape)
 
     @property
     def degree(self) -> int:
@@ -145,7 +149,11 @@ class ArrayCalibration:
             values = [float(outputs[f]) for f in self.faces]
         else:
             values = [float(v) for v in outputs]
-        fx, fy, fz = self.forces(np.array([values]))[0]
+            if len(values) != len(self.faces):
+                raise CalibrationError(f"Expected outputs of {len(self.faces)} modules "
+                                       f"({', '.join(self.faces)}), got {len(values)}.")
+        powers = (self._mix @ np.array(values)) ** self._degrees        # (degree + 1, m)
+        fx, fy, fz = self.coefficients @ powers[self.terms, self._columns].prod(axis=1)
         return float(fx), float(fy), float(fz)
 
     def in_range(self, outputs: Sequence[float], margin: float = 0.05) -> bool:

@@ -159,3 +159,19 @@ def test_modules_without_their_opposite_get_the_full_polynomial():
     outputs, forces = synthetic()
     cal = ArrayCalibration.fit(("front", "left", "right"), outputs[:, 1:], forces, 2, "")
     assert np.count_nonzero(cal.coefficients[0]) == len(polynomial_terms(3, 2))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(-0.2, 0.8), min_size=4, max_size=4))
+def test_one_reading_equals_the_batch_path(values):
+    outputs, forces = synthetic()
+    cal = ArrayCalibration.fit(FACES, outputs, forces, 3, "")
+    np.testing.assert_allclose(cal.force(values), cal.forces(np.array([values]))[0],
+                               rtol=1e-10, atol=1e-10)
+
+
+def test_a_reading_with_the_wrong_number_of_modules_is_refused():
+    outputs, forces = synthetic()
+    cal = ArrayCalibration.fit(FACES, outputs, forces, 2, "")
+    with pytest.raises(CalibrationError, match=r"outputs of 4 modules .* got 3"):
+        cal.force([0.1, 0.2, 0.3])
