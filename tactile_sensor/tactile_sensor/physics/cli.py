@@ -1,4 +1,6 @@
-"""``tactile-sensor model sweep``: the FEM prediction of the module from the command line.
+"""``tactile-sensor model sweep``: the FEM prediction of the module from the command line;
+``tactile-sensor model array-calibration``: the grid of load paths that calibrates modules on
+several faces for (Fx, Fy, Fz), its fit and the fit's error on held-out points.
 
 Parameters come from the defaults, then ``--config`` (flat YAML or ROS ``ros__parameters``
 form, e.g. ``config/physics.yaml``), then ``--set NAME=VALUE``, then ``--boundary`` and
@@ -18,6 +20,8 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, NoReturn
+
+import numpy as np
 
 from .errors import PhysicsError
 from .params import BOUNDARIES, PhysicsParams
@@ -44,9 +48,49 @@ def parser() -> argparse.ArgumentParser:
     sub.required = True
     p = sub.add_parser(
         "sweep", help="press the skin from 0 to max_indentation and predict force and output",
-        description="Press the skin block from 0 to max_indentation with the FEM model, apply "
-                    "the photoreflector optics and report force, bulge and module output "
-                    "(the paper's Fig. 7(a)/(b)). Results are cached per parameter digest.")
+        description="Press the skin block from 0 to max_indentation (and, with max_shear_x/y, "
+                    "move it sideways) with the FEM model, apply the photoreflector optics "
+                    "and report force, bulge and module output (the paper's Fig. 7(a)/(b)). "
+                    "Results are cached per parameter digest.")
+    _model_options(p)
+    p.add_argument("--boundary", choices=BOUNDARIES,
+                   help="'bonded' (paper: base fixed, probe bonded, module present) or "
+                        "'frictionless' (verification, no module)")
+    p.add_argument("--steps", type=int, metavar="N", help="load steps (overrides 'steps')")
+    p.add_argument("--json", type=Path, metavar="PATH",
+                   help="write the curve (indentation_m, force_n, bulge_m, distance_m, "
+                        "voltage_v, output_v, shear_x_m, shear_y_m, force_x_n, force_y_n "
+                        "(the probe's force on the skin along +x, +y; force_n along -z), "
+                        "module_bulges_m and module_outputs_v (face -> list), nodes, "
+                        "seconds, params) as JSON")
+    p.add_argument("--plot", type=Path, metavar="PATH",
+                   help="write a PNG: force and output change against indentation")
+    a = sub.add_parser(
+        "array-calibration", help="FEM grid of shear load paths and the modules' (Fx, Fy, Fz) "
+                                  "calibration fitted to it",
+        description="Solve the array calibration grid (indentation x shear direction x shear "
+                    "magnitude, parameters array_*), fit a polynomial from the modules' "
+                    "outputs to (Fx, Fy, Fz), and report its error on grid points held out "
+                    "of the fit. Four modules (front, back, left, right) unless 'modules' is "
+                    "set. The grid is cached per parameter digest.")
+    _model_options(a)
+    a.add_argument("--degree", type=int, default=3, metavar="N",
+                   help="polynomial degree of the calibration (default 3)")
+    a.add_argument("--workers", type=int, default=2, metavar="N",
+                   help="load paths solved at once, one process each (default 2)")
+    a.add_argument("--json", type=Path, metavar="PATH",
+                   help="write the grid, the fit's held-out errors and the calibration")
+    a.add_argument("--calibration", type=Path, metavar="PATH",
+                   help="write the calibration file the driver loads "
+                        "(format tactile_sensor/array_calibration)")
+    a.add_argument("--plot", type=Path, metavar="PATH",
+                   help="write a PNG: calibrated vs FEM force per axis on held-out points, "
+                        "module outputs against the shear direction")
+    return top
+
+
+def _model_options(p: argparse.ArgumentParser) -> None:
+    """Parameter sources, cache and progress: the same for every model command."""
     p.add_argument("--config", type=Path, metavar="FILE",
                    help="YAML physics parameters: a flat NAME: VALUE mapping, or ROS params "
                         "form '<node or /**>: {ros__parameters: {...}}' (e.g. "
@@ -57,21 +101,11 @@ def parser() -> argparse.ArgumentParser:
                    help="override a physics parameter in SI units (m, Pa, ...), e.g. "
                         "--set height=0.025 c01=12180 gap=0.002; known names: "
                         + ", ".join(PhysicsParams.names()))
-    p.add_argument("--boundary", choices=BOUNDARIES,
-                   help="'bonded' (paper: base fixed, probe bonded, module present) or "
-                        "'frictionless' (verification, no module)")
-    p.add_argument("--steps", type=int, metavar="N", help="load steps (overrides 'steps')")
-    p.add_argument("--json", type=Path, metavar="PATH",
-                   help="write the curve (indentation_m, force_n, bulge_m, distance_m, "
-                        "voltage_v, output_v, nodes, seconds, params) as JSON")
-    p.add_argument("--plot", type=Path, metavar="PATH",
-                   help="write a PNG: force and output change against indentation")
     p.add_argument("--cache-dir", type=Path, metavar="DIR",
                    help="cache folder (default $XDG_CACHE_HOME/tactile_sensor)")
     p.add_argument("--no-cache", action="store_true",
                    help="always run the FEM sweep and do not store the result")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    return top
 
 
 # -- parameters ------------------------------------------------------------------------------
@@ -142,14 +176,15 @@ def set_values(items: list[str]) -> dict[str, Any]:
     return values
 
 
-def build_params(args: argparse.Namespace) -> PhysicsParams:
-    values: dict[str, Any] = {}
+def build_params(args: argparse.Namespace, defaults: Mapping[str, Any] | None = None
+                 ) -> PhysicsParams:
+    values: dict[str, Any] = dict(defaults or {})
     if args.config is not None:
         values.update(config_values(args.config))
     values.update(set_values(args.sets))
-    if args.boundary is not None:
+    if getattr(args, "boundary", None) is not None:
         values["boundary"] = args.boundary
-    if args.steps is not None:
+    if getattr(args, "steps", None) is not None:
         values["steps"] = args.steps
     try:
         return PhysicsParams.from_mapping(values)
@@ -185,8 +220,7 @@ class _Progress:
 
 def write_json(curve: PredictionCurve, params: PhysicsParams, path: Path) -> None:
     data = curve.to_dict()
-    data["params"] = {k: list(v) if isinstance(v, tuple) else v
-                      for k, v in params.to_dict().items()}
+    data["params"] = _plain(params)
     path.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
 
 
@@ -221,7 +255,15 @@ def summary(curve: PredictionCurve, cache: str) -> str:
     force = float(curve.force_n[-1])
     output = float(curve.output_v[-1])
     sensitivity = f"{output / force:.4f} V/N" if force > 0 else "n/a (no force)"
-    return "\n".join([
+    extra = []
+    if np.any(curve.shear_x_m) or np.any(curve.shear_y_m):
+        extra.append(f"shear           ({curve.shear_x_m[-1] * 1e3:.3f}, "
+                     f"{curve.shear_y_m[-1] * 1e3:.3f}) mm, lateral force "
+                     f"({curve.force_x_n[-1]:.3f}, {curve.force_y_n[-1]:.3f}) N")
+    if len(curve.module_outputs_v) > 1 or extra:
+        extra.append("module outputs  " + ", ".join(
+            f"{face} {values[-1]:.4f} V" for face, values in curve.module_outputs_v.items()))
+    return "\n".join([*extra,
         f"indentation     {d * 1e3:.3f} mm",
         f"force           {force:.3f} N",
         f"bulge           {curve.bulge_m[-1] * 1e3:.4f} mm "
@@ -240,6 +282,9 @@ def sweep(args: argparse.Namespace) -> int:
     _check_output(args.json, "--json")
     _check_output(args.plot, "--plot")
     progress = _Progress(not args.quiet)
+    if params.max_indentation <= 0:
+        raise UsageError("a sweep runs along the indentation, so it needs max_indentation "
+                         "> 0; give one.")
     if args.no_cache:
         curve = compute_curve(params, progress)
         cache = "off (--no-cache)"
@@ -259,6 +304,57 @@ def sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def array_calibration(args: argparse.Namespace) -> int:
+    from tactile_sensor.sensing.errors import CalibrationError
+
+    from .array_grid import compute_grid, load_or_compute_grid
+    from .array_report import fit_grid
+    from .array_report import summary as array_summary
+    from .array_report import write_plot as array_plot
+
+    params = build_params(args, {"modules": "front,back,left,right"})
+    for path, option in ((args.json, "--json"), (args.plot, "--plot"),
+                         (args.calibration, "--calibration")):
+        _check_output(path, option)
+    if args.degree < 1 or args.workers < 1:
+        raise UsageError("--degree and --workers must be at least 1.")
+    progress = _Progress(not args.quiet)
+    if args.no_cache:
+        grid = compute_grid(params, progress, args.workers)
+        cache = "off (--no-cache)"
+    else:
+        grid = load_or_compute_grid(params, args.cache_dir, progress, args.workers)
+        cache = (f"miss (computed, digest {params.grid_digest()})" if progress.called else
+                 f"hit (digest {params.grid_digest()})")
+    try:
+        calibration, report = fit_grid(grid, args.degree)
+    except CalibrationError as err:
+        raise UsageError(str(err)) from None
+    report["source"] = calibration.source
+    outputs = {
+        args.json: lambda path: path.write_text(json.dumps(
+            {"grid": grid.to_dict(), "fit": report, "calibration": calibration.to_dict(),
+             "params": _plain(params)}, indent=1) + "\n", encoding="utf-8"),
+        args.calibration: lambda path: calibration.to_file(path, fit={
+            k: v for k, v in report.items() if k != "estimate_held_out"}),
+        args.plot: lambda path: array_plot(grid, report, path),
+    }
+    for path, write in outputs.items():
+        if path is None:
+            continue
+        try:
+            write(path)
+        except OSError as err:
+            raise PhysicsError(f"cannot write {path} ({err.strerror or err}); pass a "
+                               "writable path.") from None
+    print(array_summary(report, params, cache))
+    return 0
+
+
+def _plain(params: PhysicsParams) -> dict[str, Any]:
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in params.to_dict().items()}
+
+
 def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     try:
@@ -269,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # --help
         return exc.code if isinstance(exc.code, int) else 0
     try:
-        code = sweep(args)
+        code = sweep(args) if args.command == "sweep" else array_calibration(args)
     except UsageError as err:
         print(f"{PROG} {args.command}: {err}", file=sys.stderr)
         return 2

@@ -12,9 +12,13 @@ needs too many iterations (factorising is what costs; see ``SkinModel._newton``)
 graded toward the singular edges, and predictions Richardson-extrapolate it with a mesh half
 as fine (``extrapolated_sweep``).
 
-Quarter model: the block is symmetric about x = 0 and y = 0. The window is centred on x = 0;
-symmetry about y = 0 holds exactly because the module is taken as front/back symmetric (its
-back wall has the same window — see ``PhysicsParams.window_width``).
+Quarter model: the block is symmetric about x = 0 and y = 0. Windows are centred on their
+face and come in opposite pairs (a module's wall and the one facing it have the same window —
+see ``PhysicsParams.modules``), so pure indentation is symmetric about both planes. A lateral
+probe displacement along x breaks the symmetry about x = 0 (but keeps y = 0), so that load
+path solves the half model x in [-W/2, W/2]; one along y the other half; both, the full
+block. The half and full meshes are the quarter mesh mirrored, so on pure indentation all
+three give the same numbers to the solver's tolerance (tested).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import scipy.sparse.linalg as spla
 import skfem
 
 from .errors import ConvergenceError, PhysicsError
-from .params import PhysicsParams
+from .params import FACES, PhysicsParams
 
 Progress = Callable[[float, str], None]
 
@@ -46,13 +50,24 @@ _MAX_CUTS = 4         # a failed load step is halved at most this often (to 1/16
 
 @dataclass(frozen=True)
 class SweepResult:
-    """Per load step: indentation [m], probe reaction force [N], window-averaged bulge [m]."""
+    """Per load step: probe position, probe force on the skin, window-averaged bulges.
+
+    ``force_n`` is the probe's force on the skin along -z (positive pressing), ``force_x_n``
+    and ``force_y_n`` along +x and +y: each positive along the probe's own displacement when
+    it moves along one axis. ``bulges_m`` maps each module face to its window's outward
+    displacement [m]; ``bulge_m`` is the first module's (front's, by default).
+    """
 
     indentation_m: np.ndarray
     force_n: np.ndarray
     bulge_m: np.ndarray
     nodes: int
     seconds: float
+    shear_x_m: np.ndarray
+    shear_y_m: np.ndarray
+    force_x_n: np.ndarray
+    force_y_n: np.ndarray
+    bulges_m: dict[str, np.ndarray]
 
 
 # --------------------------------------------------------------------------------------------
@@ -91,28 +106,47 @@ def _axis(breaks: list[float], n: int, refine: tuple[float, ...] = (), grading: 
     return np.concatenate([*pts, [hi]])
 
 
-def build_mesh(params: PhysicsParams) -> skfem.MeshHex:
-    """Structured hexahedral quarter mesh x in [0, W/2], y in [0, D/2], z in [0, H].
+def build_mesh(params: PhysicsParams, full: tuple[bool, bool] = (False, False)
+               ) -> skfem.MeshHex:
+    """Structured hexahedral mesh: the quarter x in [0, W/2], y in [0, D/2], z in [0, H],
+    mirrored to x in [-W/2, W/2] when ``full[0]`` and likewise y when ``full[1]``.
 
-    Bonded with a module: graded toward the window's edges (x, z), the band's top edge (z),
-    the probe's edge (z) and the window's face (y), the singular edges and the face whose
-    displacement the photoreflector reads. Frictionless: uniform (the solution is).
+    Bonded with a module: graded toward the windows' edges, the band's top edge (z), the
+    probe's edge (z) and the windowed faces, the singular edges and the faces whose
+    displacement the photoreflectors read. Frictionless: uniform (the solution is).
     """
     p = params
     hw, hd = p.width / 2, p.depth / 2
     g, length = p.mesh_grading, p.mesh_grading_length
     if p.boundary != "bonded" or p.module_height <= 0:
         top = (p.height,) if p.boundary == "bonded" else ()   # the probe edge, if bonded
-        return skfem.MeshHex.init_tensor(_axis([0.0, hw], p.mesh_nx),
-                                         _axis([0.0, hd], p.mesh_ny),
-                                         _axis([0.0, p.height], p.mesh_nz, top, g, length))
-    ww = p.window_width / 2
-    z0, z1 = p.window_center_z - p.window_height / 2, p.window_center_z + p.window_height / 2
-    x = _axis([0.0, ww, hw], p.mesh_nx, (ww,), g, length)
-    y = _axis([0.0, hd], p.mesh_ny, (hd,), g, length)
-    z = _axis([0.0, z0, z1, p.module_height, p.height], p.mesh_nz,
-              (z0, z1, p.module_height, p.height), g, length)
-    return skfem.MeshHex.init_tensor(x, y, z)
+        x, y = _axis([0.0, hw], p.mesh_nx), _axis([0.0, hd], p.mesh_ny)
+        z = _axis([0.0, p.height], p.mesh_nz, top, g, length)
+    else:
+        ww = p.window_width / 2
+        z0 = p.window_center_z - p.window_height / 2
+        z1 = p.window_center_z + p.window_height / 2
+        axes = {FACES[f][0] for f in p.window_faces}       # normals of the windowed faces
+        half = (hw, hd)
+        per_axis = []
+        for k in (0, 1):
+            breaks, refine = [0.0, half[k]], []
+            if 1 - k in axes:          # windows on the other faces span |coordinate| < ww
+                breaks.append(ww)
+                refine.append(ww)
+            if k in axes:              # windows on this axis' own faces
+                refine.append(half[k])
+            per_axis.append(_axis(breaks, (p.mesh_nx, p.mesh_ny)[k], tuple(refine), g,
+                                  length))
+        x, y = per_axis
+        z = _axis([0.0, z0, z1, p.module_height, p.height], p.mesh_nz,
+                  (z0, z1, p.module_height, p.height), g, length)
+    return skfem.MeshHex.init_tensor(_mirror(x, full[0]), _mirror(y, full[1]), z)
+
+
+def _mirror(axis: np.ndarray, full: bool) -> np.ndarray:
+    """The axis [0, h] or, for the full span, its mirror image joined to it."""
+    return np.concatenate([-axis[:0:-1], axis]) if full else axis
 
 
 # --------------------------------------------------------------------------------------------
@@ -175,9 +209,18 @@ def _mooney_rivlin_piola(F: np.ndarray, c10: float, c01: float, pres: np.ndarray
 class SkinModel:
     """The discretised skin block with its boundary conditions, ready to sweep the load."""
 
-    def __init__(self, params: PhysicsParams) -> None:
+    def __init__(self, params: PhysicsParams, full: tuple[bool, bool] | None = None) -> None:
+        """``full``: whether the model spans the whole width (x) and depth (y); by default
+        the quarter, or the half or full block a shear load path needs."""
         self.params = params
-        self.mesh = build_mesh(params)
+        if full is None:
+            full = (params.max_shear_x != 0, params.max_shear_y != 0)
+        elif (params.max_shear_x != 0 and not full[0]) or (params.max_shear_y != 0
+                                                             and not full[1]):
+            raise PhysicsError("A shear load path needs the model to span the axis it "
+                               "shears along; pass full=(True, ...) for x, (..., True) for y.")
+        self.full = (bool(full[0]), bool(full[1]))
+        self.mesh = build_mesh(params, self.full)
         mesh = self.mesh
         basis = skfem.Basis(mesh, skfem.ElementHex1(), intorder=2)
         nel = mesh.t.shape[1]
@@ -199,53 +242,93 @@ class SkinModel:
                       "cuts": 0}
 
     # -- boundary conditions -------------------------------------------------------------------
+    def _in_mesh(self, face: str) -> str:
+        """The face itself, or the mirror face standing for it in a symmetric model."""
+        axis, sign = FACES[face]
+        if sign > 0 or self.full[axis]:
+            return face
+        return next(f for f, (a, s) in FACES.items() if a == axis and s > 0)
+
     def _setup_constraints(self) -> None:
         p = self.params
         X = self.mesh.p
         tol = 1e-9 * max(p.width, p.height)
-        x, y, z = X
-        hw, hd = p.width / 2, p.depth / 2
+        z = X[2]
+        half = (p.width / 2, p.depth / 2)
+        zc, wh, ww = p.window_center_z, p.window_height / 2, p.window_width / 2
         fixed = np.zeros((self.nodes, 3), dtype=bool)
         bottom = z < tol
         top = z > p.height - tol
-        fixed[x < tol, 0] = True                              # symmetry plane x = 0
-        fixed[y < tol, 1] = True                              # symmetry plane y = 0
+        for k in (0, 1):
+            if not self.full[k]:
+                fixed[X[k] < tol, k] = True                   # symmetry plane x or y = 0
         if p.boundary == "bonded":
             fixed[bottom, :] = True
             fixed[top, :] = True
             if p.module_height > 0:
                 band = z <= p.module_height + tol
-                fixed[band & (x > hw - tol), :] = True
-                front = band & (y > hd - tol)
-                zc, wh, ww = p.window_center_z, p.window_height / 2, p.window_width / 2
-                window = front & (x < ww - tol) & (abs(z - zc) < wh - tol)
-                fixed[front & ~window, :] = True
-                if not window.any():
-                    raise PhysicsError("The mesh has no node inside the photoreflector "
-                                       "window; raise mesh_nx and mesh_nz or enlarge the "
-                                       "window.")
+                for face, (k, sign) in FACES.items():
+                    wall = band & (sign * X[k] > half[k] - tol)
+                    if not wall.any():
+                        continue                              # beyond a symmetry plane
+                    window = np.zeros_like(wall)
+                    if face in p.window_faces:
+                        window = wall & (abs(X[1 - k]) < ww - tol) & (abs(z - zc) < wh - tol)
+                        if not window.any():
+                            raise PhysicsError("The mesh has no node inside the "
+                                               "photoreflector window; raise mesh_nx, "
+                                               "mesh_ny and mesh_nz or enlarge the window.")
+                    fixed[wall & ~window, :] = True
         else:
             fixed[bottom, 2] = True
             fixed[top, 2] = True
         self._top = top
         self._fixed = fixed.ravel()
         self._free = np.flatnonzero(~self._fixed)
-        # window patch: area-weighted average of u_y over front-face quads inside the window.
+        self._patches = {face: self._window_patch(self._in_mesh(face))
+                         for face in p.module_faces}
+
+    def _window_patch(self, face: str) -> tuple[int, int, np.ndarray]:
+        """(axis, outward sign, node weights): the area-weighted average of the face's
+        outward displacement over its quads inside the window."""
+        p = self.params
+        x = self.mesh.p
+        k, sign = FACES[face]
+        h = (p.width / 2, p.depth / 2)[k]
+        tol = 1e-9 * max(p.width, p.height)
         zc, wh, ww = p.window_center_z, p.window_height / 2, p.window_width / 2
         weights = np.zeros(self.nodes)
         facets = self.mesh.facets
-        on_front = np.all(y[facets] > hd - tol, axis=0)
-        cx = x[facets].mean(axis=0)
-        cz = z[facets].mean(axis=0)
-        inside = on_front & (cx < ww) & (abs(cz - zc) < wh)
+        on_face = np.all(sign * x[k][facets] > h - tol, axis=0)
+        across = x[1 - k][facets]
+        cz = x[2][facets].mean(axis=0)
+        inside = on_face & (abs(across.mean(axis=0)) < ww) & (abs(cz - zc) < wh)
         for f in np.flatnonzero(inside):
             nodes = facets[:, f]
-            area = np.ptp(x[nodes]) * np.ptp(z[nodes])
+            area = np.ptp(across[:, f]) * np.ptp(x[2][nodes])
             np.add.at(weights, nodes, area / 4)
-        if weights.sum() == 0:  # window finer than the mesh: nearest front node
-            cand = np.flatnonzero(y > hd - tol)
-            weights[cand[np.argmin(x[cand] ** 2 + (z[cand] - zc) ** 2)]] = 1.0
-        self._patch = weights / weights.sum()
+        if weights.sum() == 0:  # window finer than the mesh: nearest node of the face
+            cand = np.flatnonzero(sign * x[k] > h - tol)
+            weights[cand[np.argmin(x[1 - k][cand] ** 2 + (x[2][cand] - zc) ** 2)]] = 1.0
+        return k, sign, weights / weights.sum()
+
+    def bulges(self, u: np.ndarray) -> dict[str, float]:
+        """Each module's window-averaged outward displacement [m] in state u."""
+        u3 = u.reshape(-1, 3)
+        return {face: float(sign * (w @ u3[:, k]))
+                for face, (k, sign, w) in self._patches.items()}
+
+    def probe_force(self, fint: np.ndarray) -> tuple[float, float, float]:
+        """The probe's force on the skin (+x, +y, -z) [N] from the internal forces.
+
+        A symmetric model stands for 2 or 4 copies of itself; along a symmetry plane's
+        normal the copies' forces cancel.
+        """
+        on_top = fint.reshape(-1, 3)[self._top].sum(axis=0)
+        copies = (1 if self.full[0] else 2) * (1 if self.full[1] else 2)
+        fx = copies * float(on_top[0]) if self.full[0] else 0.0
+        fy = copies * float(on_top[1]) if self.full[1] else 0.0
+        return fx, fy, -copies * float(on_top[2])
 
     def _setup_pattern(self) -> None:
         """CSR pattern of the free-free stiffness and the scatter index of every element entry."""
@@ -318,14 +401,20 @@ class SkinModel:
         return fint, K
 
     # -- solve -------------------------------------------------------------------------------
-    def _prescribe(self, u: np.ndarray, d: float) -> None:
+    def _prescribe(self, u: np.ndarray, t: float) -> None:
+        """Set the constrained dofs at load fraction t of the path (probe at t * its end)."""
+        p = self.params
         u3 = u.reshape(-1, 3)
         fixed = self._fixed.reshape(-1, 3)
         u3[fixed] = 0.0
-        u3[self._top, 2] = -d
+        if p.boundary == "bonded":
+            u3[self._top] = t * np.array([p.max_shear_x, p.max_shear_y, -p.max_indentation])
+        else:
+            u3[self._top, 2] = -t * p.max_indentation
 
     def sweep(self, progress: Progress | None = None) -> SweepResult:
-        """Press the top face from 0 to max_indentation in ``steps`` equal steps.
+        """Move the probe linearly from 0 to (max_indentation, max_shear_x, max_shear_y)
+        in ``steps`` equal steps.
 
         A step whose solve fails (an element would invert, or Newton stalls) is retried as two
         halves from the last equilibrium, up to ``_MAX_CUTS`` times: on fine graded meshes the
@@ -335,27 +424,38 @@ class SkinModel:
         """
         p = self.params
         start = time.perf_counter()
-        d_all = np.linspace(0.0, p.max_indentation, p.steps + 1)
-        forces, bulges = [0.0], [0.0]
+        t_all = np.linspace(0.0, 1.0, p.steps + 1)
+        forces = [(0.0, 0.0, 0.0)]
+        bulges = [dict.fromkeys(self._patches, 0.0)]
         history: list[tuple[float, np.ndarray]] = [(0.0, np.zeros(self.ndof))]
         lu = None
-        for n in range(1, d_all.size):
+        for n in range(1, t_all.size):
             cuts_before = self.stats["cuts"]
-            u, lu = self._advance(history, lu, d_all[n], 0)
+            u, lu = self._advance(history, lu, t_all[n], 0)
             fint, _ = self._evaluate(u, tangent=False)
-            forces.append(-4.0 * fint.reshape(-1, 3)[self._top, 2].sum())
-            bulges.append(float(self._patch @ u.reshape(-1, 3)[:, 1]))
+            forces.append(self.probe_force(fint))
+            bulges.append(self.bulges(u))
             if progress is not None:
                 cut = self.stats["cuts"] - cuts_before
                 note = f" ({cut} step cut{'s' if cut > 1 else ''})" if cut else ""
+                shear = ""
+                if p.is_shear:
+                    shear = (f", shear ({t_all[n] * p.max_shear_x * 1e3:.2f}, "
+                             f"{t_all[n] * p.max_shear_y * 1e3:.2f}) mm, lateral force "
+                             f"({forces[-1][0]:.3f}, {forces[-1][1]:.3f}) N")
                 progress(n / p.steps, f"load step {n}/{p.steps}: indentation "
-                         f"{d_all[n] * 1e3:.2f} mm, force {forces[-1]:.3f} N{note}")
-        return SweepResult(d_all, np.array(forces), np.array(bulges), self.nodes,
-                           time.perf_counter() - start)
+                         f"{t_all[n] * p.max_indentation * 1e3:.2f} mm, force "
+                         f"{forces[-1][2]:.3f} N{shear}{note}")
+        f = np.array(forces)
+        per_face = {face: np.array([b[face] for b in bulges]) for face in self._patches}
+        return SweepResult(t_all * p.max_indentation, f[:, 2], per_face[p.module_faces[0]],
+                           self.nodes, time.perf_counter() - start,
+                           t_all * p.max_shear_x, t_all * p.max_shear_y, f[:, 0], f[:, 1],
+                           per_face)
 
     def _advance(self, history: list[tuple[float, np.ndarray]], lu: object, d: float,
                  depth: int) -> tuple[np.ndarray, object]:
-        """Equilibrium at indentation d from the last one in ``history`` (appended to it)."""
+        """Equilibrium at load fraction d from the last one in ``history`` (appended to it)."""
         d0, u0 = history[-1]
         try:
             if len(history) == 1:
@@ -393,7 +493,7 @@ class SkinModel:
 
     def _tangent_predictor(self, u: np.ndarray, d: float, perm: np.ndarray
                            ) -> tuple[np.ndarray, object]:
-        """Linearised step from equilibrium u to the new probe position (K_fc du_c by FD).
+        """Linearised step from equilibrium u to load fraction d (K_fc du_c by FD).
 
         Moving only the probe nodes puts a large volume error into the top elements, and
         Newton from there diverges for a nearly incompressible solid; the linear response to
@@ -510,8 +610,8 @@ class SkinModel:
         return bool(np.all(_det(self._gradient.deformation(trial[self._edofs])) > 0.05))
 
 
-def extrapolated_sweep(params: PhysicsParams, progress: Progress | None = None
-                       ) -> SweepResult:
+def extrapolated_sweep(params: PhysicsParams, progress: Progress | None = None,
+                       full: tuple[bool, bool] | None = None) -> SweepResult:
     """The sweep on the parameters' mesh, Richardson-extrapolated with one half as fine.
 
     Why: the window's bulge converges with a large constant (the default mesh alone reads
@@ -520,11 +620,12 @@ def extrapolated_sweep(params: PhysicsParams, progress: Progress | None = None
     cancels the leading term. Force and bulge converge at different orders (the force is
     dominated by the edge singularities), each measured by ``benchmarks/bench_fem.py`` from
     three meshes and set as a parameter; an order of 0 keeps that quantity's mesh value.
+    The lateral forces take the force's order. ``full`` as for :class:`SkinModel`.
     """
     p_force = params.mesh_extrapolation_order_force
     p_bulge = params.mesh_extrapolation_order_bulge
     if p_force == 0 and p_bulge == 0:
-        return SkinModel(params).sweep(progress)
+        return SkinModel(params, full).sweep(progress)
     counts = (params.mesh_nx, params.mesh_ny, params.mesh_nz)
     halved = (max(1, math.ceil(params.mesh_nx / 2)), max(1, math.ceil(params.mesh_ny / 2)),
               max(2, math.ceil(params.mesh_nz / 2)))
@@ -537,19 +638,24 @@ def extrapolated_sweep(params: PhysicsParams, progress: Progress | None = None
         return lambda f, msg: progress(lo + (hi - lo) * f, f"{label}: {msg}")
 
     try:
-        coarse_model = SkinModel(coarse_params)
+        coarse_model = SkinModel(coarse_params, full)
     except PhysicsError as exc:
         raise PhysicsError(f"The half-as-fine mesh the extrapolation needs ({halved[0]} x "
                            f"{halved[1]} x {halved[2]} elements) is too coarse: {exc} Or set "
                            "mesh_extrapolation_order_force and mesh_extrapolation_order_bulge "
                            "to 0.") from None
     coarse = coarse_model.sweep(stage(0.0, share, "half-as-fine mesh"))
-    fine = SkinModel(params).sweep(stage(share, 1.0, "mesh"))
+    fine = SkinModel(params, full).sweep(stage(share, 1.0, "mesh"))
     ratio = float(np.prod(counts) / np.prod(halved)) ** (1.0 / 3.0)
-    return SweepResult(fine.indentation_m,
-                       richardson(fine.force_n, coarse.force_n, ratio, p_force),
-                       richardson(fine.bulge_m, coarse.bulge_m, ratio, p_bulge), fine.nodes,
-                       fine.seconds + coarse.seconds)
+
+    def force(name: str) -> np.ndarray:
+        return richardson(getattr(fine, name), getattr(coarse, name), ratio, p_force)
+
+    bulges = {face: richardson(fine.bulges_m[face], coarse.bulges_m[face], ratio, p_bulge)
+              for face in fine.bulges_m}
+    return SweepResult(fine.indentation_m, force("force_n"), bulges[params.module_faces[0]],
+                       fine.nodes, fine.seconds + coarse.seconds, fine.shear_x_m,
+                       fine.shear_y_m, force("force_x_n"), force("force_y_n"), bulges)
 
 
 def richardson(fine: np.ndarray, coarse: np.ndarray, ratio: float, order: float

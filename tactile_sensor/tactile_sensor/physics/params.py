@@ -21,13 +21,21 @@ MODEL_VERSION = 2
 
 BOUNDARIES = ("bonded", "frictionless")
 
+#: Side faces a module can sit on -> (axis of the face's outward normal, its sign).
+#: front is the paper's face (+y, the photoreflector looks at it from outside); back -y,
+#: left -x, right +x.
+FACES: dict[str, tuple[int, int]] = {"front": (1, 1), "back": (1, -1), "left": (0, -1),
+                                     "right": (0, 1)}
+OPPOSITE = {"front": "back", "back": "front", "left": "right", "right": "left"}
+
 
 def _f(default: Any, unit: str, doc: str, *, curve: bool = True,
        low: float | None = None, high: float | None = None,
-       low_open: bool = False) -> Any:
-    """A field with its unit, its source/reason, bounds and whether it changes the curve."""
+       low_open: bool = False, grid: bool = False) -> Any:
+    """A field with its unit, its source/reason, bounds, whether it changes the curve and
+    whether it shapes the array calibration grid (``grid``: part of that cache's key)."""
     meta = {"unit": unit, "doc": doc, "curve": curve, "low": low, "high": high,
-            "low_open": low_open}
+            "low_open": low_open, "grid": grid}
     return field(default=default, metadata=meta)
 
 
@@ -54,8 +62,14 @@ class PhysicsParams:
                            "nearly incompressible silicone, K = 1000 mu)", low=10.0)
     # --- load ------------------------------------------------------------------------------
     max_indentation: float = _f(0.003, "m", "largest probe indentation (paper Sec. III-B: "
-                                "3 mm)", low=0.0, low_open=True)
-    steps: int = _f(15, "1", "load steps from 0 to max_indentation", low=1, high=1000)
+                                "3 mm); 0 only for a pure shear load path", low=0.0)
+    max_shear_x: float = _f(0.0, "m", "lateral probe displacement along +x at the end of "
+                            "the load path, which runs linearly from zero to "
+                            "(max_indentation, max_shear_x, max_shear_y); non-zero needs "
+                            "the bonded boundary and solves the half or full model")
+    max_shear_y: float = _f(0.0, "m", "the same along +y (toward the front face)")
+    steps: int = _f(15, "1", "load steps from 0 to the end of the load path", low=1,
+                    high=1000)
     boundary: str = _f("bonded", "-", "'bonded': base fixed, top bonded to the flat probe "
                        "(paper); 'frictionless': top and base slide (verification only, no "
                        "module)")
@@ -67,9 +81,15 @@ class PhysicsParams:
                               "base keep the bulge the photoreflector sees small (~0.26 mm at "
                               "3 mm), as the paper's 0.07 V/N implies; assumption; 0 = no "
                               "module", low=0.0)
-    window_width: float = _f(0.009, "m", "width of the open window in the module's front "
-                             "wall through which the photoreflector looks (assumption; the "
-                             "back wall is taken to have the same window, which makes the "
+    modules: str = _f("front", "-", "side faces that carry a module (a photoreflector "
+                      "behind its own window), comma-separated, any of front (+y, the "
+                      "paper's), back (-y), left (-x), right (+x); windows come in "
+                      "opposite pairs (a module's window in one wall of the band and the "
+                      "same window in the opposite wall, as the single-module model has "
+                      "always assumed), so 'front' alone also opens the back wall")
+    window_width: float = _f(0.009, "m", "width of the open window in a module's wall "
+                             "through which the photoreflector looks (assumption; the "
+                             "opposite wall is taken to have the same window, which makes the "
                              "model exactly symmetric front/back)",
                              low=0.0, low_open=True)
     window_height: float = _f(0.004, "m", "height of that window (assumption)", low=0.0,
@@ -97,6 +117,27 @@ class PhysicsParams:
                             "0.065 mm gives the analysis' onset lag ~0.06 s at 1 mm/s and "
                             "adds only ~2 % FS of hysteresis", curve=False, low=0.0,
                             high=0.001)
+    # --- array calibration grid (physics/array_grid.py; not the curve) -----------------------
+    array_steps: int = _f(6, "1", "indentation levels of the array calibration grid: load "
+                          "steps of each of its load paths, up to max_indentation",
+                          curve=False, grid=True, low=1, high=100)
+    array_directions: int = _f(8, "1", "shear directions of the grid, evenly spaced from +x "
+                               "toward +y (8: every 45 deg)", curve=False, grid=True, low=1,
+                               high=72)
+    array_shear_levels: int = _f(3, "1", "non-zero shear magnitudes per direction, evenly "
+                                 "spaced up to array_shear_ratio x indentation",
+                                 curve=False, grid=True, low=1, high=20)
+    array_shear_ratio: float = _f(3.0, "1", "largest lateral probe displacement of the "
+                                  "grid per unit indentation, where the skin starts to slide "
+                                  "on the probe: static friction of silicone on a smooth "
+                                  "probe mu ~ 0.5 (silicone rubber 0.25 to over 0.75, tacky "
+                                  "Ecoflex ~1), and the FEM's lateral/normal force at this "
+                                  "ratio is 0.43-0.57 over the indentations (docs/array.md)",
+                                  curve=False, grid=True, low=0.0, low_open=True, high=10.0)
+    array_mesh_scale: float = _f(0.5, "1", "elements per direction of the grid's mesh "
+                                 "relative to mesh_nx/ny/nz, solved alone (a shear path on "
+                                 "the full mesh took ~5 min; docs/array.md gives the error)",
+                                 curve=False, grid=True, low=0.0, low_open=True, high=2.0)
     # --- mesh (quarter model, symmetric about x = 0 and y = 0) ------------------------------
     mesh_nx: int = _f(10, "1", "elements across the half width", low=1, high=200)
     mesh_ny: int = _f(10, "1", "elements across the half depth", low=1, high=200)
@@ -138,6 +179,21 @@ class PhysicsParams:
         if self.c10 + self.c01 <= 0:
             raise PhysicsError("Parameters 'c10' + 'c01' must be positive (the shear "
                                "modulus 2(C10+C01) would be <= 0); fix the material.")
+        faces = [f.strip() for f in self.modules.split(",") if f.strip()]
+        unknown = [f for f in faces if f not in FACES]
+        if not faces or unknown or len(set(faces)) != len(faces):
+            raise PhysicsError(f"Parameter 'modules' is {self.modules!r}; give distinct "
+                               f"faces out of {', '.join(FACES)}, comma-separated.")
+        # one spelling per set of faces, so equal sets compare and hash equal
+        object.__setattr__(self, "modules", ",".join(f for f in FACES if f in faces))
+        shear = self.max_shear_x != 0 or self.max_shear_y != 0
+        if self.max_indentation == 0 and not shear:
+            raise PhysicsError("The load path is zero (max_indentation, max_shear_x and "
+                               "max_shear_y all 0); give an indentation or a shear.")
+        if shear and self.boundary != "bonded":
+            raise PhysicsError("Parameters 'max_shear_x'/'max_shear_y' need the bonded "
+                               "boundary (a frictionless probe cannot shear the skin); set "
+                               "boundary to bonded.")
         if self.max_indentation >= 0.6 * self.height:
             raise PhysicsError("Parameter 'max_indentation' exceeds 60 % of 'height'; "
                                "reduce it or make the skin taller.")
@@ -148,8 +204,9 @@ class PhysicsParams:
                 raise PhysicsError("The photoreflector window (window_center_z +- "
                                    "window_height/2) must lie inside the module band "
                                    "(0, module_height); move or shrink it.")
-            if self.window_width >= self.width:
-                raise PhysicsError("Parameter 'window_width' must be smaller than 'width'.")
+            if self.window_width >= min(self.width, self.depth):
+                raise PhysicsError("Parameter 'window_width' must be smaller than 'width' "
+                                   "and 'depth'.")
             if self.module_height >= self.height - self.max_indentation:
                 raise PhysicsError("Parameter 'module_height' reaches the probe; make it "
                                    "lower than height - max_indentation.")
@@ -167,6 +224,21 @@ class PhysicsParams:
     def bulk_modulus(self) -> float:
         """Bulk modulus K = bulk_ratio * mu [Pa] of the volumetric penalty."""
         return self.bulk_ratio * self.shear_modulus
+
+    @property
+    def module_faces(self) -> tuple[str, ...]:
+        """The faces carrying a module, in the fixed order front, back, left, right."""
+        return tuple(self.modules.split(","))
+
+    @property
+    def window_faces(self) -> tuple[str, ...]:
+        """Faces with an open window: the modules' and their opposite walls'."""
+        faces = set(self.module_faces) | {OPPOSITE[f] for f in self.module_faces}
+        return tuple(f for f in FACES if f in faces)
+
+    @property
+    def is_shear(self) -> bool:
+        return self.max_shear_x != 0 or self.max_shear_y != 0
 
     @classmethod
     def names(cls) -> list[str]:
@@ -207,8 +279,23 @@ class PhysicsParams:
             # The module and window play no part without the module; keep one cache entry.
             for name in ("module_height", "window_width", "window_height"):
                 curve.pop(name)
+        for name, default in _LATER_FIELDS.items():
+            # added after caches existed: at their default the curve is what it was
+            if curve[name] == default:
+                curve.pop(name)
         text = json.dumps({"model_version": MODEL_VERSION, **curve}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    def grid_digest(self) -> str:
+        """Hash of everything that changes the array calibration grid (curve and grid)."""
+        grid = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                if f.metadata["grid"]}
+        text = json.dumps({"curve": self.digest(), **grid}, sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+#: Curve fields added after prediction caches existed, with the defaults that keep them valid.
+_LATER_FIELDS: dict[str, Any] = {"max_shear_x": 0.0, "max_shear_y": 0.0, "modules": "front"}
 
 
 def _coerce(f: dataclasses.Field[Any], raw: Any) -> Any:
@@ -233,6 +320,8 @@ def _coerce(f: dataclasses.Field[Any], raw: Any) -> Any:
             if isinstance(raw, bool):
                 raise TypeError
             return float(raw)
+        if isinstance(raw, list | tuple):  # a YAML list of names, e.g. modules: [front, back]
+            return ",".join(str(v) for v in raw)
         return str(raw)
     except (TypeError, ValueError):
         kind = type(default).__name__ if not isinstance(default, tuple) else "list of numbers"

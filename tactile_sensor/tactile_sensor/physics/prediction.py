@@ -14,9 +14,9 @@ import json
 import os
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -25,8 +25,13 @@ from .errors import OutOfRangeError, PhysicsError
 from .optics import Photoreflector
 from .params import PhysicsParams
 
+if TYPE_CHECKING:
+    from .fem import SweepResult
+
 Progress = Callable[[float, str], None]
 ARRAYS = ("indentation_m", "force_n", "bulge_m", "distance_m", "voltage_v", "output_v")
+#: Per load step too, added with shear load paths; a file without them has them all zero.
+SHEAR_ARRAYS = ("shear_x_m", "shear_y_m", "force_x_n", "force_y_n")
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,24 @@ class PredictionCurve:
     nodes: int
     seconds: float
     digest: str
+    # probe's lateral position [m] and lateral force on the skin [N] (+x, +y)
+    shear_x_m: np.ndarray = field(default=None)  # type: ignore[assignment]
+    shear_y_m: np.ndarray = field(default=None)  # type: ignore[assignment]
+    force_x_n: np.ndarray = field(default=None)  # type: ignore[assignment]
+    force_y_n: np.ndarray = field(default=None)  # type: ignore[assignment]
+    # every module's bulge [m] and output [V] by face; the first module's are the above
+    module_bulges_m: dict[str, np.ndarray] = field(default=None)  # type: ignore[assignment]
+    module_outputs_v: dict[str, np.ndarray] = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        zeros = np.zeros_like(self.indentation_m)
+        for name in SHEAR_ARRAYS:
+            if getattr(self, name) is None:
+                object.__setattr__(self, name, zeros)
+        if self.module_bulges_m is None:
+            object.__setattr__(self, "module_bulges_m", {"front": self.bulge_m})
+        if self.module_outputs_v is None:
+            object.__setattr__(self, "module_outputs_v", {"front": self.output_v})
 
     @property
     def max_indentation_m(self) -> float:
@@ -93,8 +116,11 @@ class PredictionCurve:
         return np.interp(output_v, output, force)
 
     def to_dict(self) -> dict[str, Any]:
-        data: dict[str, Any] = {name: getattr(self, name).tolist() for name in ARRAYS}
-        data.update(nodes=self.nodes, seconds=self.seconds, digest=self.digest)
+        data: dict[str, Any] = {name: getattr(self, name).tolist()
+                                for name in ARRAYS + SHEAR_ARRAYS}
+        data.update(module_bulges_m={k: v.tolist() for k, v in self.module_bulges_m.items()},
+                    module_outputs_v={k: v.tolist() for k, v in self.module_outputs_v.items()},
+                    nodes=self.nodes, seconds=self.seconds, digest=self.digest)
         return data
 
     @classmethod
@@ -104,24 +130,30 @@ class PredictionCurve:
                                "'tactile-sensor model sweep --json'.")
         try:
             arrays = {name: np.asarray(data[name], dtype=float) for name in ARRAYS}
-            curve = cls(**arrays, nodes=int(data["nodes"]), seconds=float(data["seconds"]),
-                        digest=str(data.get("digest", "")))
-        except (KeyError, TypeError, ValueError) as exc:
+            arrays.update({name: np.asarray(data[name], dtype=float) for name in SHEAR_ARRAYS
+                           if name in data})
+            faces = {key: {str(k): np.asarray(v, dtype=float) for k, v in data[key].items()}
+                     for key in ("module_bulges_m", "module_outputs_v") if key in data}
+            curve = cls(**arrays, **faces, nodes=int(data["nodes"]),
+                        seconds=float(data["seconds"]), digest=str(data.get("digest", "")))
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise PhysicsError(f"A prediction file lacks or mangles {exc}; regenerate it with "
                                "'tactile-sensor model sweep --json'.") from None
+        arrays.update({f"{key}[{k}]": v for key, per_face in faces.items()
+                       for k, v in per_face.items()})
         if any(a.ndim != 1 or not np.all(np.isfinite(a)) for a in arrays.values()):
             raise PhysicsError("A prediction file's arrays must be flat lists of finite "
                                "numbers; regenerate it.")
-        sizes = {arrays[name].size for name in ARRAYS}
+        sizes = {a.size for a in arrays.values()}
         if len(sizes) != 1 or sizes.pop() < 2 or np.any(np.diff(curve.indentation_m) <= 0):
             raise PhysicsError("A prediction file's arrays differ in length or its "
                                "indentations do not increase; regenerate it.")
         return curve
 
 
-def curve_from_sweep(params: PhysicsParams, indentation_m: np.ndarray, force_n: np.ndarray,
-                     bulge_m: np.ndarray, nodes: int, seconds: float) -> PredictionCurve:
-    """Apply the optics to a mechanical sweep."""
+def module_output(params: PhysicsParams, bulge_m: npt.ArrayLike
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(distance [m], voltage [V], output [V]) of a module whose window bulges this much."""
     optics = Photoreflector(params.pigment_white, params.supply_voltage)
     distance = params.gap - np.asarray(bulge_m, dtype=float)
     if np.any(distance < 0):
@@ -129,9 +161,23 @@ def curve_from_sweep(params: PhysicsParams, indentation_m: np.ndarray, force_n: 
                            "increase 'gap' or reduce 'max_indentation'.")
     voltage = optics.voltage(distance)
     rest = float(optics.voltage(params.gap))
+    return distance, voltage, rest - voltage
+
+
+def curve_from_sweep(params: PhysicsParams, indentation_m: np.ndarray, force_n: np.ndarray,
+                     bulge_m: np.ndarray, nodes: int, seconds: float,
+                     sweep: SweepResult | None = None) -> PredictionCurve:
+    """Apply the optics to a mechanical sweep (``sweep``: its lateral load and modules)."""
+    distance, voltage, output = module_output(params, bulge_m)
+    extra: dict[str, Any] = {}
+    if sweep is not None:
+        extra = {name: np.asarray(getattr(sweep, name), float) for name in SHEAR_ARRAYS}
+        extra["module_bulges_m"] = {k: np.asarray(v, float) for k, v in sweep.bulges_m.items()}
+        extra["module_outputs_v"] = {k: module_output(params, v)[2]
+                                     for k, v in sweep.bulges_m.items()}
     return PredictionCurve(np.asarray(indentation_m, float), np.asarray(force_n, float),
-                           np.asarray(bulge_m, float), distance, voltage, rest - voltage,
-                           nodes, seconds, params.digest())
+                           np.asarray(bulge_m, float), distance, voltage, output,
+                           nodes, seconds, params.digest(), **extra)
 
 
 def default_cache_dir() -> Path:
@@ -142,9 +188,12 @@ def default_cache_dir() -> Path:
 def compute_curve(params: PhysicsParams, progress: Progress | None = None) -> PredictionCurve:
     from .fem import extrapolated_sweep  # scikit-fem is only needed for a cold sweep
 
+    if params.max_indentation <= 0:
+        raise PhysicsError("A prediction curve runs along the indentation, so it needs "
+                           "max_indentation > 0; give one.")
     sweep = extrapolated_sweep(params, progress)
     return curve_from_sweep(params, sweep.indentation_m, sweep.force_n, sweep.bulge_m,
-                            sweep.nodes, sweep.seconds)
+                            sweep.nodes, sweep.seconds, sweep)
 
 
 def load_or_compute_curve(params: PhysicsParams, cache_dir: Path | None = None,

@@ -120,23 +120,10 @@ class Calibration:
     def from_file(cls, path: Path | str) -> Calibration:
         """Load a calibration JSON; the source is ``file:<path>`` plus the file's own note."""
         path = Path(path)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise CalibrationError(f"Calibration file {path} does not exist; fix the path or "
-                                   "run the analysis to write one.") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise CalibrationError(f"Cannot read calibration file {path} ({exc}); check the "
-                                   "file's permissions.") from None
-        try:
-            data = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise CalibrationError(f"Calibration file {path} is not valid JSON (line "
-                                   f"{exc.lineno}); rewrite it with the analysis tools.") from None
+        data = read_json_file(path, "Calibration file", "run the analysis to write one",
+                              "rewrite it with the analysis tools")
         cal = cls.from_mapping(data, f"file:{path}")
-        note = data.get("source")
-        if isinstance(note, str) and note:
-            cal.source = f"file:{path} ({note})"
+        cal.source = file_source(path, data)
         return cal
 
     def to_dict(self, fit: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -153,3 +140,26 @@ class Calibration:
     def __repr__(self) -> str:
         return (f"Calibration({len(self._out)} points, output 0..{self._out[-1]:.3f} V, "
                 f"source={self.source!r})")
+
+
+def read_json_file(path: Path, label: str, write_hint: str, rewrite_hint: str) -> Any:
+    """A calibration file's JSON, or a CalibrationError naming the file and the fix."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise CalibrationError(f"{label} {path} does not exist; fix the path or "
+                               f"{write_hint}.") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"Cannot read {label[0].lower()}{label[1:]} {path} ({exc}); "
+                               "check the file's permissions.") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise CalibrationError(f"{label} {path} is not valid JSON (line {exc.lineno}); "
+                               f"{rewrite_hint}.") from None
+
+
+def file_source(path: Path, data: Any) -> str:
+    """``file:<path>``, plus the file's own ``source`` note when it has one."""
+    note = data.get("source") if isinstance(data, Mapping) else None
+    return f"file:{path} ({note})" if isinstance(note, str) and note else f"file:{path}"

@@ -263,3 +263,46 @@ def test_unwritable_cache_still_returns_the_curve(tmp_path):
 def test_default_cache_dir_follows_xdg(monkeypatch, tmp_path):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     assert prediction.default_cache_dir() == Path(tmp_path) / "tactile_sensor"
+
+
+# -- shear and several modules -----------------------------------------------------------------
+
+
+def test_a_file_from_before_shear_loads_with_zero_shear_and_the_front_module():
+    data = synthetic().to_dict()
+    for key in ("shear_x_m", "shear_y_m", "force_x_n", "force_y_n", "module_bulges_m",
+                "module_outputs_v"):
+        del data[key]
+    curve = PredictionCurve.from_dict(data)
+    assert np.all(curve.force_x_n == 0) and np.all(curve.shear_y_m == 0)
+    assert list(curve.module_outputs_v) == ["front"]
+    np.testing.assert_array_equal(curve.module_outputs_v["front"], curve.output_v)
+
+
+def test_module_outputs_round_trip_and_bad_ones_are_refused():
+    from tactile_sensor.physics.fem import SkinModel
+
+    params = PhysicsParams(mesh_nx=4, mesh_ny=4, mesh_nz=16, steps=2, max_indentation=0.001,
+                           max_shear_y=-0.001, modules="front,back")
+    res = SkinModel(params).sweep()
+    curve = curve_from_sweep(params, res.indentation_m, res.force_n, res.bulge_m, res.nodes,
+                             res.seconds, res)
+    assert curve.module_outputs_v["back"][-1] > curve.module_outputs_v["front"][-1]
+    assert curve.force_y_n[-1] < 0
+    back = PredictionCurve.from_dict(json.loads(json.dumps(curve.to_dict())))
+    for face in ("front", "back"):
+        np.testing.assert_array_equal(back.module_outputs_v[face], curve.module_outputs_v[face])
+    np.testing.assert_array_equal(back.force_y_n, curve.force_y_n)
+    data = curve.to_dict()
+    data["module_outputs_v"]["back"] = data["module_outputs_v"]["back"][:-1]
+    with pytest.raises(PhysicsError, match="differ in length"):
+        PredictionCurve.from_dict(data)
+    data["module_outputs_v"] = [1, 2]
+    with pytest.raises(PhysicsError, match="lacks or mangles"):
+        PredictionCurve.from_dict(data)
+
+
+def test_a_curve_needs_an_indentation():
+    params = PhysicsParams(max_indentation=0.0, max_shear_x=1e-3)
+    with pytest.raises(PhysicsError, match="needs max_indentation > 0"):
+        prediction.compute_curve(params)

@@ -1,0 +1,349 @@
+"""The array calibration grid: module outputs under indentation x shear direction x magnitude.
+
+Each load path runs linearly from rest to (max_indentation, r d cos(theta), r d sin(theta))
+for shear level r = ratio * j / levels, so its ``array_steps`` load steps are the grid's
+indentation levels d and the shear grows with the indentation: a probe pressed d deep slides
+off once its lateral force reaches the friction limit, which the FEM puts at a lateral
+displacement proportional to d (``array_shear_ratio``, docs/array.md). The bonded skin is
+hyperelastic, so the state at a grid point does not depend on how the probe got there: one
+path per (direction, level) serves all indentations.
+
+Fewer solves: the block is mirror-symmetric about x = 0 and y = 0 (and about x = y when it
+is square with windows on all four faces), so a direction that a symmetry maps onto one
+already solved is not solved again; its outputs are the mirror modules' and its forces the
+mirrored ones. With the defaults, 8 directions need 2 (0 and 45 deg). Paths solve in
+``workers`` processes at once, each pinned to one BLAS thread.
+
+Mesh: a half or full model on the curve's mesh took ~5 min a path (graded elements at the
+window edges invert under large shear and the steps are cut), so the grid solves a mesh with
+``array_mesh_scale`` times the elements per direction, alone (no Richardson half mesh). Its
+pure-indentation outputs read lower than the extrapolated curve's; ``ArrayGrid.curve_error``
+reports by how much.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import multiprocessing
+import os
+import queue as queue_module
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import PhysicsError
+from .params import FACES, PhysicsParams
+
+Progress = Callable[[float, str], None]
+GRID_FORMAT = "tactile_sensor/array_grid"
+_NORMALS = {face: np.array([sign if axis == 0 else 0, sign if axis == 1 else 0], float)
+            for face, (axis, sign) in FACES.items()}
+
+
+@dataclass(frozen=True)
+class LoadPath:
+    """One solved path: a canonical direction's index (or -1: pure indentation) and level."""
+
+    direction: int
+    level: int
+    shear_x_m: float
+    shear_y_m: float
+
+
+@dataclass(frozen=True, eq=False)
+class ArrayGrid:
+    """Grid points (rest included once): probe position, force on the skin, module outputs.
+
+    Forces follow the sweep's convention: (force_x_n, force_y_n) along +x/+y, force_n along
+    -z, each the probe's force on the skin. ``direction`` is the shear direction's index
+    (angle 2 pi i / directions from +x toward +y; -1 without shear), ``level`` the shear
+    level (0: none), ``step`` the load step along the path (0: rest).
+    """
+
+    indentation_m: np.ndarray
+    shear_x_m: np.ndarray
+    shear_y_m: np.ndarray
+    force_x_n: np.ndarray
+    force_y_n: np.ndarray
+    force_n: np.ndarray
+    outputs_v: dict[str, np.ndarray]
+    direction: np.ndarray
+    level: np.ndarray
+    step: np.ndarray
+    digest: str
+    seconds: float
+    paths: int
+
+    @property
+    def faces(self) -> tuple[str, ...]:
+        return tuple(self.outputs_v)
+
+    def output_matrix(self) -> np.ndarray:
+        """(points, modules) outputs [V] in ``faces`` order."""
+        return np.stack([self.outputs_v[f] for f in self.faces], axis=1)
+
+    def force_matrix(self) -> np.ndarray:
+        """(points, 3) forces [N]: x, y, z (z = force_n, pressing positive)."""
+        return np.stack([self.force_x_n, self.force_y_n, self.force_n], axis=1)
+
+    def held_out(self) -> np.ndarray:
+        """Points kept out of the fit: interior steps and levels in a checkerboard, in every
+        direction alike (so no mirror image of a held-out point is fitted)."""
+        steps, levels = int(self.step.max()), int(self.level.max())
+        interior = (self.step > 0) & (self.step < steps) & (self.level > 0) & \
+            (self.level < levels)
+        return interior & ((self.step + self.level) % 2 == 1)
+
+    def to_dict(self) -> dict[str, Any]:
+        arrays = ("indentation_m", "shear_x_m", "shear_y_m", "force_x_n", "force_y_n",
+                  "force_n", "direction", "level", "step")
+        data: dict[str, Any] = {"format": GRID_FORMAT, "digest": self.digest,
+                                "seconds": self.seconds, "paths": self.paths}
+        data.update({name: getattr(self, name).tolist() for name in arrays})
+        data["outputs_v"] = {k: v.tolist() for k, v in self.outputs_v.items()}
+        return data
+
+    @classmethod
+    def from_dict(cls, data: Any) -> ArrayGrid:
+        try:
+            if data["format"] != GRID_FORMAT:
+                raise ValueError("format")
+            floats = {name: np.asarray(data[name], float) for name in (
+                "indentation_m", "shear_x_m", "shear_y_m", "force_x_n", "force_y_n",
+                "force_n")}
+            ints = {name: np.asarray(data[name], int) for name in ("direction", "level",
+                                                                    "step")}
+            outputs = {str(k): np.asarray(v, float) for k, v in data["outputs_v"].items()}
+            grid = cls(**floats, **ints, outputs_v=outputs, digest=str(data["digest"]),
+                       seconds=float(data["seconds"]), paths=int(data["paths"]))
+        except (KeyError, TypeError, ValueError, AttributeError):
+            raise PhysicsError("An array grid file is damaged; delete it or recompute with "
+                               "'tactile-sensor model array-calibration'.") from None
+        sizes = {a.size for a in (*floats.values(), *ints.values(), *outputs.values())}
+        if len(sizes) != 1 or not outputs or not all(
+                np.all(np.isfinite(a)) for a in (*floats.values(), *outputs.values())):
+            raise PhysicsError("An array grid file holds arrays of different lengths or "
+                               "non-finite numbers; delete it or recompute.")
+        return grid
+
+
+# -- symmetry ----------------------------------------------------------------------------------
+
+
+def symmetries(params: PhysicsParams) -> list[np.ndarray]:
+    """Orthogonal 2 x 2 maps of the (x, y) plane that leave the block and its windows alone."""
+    reflections = [np.diag([sx, sy]).astype(float) for sx in (1, -1) for sy in (1, -1)]
+    square = math.isclose(params.width, params.depth, rel_tol=1e-12)
+    if square and len(params.window_faces) == 4:
+        swap = np.array([[0.0, 1.0], [1.0, 0.0]])
+        reflections += [swap @ g for g in reflections]
+    return reflections
+
+
+def face_image(g: np.ndarray, face: str) -> str:
+    """The face that ``g`` moves ``face`` onto."""
+    n = g @ _NORMALS[face]
+    return next(f for f, m in _NORMALS.items() if np.allclose(m, n))
+
+
+def canonical_directions(params: PhysicsParams) -> list[tuple[int, np.ndarray]]:
+    """For each direction index: (index of the solved direction, map g onto it from there)."""
+    n = params.array_directions
+    angles = 2.0 * np.pi * np.arange(n) / n
+    units = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    out: list[tuple[int, np.ndarray]] = []
+    solved: list[int] = []
+    for i in range(n):
+        found = next(((j, g) for j in solved for g in symmetries(params)
+                      if np.allclose(g @ units[j], units[i], atol=1e-9)), None)
+        if found is None:
+            solved.append(i)
+            found = (i, np.eye(2))
+        out.append(found)
+    return out
+
+
+# -- solving -----------------------------------------------------------------------------------
+
+
+def grid_params(params: PhysicsParams) -> PhysicsParams:
+    """The parameters every path shares: the grid's mesh, every window face read."""
+    s = params.array_mesh_scale
+    return params.replace(mesh_nx=max(1, math.ceil(params.mesh_nx * s)),
+                          mesh_ny=max(1, math.ceil(params.mesh_ny * s)),
+                          mesh_nz=max(2, math.ceil(params.mesh_nz * s)),
+                          mesh_extrapolation_order_force=0.0,
+                          mesh_extrapolation_order_bulge=0.0,
+                          modules=",".join(params.window_faces), steps=params.array_steps,
+                          max_shear_x=0.0, max_shear_y=0.0)
+
+
+def load_paths(params: PhysicsParams) -> list[LoadPath]:
+    """The paths to solve: pure indentation, then each solved direction's shear levels."""
+    n, levels = params.array_directions, params.array_shear_levels
+    paths = [LoadPath(-1, 0, 0.0, 0.0)]
+    solved = sorted({j for j, _ in canonical_directions(params)})
+    for i in solved:
+        theta = 2.0 * np.pi * i / n
+        for level in range(1, levels + 1):
+            s = params.array_shear_ratio * level / levels * params.max_indentation
+            paths.append(LoadPath(i, level, _clean(s * math.cos(theta)),
+                                  _clean(s * math.sin(theta))))
+    return paths
+
+
+def _clean(v: float) -> float:
+    """cos(90 deg) is 6e-17, not 0: keep exact zeros so the symmetric model is used."""
+    return 0.0 if abs(v) < 1e-15 else v
+
+
+def _path_cost(path: LoadPath) -> float:
+    """Relative solve time, for progress and for starting the longest paths first: the
+    model's size (quarter 1, half 2, full 4) to the power 1.5 (sparse factorisation)."""
+    copies = (2 if path.shear_x_m else 1) * (2 if path.shear_y_m else 1)
+    return float(copies) ** 1.5
+
+
+def solve_path(params: PhysicsParams, path: LoadPath, progress: Progress | None = None
+               ) -> dict[str, Any]:
+    """One path's sweep on the grid's mesh, as plain arrays (picklable, for a worker)."""
+    from .fem import SkinModel  # scikit-fem only for a cold grid
+
+    p = grid_params(params).replace(max_shear_x=path.shear_x_m, max_shear_y=path.shear_y_m)
+    res = SkinModel(p).sweep(progress)
+    return {"indentation_m": res.indentation_m, "shear_x_m": res.shear_x_m,
+            "shear_y_m": res.shear_y_m, "force_x_n": res.force_x_n,
+            "force_y_n": res.force_y_n, "force_n": res.force_n, "bulges_m": res.bulges_m,
+            "seconds": res.seconds}
+
+
+def _worker(params: dict[str, Any], path: LoadPath, index: int, queue: Any) -> dict[str, Any]:
+    def report(fraction: float, message: str) -> None:
+        queue.put((index, fraction, message))
+
+    return solve_path(PhysicsParams.from_mapping(params), path, report)
+
+
+@contextlib.contextmanager
+def _one_blas_thread() -> Iterator[None]:
+    """Spawned workers inherit the environment: one BLAS thread each, as many as cores."""
+    names = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+    saved = {k: os.environ.get(k) for k in names}
+    os.environ.update(dict.fromkeys(names, "1"))
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def solve_paths(params: PhysicsParams, paths: list[LoadPath], workers: int,
+                progress: Progress | None) -> list[dict[str, Any]]:
+    """Every path's arrays, in order; ``workers`` > 1 solves that many at once."""
+    costs = np.array([_path_cost(p) for p in paths])
+    done = np.zeros(len(paths))
+
+    def report(index: int, fraction: float, message: str) -> None:
+        done[index] = fraction
+        if progress is not None:
+            total = float(done @ costs / costs.sum())
+            path = paths[index]
+            what = "pure indentation" if path.direction < 0 else (
+                f"direction {path.direction}, level {path.level}")
+            progress(total, f"path {index + 1}/{len(paths)} ({what}): {message}")
+
+    if workers <= 1:
+        return [solve_path(params, path, lambda f, m, i=i: report(i, f, m))
+                for i, path in enumerate(paths)]
+    ctx = multiprocessing.get_context("spawn")
+    values = {k: list(v) if isinstance(v, tuple) else v for k, v in params.to_dict().items()}
+    with ctx.Manager() as manager, _one_blas_thread(), ProcessPoolExecutor(
+            workers, mp_context=ctx) as pool:
+        queue = manager.Queue()
+        order = np.argsort(-costs, kind="stable")          # the longest paths first
+        futures = {int(i): pool.submit(_worker, values, paths[i], int(i), queue)
+                   for i in order}
+        while not all(f.done() for f in futures.values()):
+            with contextlib.suppress(queue_module.Empty):
+                report(*queue.get(timeout=0.5))
+        while not queue.empty():
+            report(*queue.get())
+        return [futures[i].result() for i in range(len(paths))]
+
+
+def compute_grid(params: PhysicsParams, progress: Progress | None = None,
+                 workers: int = 1) -> ArrayGrid:
+    """Solve the grid's paths and expand them by symmetry into every requested direction."""
+    from .prediction import module_output
+
+    start = time.perf_counter()
+    paths = load_paths(params)
+    results = solve_paths(params, paths, workers, progress)
+    by_path = {(p.direction, p.level): r for p, r in zip(paths, results, strict=True)}
+    rows: dict[str, list[np.ndarray]] = {k: [] for k in (
+        "indentation_m", "shear_x_m", "shear_y_m", "force_x_n", "force_y_n", "force_n",
+        "direction", "level", "step")}
+    bulges: dict[str, list[np.ndarray]] = {f: [] for f in params.module_faces}
+
+    def add(res: dict[str, Any], g: np.ndarray, direction: int, level: int,
+            first: int) -> None:
+        steps = np.arange(first, res["indentation_m"].size)
+        shear = g @ np.stack([res["shear_x_m"], res["shear_y_m"]])
+        force = g @ np.stack([res["force_x_n"], res["force_y_n"]])
+        for name, values in (("indentation_m", res["indentation_m"]), ("shear_x_m", shear[0]),
+                             ("shear_y_m", shear[1]), ("force_x_n", force[0]),
+                             ("force_y_n", force[1]), ("force_n", res["force_n"])):
+            rows[name].append(values[steps])
+        rows["direction"].append(np.full(steps.size, direction))
+        rows["level"].append(np.full(steps.size, level))
+        rows["step"].append(steps)
+        for face in bulges:   # face reads what the face g maps onto it read in the path
+            bulges[face].append(res["bulges_m"][face_image(g.T, face)][steps])
+
+    add(by_path[(-1, 0)], np.eye(2), -1, 0, 0)
+    for i, (j, g) in enumerate(canonical_directions(params)):
+        for level in range(1, params.array_shear_levels + 1):
+            add(by_path[(j, level)], g, i, level, 1)
+    outputs = {f: module_output(params, np.concatenate(b))[2] for f, b in bulges.items()}
+    return ArrayGrid(**{k: np.concatenate(v) for k, v in rows.items()}, outputs_v=outputs,
+                     digest=params.grid_digest(), seconds=time.perf_counter() - start,
+                     paths=len(paths))
+
+
+def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
+                         progress: Progress | None = None, workers: int = 1) -> ArrayGrid:
+    """The cached grid for ``params`` (keyed by every parameter that shapes it)."""
+    from .prediction import default_cache_dir
+
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    path = folder / f"array-grid-{params.grid_digest()}.json"
+    if path.is_file():
+        try:
+            return ArrayGrid.from_dict(json.loads(path.read_text()))
+        except (PhysicsError, ValueError, OSError):
+            pass  # a damaged cache entry is recomputed and replaced
+    if progress is not None:
+        progress(0.0, f"computing the array calibration grid (cache miss: {path.name})")
+    grid = compute_grid(params, progress, workers)
+    with contextlib.suppress(OSError):
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".array-grid-", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "w") as handle:
+                json.dump(grid.to_dict(), handle)
+            os.replace(tmp, path)
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+    return grid
