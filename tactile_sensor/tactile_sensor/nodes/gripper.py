@@ -308,11 +308,13 @@ class GripperNode(Node):
             self._on_hardware_error(state.hardware_error)
         self._hw_error = state.hardware_error
         assert self._config is not None
+        # effort = the tactile force [N], as in the control_msgs results (docs/gripper.md)
+        force = self._force
+        geometry = self._config.geometry
         msg = JointState(name=[self._values["joint_name"]],
-                         position=[self._config.geometry.opening_m(state.position_rad)],
-                         velocity=[-2.0 * self._config.geometry.pitch_radius_m
-                                   * state.velocity_rad_s],
-                         effort=[state.current_a])
+                         position=[geometry.opening_m(state.position_rad)],
+                         velocity=[geometry.opening_rate_m_s(state.velocity_rad_s)],
+                         effort=[force[0] if force else math.nan])
         msg.header.stamp = read_at.to_msg()
         if self._joint_pub is not None:
             self._joint_pub.publish(msg)
@@ -485,7 +487,7 @@ class GripperNode(Node):
     def _snapshot(self, step: Step) -> Snapshot:
         force, state, config = self._force, self._state, self._config
         assert config is not None
-        velocity = (-2.0 * config.geometry.pitch_radius_m * state.velocity_rad_s
+        velocity = (config.geometry.opening_rate_m_s(state.velocity_rad_s)
                     if state is not None else math.nan)
         return Snapshot(step, force[0] if force else math.nan, velocity)
 

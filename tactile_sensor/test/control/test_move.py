@@ -137,3 +137,10 @@ def test_invalid_requests_name_the_field_and_the_fix(field, value, words):
     values[field] = value
     with pytest.raises(InvalidRequest, match=words):
         MoveController(CONFIG).start(request(*values.values()), 0.0, at(G.open_opening_m))
+
+
+@given(st.floats(2.5, 4.5), st.floats(-8.0, 8.0))
+def test_the_opening_rate_is_the_derivative_of_the_opening(position_rad, velocity_rad_s):
+    dt = 1e-3
+    expected = (G.opening_m(position_rad + velocity_rad_s * dt) - G.opening_m(position_rad)) / dt
+    assert G.opening_rate_m_s(velocity_rad_s) == pytest.approx(expected, rel=1e-6, abs=1e-12)

@@ -179,6 +179,10 @@ def test_both_control_msgs_interfaces_grip_the_rod_by_tactile_force_and_open(gri
     assert result.effort == pytest.approx(2.0, abs=0.2)
     # the skins meet the 20 mm rod and give a few mm under 2 N
     assert ROD_M - 0.008 < result.position < ROD_M, result.position
+    # ~/joint_states: the same joint, opening and effort (the tactile force) while holding
+    held = client.joints[-1]
+    assert held.position[0] == pytest.approx(result.position, abs=2e-4)
+    assert held.effort[0] == pytest.approx(2.0, abs=0.3)
 
     status, result = client.run("gripper_cmd", command(0.03, 0.0))
     assert status == GoalStatus.STATUS_SUCCEEDED
