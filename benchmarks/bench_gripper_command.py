@@ -14,7 +14,8 @@ Per condition (median over the trials):
 * goal -> result: until the action's answer (a tactile stop adds the force settling,
   ``settle_time``; a position-only stall adds ``stall_timeout`` at rest);
 * peak force: the largest true finger force (``/gripper_world/ground_truth``) during the goal;
-  overshoot = peak - max_effort; held = the true force 0.3 s after the result.
+  overshoot = peak - max_effort; held = the true force 0.2-0.5 s after the result;
+* result effort and opening: what the action answered (the tactile force it measured).
 
 Run: . scripts/env.sh && python benchmarks/bench_gripper_command.py [--trials 3]
      [--plot gripper_command.png]   (ROS_DOMAIN_ID defaults to 122)
@@ -140,16 +141,19 @@ def trial(rec: Recorder, max_effort: float, closed: float, open_: float) -> dict
     rec.run(open_, 0.0)
     time.sleep(0.3)
     sent, answered, result = rec.run(closed, max_effort)
-    time.sleep(0.4)
-    truth = [(t, f) for t, f in rec.truth if sent <= t <= answered + 0.4]
+    end = answered + 0.5
+    # the subscriptions lag on a loaded machine: wait until the window is in
+    wait_until(lambda: rec.truth[-1][0] > end and rec.opening[-1][0] > end, 5,
+               "ground truth and joint states after the result")
+    truth = [(t, f) for t, f in rec.truth if sent <= t <= end]
     held = [f for t, f in truth if t >= answered + 0.2]
     peak = max(f for _, f in truth)
-    return {"rest": at_rest(rec.opening, sent, answered + 0.4) - sent,
+    return {"rest": at_rest(rec.opening, sent, end) - sent,
             "result": answered - sent, "peak": peak,
             "overshoot": peak - max_effort if max_effort else float("nan"),
             "held": float(np.mean(held)) if held else float("nan"),
             "effort": result.effort, "opening": result.position,
-            "stalled": float(result.stalled), "sent": sent, "end": answered + 0.4}
+            "stalled": float(result.stalled), "sent": sent, "end": end}
 
 
 def plot(path: Path, rec: Recorder, traces: dict[float, dict[str, float]]) -> None:
@@ -168,7 +172,7 @@ def plot(path: Path, rec: Recorder, traces: dict[float, dict[str, float]]) -> No
         force_ax.plot(truth[:, 0], truth[:, 1], label=label)
         opening_ax.plot(opening[:, 0], opening[:, 1], label=label)
     force_ax.set_ylabel("true finger force [N]")
-    force_ax.set_yscale("symlog", linthresh=5.0)
+    force_ax.set_yscale("symlog", linthresh=10.0)
     force_ax.legend()
     opening_ax.set_ylabel("opening [mm]")
     opening_ax.set_xlabel("time since the goal [s]")
@@ -221,7 +225,7 @@ def main() -> int:
                     wait_until(lambda: rec.opening and rec.tactile, 120, "the gripper and "
                                "the driver to be active")
                     time.sleep(1.0)
-                    return measure(args, rec, closed, open_)
+                    return measure(args, rec, closed, open_, tmp / "launch.log")
                 finally:
                     rec.close()
         except RuntimeError as exc:
@@ -236,7 +240,8 @@ def main() -> int:
             stop(mock)
 
 
-def measure(args: argparse.Namespace, rec: Recorder, closed: float, open_: float) -> int:
+def measure(args: argparse.Namespace, rec: Recorder, closed: float, open_: float,
+            log: Path) -> int:
     print(f"GripperCommand from {open_ * 1e3:.0f} mm toward {closed * 1e3:.0f} mm into the "
           f"20 mm rod at the default speed, {args.trials} trials per condition", flush=True)
     runs: dict[float, list[dict[str, float]]] = {}
@@ -247,7 +252,8 @@ def measure(args: argparse.Namespace, rec: Recorder, closed: float, open_: float
                 runs[max_effort].append(trial(rec, max_effort, closed, open_))
                 outcome = "done"
             except TrialFailed as exc:
-                outcome = f"FAILED, left out: {exc}"
+                why = [line for line in log.read_text().splitlines() if "aborted" in line]
+                outcome = f"FAILED, left out: {exc}; {why[-1] if why else ''}"
             print(f"  max_effort {max_effort:g} N: trial {k + 1}/{args.trials} {outcome}",
                   flush=True)
     rec.run(open_, 0.0)

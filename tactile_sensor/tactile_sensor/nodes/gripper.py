@@ -46,6 +46,7 @@ from tactile_sensor.control.grasp import (
     ForceSettler,
     GraspConfig,
     Outcome,
+    Phase,
     ServoCommand,
     Step,
 )
@@ -453,7 +454,11 @@ class GripperNode(Node):
 
     def _on_goal(self, name: str, goal: Any, accept: Any) -> GoalResponse:
         """Invalid goals are rejected before anything moves, with one sentence."""
-        assert self._settings is not None
+        if self._settings is None or self._timer is None:
+            self.get_logger().error(f"{name} goal rejected: the gripper is not active; "
+                                    f"activate it (ros2 lifecycle set {self.get_name()} "
+                                    "activate).")
+            return GoalResponse.REJECT
         try:
             accept(goal, self._settings)
         except ControlError as exc:
@@ -494,21 +499,26 @@ class GripperNode(Node):
     def _execute(self, goal_handle: ServerGoalHandle, action_type: Any, accept: Any) -> Any:
         """The loop every action shares: start, tick at the control rate, finish."""
         self._take_over(goal_handle)
-        state = self._state
-        if state is None or self._client is None or self._settings is None:
-            goal_handle.abort()
-            return _message(action_type.Result, {"message": "the gripper is not active"})
+        goal: ActiveGoal | None = None
 
-        def finish(step: Step, succeeded: bool, message: str) -> Any:
+        def finish(step: Step | None, succeeded: bool, message: str) -> Any:
             if succeeded:
                 goal_handle.succeed()
             else:
                 goal_handle.abort()
                 self.get_logger().warning(f"{action_type.__name__} goal aborted: {message}")
+            if goal is None:  # deactivated between acceptance and execution
+                return action_type.Result()
+            if step is None:  # never started: report where the fingers are
+                opening = (self._config.geometry.opening_m(self._state.position_rad)
+                           if self._config and self._state else math.nan)
+                step = Step(Phase.IDLE, None, None, message, opening)
             return _message(action_type.Result, goal.result(self._snapshot(step), message))
 
+        if self._state is None or self._client is None or self._settings is None:
+            return finish(None, False, "the gripper is not active")
         try:
-            goal: ActiveGoal = accept(goal_handle.request, self._settings)
+            goal = accept(goal_handle.request, self._settings)
             if self._hw_error:
                 raise ServoHardwareError("servo hardware error: "
                                          + ", ".join(sorted(self._hw_error)), self._hw_error)
@@ -517,9 +527,7 @@ class GripperNode(Node):
             step = goal.start(time.time(), self._state)
             self._send(step.command, goal_handle)
         except (ControlError, DynamixelError) as exc:
-            goal_handle.abort()
-            self.get_logger().warning(f"{action_type.__name__} goal aborted: {exc}")
-            return _message(action_type.Result, {"message": str(exc)})
+            return finish(None, False, str(exc))
 
         def feedback(step: Step) -> None:
             goal_handle.publish_feedback(

@@ -151,6 +151,8 @@ def gripper(spawn, ros_domain, tmp_path):
         time.sleep(0.3)
         yield launch, client
         client.close()
+        # no callback of the gripper failed along the way (rclpy logs and carries on)
+        assert "Error raised in" not in launch.output(), launch.output()
 
 
 def command(position: float, max_effort: float) -> GripperCommand.Goal:
@@ -202,11 +204,10 @@ def test_both_control_msgs_interfaces_grip_the_rod_by_tactile_force_and_open(gri
     assert result.state.position[0] == pytest.approx(0.03, abs=0.0005)
 
     # the real ros2 CLI as the external client (what a user types first)
-    cli = subprocess.run(
-        ["ros2", "action", "send_goal", "/gripper/gripper_cmd",
-         "control_msgs/action/GripperCommand", "{command: {position: 0.05, max_effort: 0.0}}"],
-        capture_output=True, text=True, timeout=60, env=dict(os.environ))
-    assert "reached_goal: true" in cli.stdout and "SUCCEEDED" in cli.stdout, cli.stdout
+    cli = _ros2("action", "send_goal", "/gripper/gripper_cmd",
+                "control_msgs/action/GripperCommand",
+                "{command: {position: 0.05, max_effort: 0.0}}")
+    assert "reached_goal: true" in cli and "SUCCEEDED" in cli, cli
 
 
 def test_invalid_goals_are_rejected_before_anything_moves(gripper):
@@ -240,6 +241,13 @@ def test_invalid_goals_are_rejected_before_anything_moves(gripper):
     # nothing moved: a goal would move the fingers millimetres in that time
     after = [o for t, o in client.opening if t >= sent_at]
     assert after and max(abs(o - before) for o in after) < 2e-4, (before, after)
+
+
+def _ros2(*argv: str) -> str:
+    """A ros2 CLI verb's output (the real tool, as a user would type it)."""
+    done = subprocess.run(["ros2", *argv], capture_output=True, text=True, timeout=60,
+                          env=dict(os.environ))
+    return done.stdout + done.stderr
 
 
 def test_one_goal_policy_across_all_four_servers(gripper):
@@ -315,10 +323,33 @@ def test_an_overload_mid_move_aborts_with_the_decoded_bits_and_torque_off(grippe
                        for s in client.diagnostics), 3, "no overload diagnostics")
     assert "servo hardware error: overload; torque off" in launch.output()
     # a goal while the error stands is aborted at once, with the reason
-    status, _ = client.run("gripper_cmd", command(0.05, 0.0), 5)
-    assert status == GoalStatus.STATUS_ABORTED
+    status, result = client.run("gripper_cmd", command(0.05, 0.0), 5)
+    assert status == GoalStatus.STATUS_ABORTED and not result.reached_goal
+    assert 0.002 < result.position < 0.06  # where the fingers stopped
+    _until(lambda: "GripperCommand goal aborted: servo hardware error: overload"
+           in launch.output(), 3, launch.output())
     reboot = client.node.create_client(Trigger, "/gripper/reboot")
     assert reboot.wait_for_service(timeout_sec=5)
     assert _wait(reboot.call_async(Trigger.Request()), 10).success
     status, result = client.run("gripper_cmd", command(0.05, 0.0))
     assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
+
+
+def test_an_inactive_gripper_rejects_goals_naming_the_fix(spawn, ros_domain, tmp_path):
+    """Configured but not active (the launch files activate at once, so this runs the node
+    alone on an emulated servo, configured with the real ``ros2 lifecycle``)."""
+    servo = tmp_path / "xm430"
+    emulator = spawn("mock", "xm430", "--link", str(servo), "--baud", "1000000", "--no-world",
+                     module="tactile_sensor.cli")
+    _until(servo.exists, 30, emulator.output())
+    gripper = spawn("--ros-args", "-r", "__node:=gripper", "-p", f"port:={servo}",
+                    module="tactile_sensor.nodes.gripper")
+    _until(lambda: "successful" in _ros2("lifecycle", "set", "--no-daemon", "--spin-time",
+                                         "2", "/gripper", "configure"), 60, gripper.output())
+    with rclpy.init():
+        client = Client()
+        assert client.actions["gripper_cmd"].wait_for_server(timeout_sec=20)
+        client.send("gripper_cmd", command(0.05, 0.0), accepted=False)
+        client.close()
+    _until(lambda: "gripper_cmd goal rejected: the gripper is not active; activate it "
+           "(ros2 lifecycle set gripper activate)." in gripper.output(), 5, gripper.output())
