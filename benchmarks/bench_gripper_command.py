@@ -171,9 +171,15 @@ def plot(path: Path, rec: Recorder, traces: dict[float, dict[str, float]]) -> No
                             if run["sent"] <= t <= run["end"]])
         force_ax.plot(truth[:, 0], truth[:, 1], label=label)
         opening_ax.plot(opening[:, 0], opening[:, 1], label=label)
+        if not max_effort:  # off the scale of the limits: say how far
+            force_ax.annotate(f"position only: {truth[:, 1].max():.1f} N", xy=(0.02, 0.9),
+                              xycoords="axes fraction")
+        else:
+            force_ax.axhline(max_effort, color="grey", linewidth=0.5, linestyle=":")
+    limits = [m for m in traces if m]
+    force_ax.set_ylim(0.0, 1.5 * max(limits, default=5.0))
     force_ax.set_ylabel("true finger force [N]")
-    force_ax.set_yscale("symlog", linthresh=10.0)
-    force_ax.legend()
+    force_ax.legend(loc="center left")
     opening_ax.set_ylabel("opening [mm]")
     opening_ax.set_xlabel("time since the goal [s]")
     fig.suptitle("GripperCommand into the 20 mm rod: tactile limit vs position only")
