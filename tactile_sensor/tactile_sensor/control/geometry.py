@@ -42,3 +42,7 @@ class GripperGeometry:
 
     def finger_speed_to_rad_s(self, speed_m_s: float) -> float:
         return speed_m_s / self.pitch_radius_m
+
+    def opening_rate_m_s(self, velocity_rad_s: float) -> float:
+        """How fast the opening grows at this servo velocity (closing is positive rotation)."""
+        return -2.0 * self.pitch_radius_m * velocity_rad_s

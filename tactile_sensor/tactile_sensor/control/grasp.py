@@ -39,10 +39,16 @@ class Outcome(StrEnum):
     HARDWARE_ERROR = "hardware_error"
     TACTILE_STALE = "tactile_stale"
     CANCELED = "canceled"
+    #: A position move (control/move.py) stopped by its tactile force limit.
+    FORCE_LIMIT = "force_limit"
+    #: A position move arrived within the goal tolerance.
+    REACHED = "reached_goal"
+    #: A position move came to rest short of its goal (the current limit holds it there).
+    STALLED = "stalled"
 
     @property
     def succeeded(self) -> bool:
-        return self in (Outcome.CONTACT, Outcome.OPENED)
+        return self in (Outcome.CONTACT, Outcome.OPENED, Outcome.REACHED)
 
 
 class Phase(StrEnum):
@@ -144,11 +150,21 @@ class GraspRequest:
                                  "request e.g. 10 s.")
 
 
+def slowed_speed(config: GraspConfig, full_rad_s: float, force_n: float,
+                 target_force_n: float) -> float:
+    """The full speed, reduced in proportion to the force still missing to the target."""
+    start = config.slowdown_from_fraction * target_force_n
+    if force_n <= start or config.slowdown_from_fraction >= 1.0:
+        return full_rad_s
+    fraction = (target_force_n - force_n) / (target_force_n - start)
+    return full_rad_s * max(config.min_speed_fraction, min(1.0, fraction))
+
+
 #: XM430-W210 no-load speed at 12 V (77 rpm) bounds the profile velocity [rad/s].
 MAX_SERVO_SPEED_RAD_S = 77.0 * 2.0 * math.pi / 60.0
 
 
-class _Base:
+class BaseController:
     def __init__(self, config: GraspConfig) -> None:
         self.config = config
         self.phase = Phase.IDLE
@@ -190,7 +206,7 @@ class _Base:
         return self._finish(Outcome.CANCELED, "canceled", servo)
 
 
-class GraspController(_Base):
+class GraspController(BaseController):
     """Close until the tactile force reaches the target, then hold."""
 
     def __init__(self, config: GraspConfig | None = None) -> None:
@@ -246,18 +262,12 @@ class GraspController(_Base):
         return Step(self.phase, command, None, "closing", opening, force_n)
 
     def _scheduled_speed(self, force_n: float) -> float:
-        """Requested speed, reduced in proportion to the force still missing."""
         assert self.request is not None
-        cfg, target = self.config, self.request.target_force_n
-        full = cfg.geometry.finger_speed_to_rad_s(self.request.speed_m_s)
-        start = cfg.slowdown_from_fraction * target
-        if force_n <= start or cfg.slowdown_from_fraction >= 1.0:
-            return full
-        fraction = (target - force_n) / (target - start)
-        return full * max(cfg.min_speed_fraction, min(1.0, fraction))
+        return slowed_speed(self.config, self.config.geometry.finger_speed_to_rad_s(
+            self.request.speed_m_s), force_n, self.request.target_force_n)
 
 
-class ReleaseController(_Base):
+class ReleaseController(BaseController):
     """Open to a requested opening."""
 
     def __init__(self, config: GraspConfig | None = None) -> None:
@@ -266,6 +276,20 @@ class ReleaseController(_Base):
 
     def start(self, opening_m: float, speed_m_s: float, timeout_s: float, now_s: float,
               servo: ServoReading) -> Step:
+        self.check(opening_m, speed_m_s, timeout_s)
+        g = self.config.geometry
+        self.target_opening_m = opening_m
+        self._started_s, self._timeout_s = now_s, timeout_s
+        self.phase = Phase.OPENING
+        if servo.hardware_error:
+            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
+                                + ", ".join(sorted(servo.hardware_error)), servo)
+        command = ServoCommand(g.position_rad(opening_m), g.finger_speed_to_rad_s(speed_m_s),
+                               self.config.closing_current_a)
+        return Step(self.phase, command, None, "opening", self._opening(servo))
+
+    def check(self, opening_m: float, speed_m_s: float, timeout_s: float) -> None:
+        """Raise InvalidRequest unless the release can be executed as given."""
         g = self.config.geometry
         if not (math.isfinite(opening_m) and g.closed_opening_m <= opening_m
                 <= g.open_opening_m):
@@ -278,15 +302,6 @@ class ReleaseController(_Base):
         if not (math.isfinite(timeout_s) and timeout_s > 0):
             raise InvalidRequest(f"Release timeout {timeout_s} s must be positive; request "
                                  "e.g. 10 s.")
-        self.target_opening_m = opening_m
-        self._started_s, self._timeout_s = now_s, timeout_s
-        self.phase = Phase.OPENING
-        if servo.hardware_error:
-            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
-                                + ", ".join(sorted(servo.hardware_error)), servo)
-        command = ServoCommand(g.position_rad(opening_m), g.finger_speed_to_rad_s(speed_m_s),
-                               self.config.closing_current_a)
-        return Step(self.phase, command, None, "opening", self._opening(servo))
 
     def tick(self, now_s: float, servo: ServoReading) -> Step:
         if self.phase is not Phase.OPENING:

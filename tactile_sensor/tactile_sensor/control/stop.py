@@ -39,6 +39,8 @@ def stop_position_rad(position_rad: float, velocity_rad_s: float, age_s: float,
         ahead = heading_to_rad - position_rad
         if ahead == 0.0:
             return position_rad  # at its goal the servo holds; a velocity there is noise
-        if ahead * (estimate - heading_to_rad) > 0:  # carried past the goal
+        # carried past the goal (signs compared, not multiplied: a product of two tiny
+        # distances underflows to 0)
+        if (ahead > 0) == (estimate > heading_to_rad) and estimate != heading_to_rad:
             return heading_to_rad
     return estimate

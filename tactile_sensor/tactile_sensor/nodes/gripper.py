@@ -1,11 +1,15 @@
 """Gripper node: an XM430 on a rack and pinion, closed until the tactile force says contact.
 
-Wiring only: parameters, the XM430 client (hardware/), the grasp and release state
-machines (control/), the tactile force subscription, actions, joint states, diagnostics.
+Wiring only: parameters, the XM430 client (hardware/), the tactile force subscription,
+joint states, diagnostics, and four action servers (``ACTIONS``) whose meaning lives in
+control/actions.py: ``~/grasp``, ``~/release``, control_msgs ``~/gripper_cmd`` and
+``~/parallel_gripper_cmd``. One generic runner executes them all.
 
-Goal policy: a new Grasp or Release goal *preempts* the running one (the running goal
-ends aborted with "preempted by a newer goal"); a manipulation stack can always release
-what it is grasping without canceling first.
+Goal policy, the same for every action: invalid goals are rejected before anything moves;
+one goal is active; a newer goal of any kind *preempts* the running one (it ends aborted
+with "preempted by a newer goal"), so a manipulation stack can always release what it is
+grasping without canceling first; cancel stops the fingers where they are; a servo hardware
+error aborts with the decoded reason and turns the torque off.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import threading
 import time
 from typing import Any
 
+from control_msgs.action import GripperCommand, ParallelGripperCommand
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -26,15 +31,22 @@ from rclpy.lifecycle import Node, State, TransitionCallbackReturn
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from tactile_sensor.control.actions import (
+    ActiveGoal,
+    GoalSettings,
+    Snapshot,
+    accept_grasp,
+    accept_gripper_command,
+    accept_parallel_gripper_command,
+    accept_release,
+)
 from tactile_sensor.control.errors import ControlError
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import (
     ForceSettler,
     GraspConfig,
-    GraspController,
-    GraspRequest,
     Outcome,
-    ReleaseController,
+    Phase,
     ServoCommand,
     Step,
 )
@@ -93,7 +105,25 @@ SPECS = [
               maximum=1.0),
     ParamSpec("comm_retries", 2, "retries of a transaction that timed out or arrived "
               "damaged before the servo counts as unreachable", minimum=0, maximum=10),
+    ParamSpec("joint_name", "finger_opening", "name of the finger-opening joint in "
+              "~/joint_states, the URDF and ParallelGripperCommand goals"),
+    ParamSpec("goal_tolerance", 0.0005, "a GripperCommand within this of its target "
+              "position has reached it [m]", minimum=0.0, exclusive_minimum=True,
+              maximum=0.01),
+    ParamSpec("stall_timeout", 0.2, "a GripperCommand at rest short of its target this "
+              "long has stalled [s]", minimum=0.0, exclusive_minimum=True, maximum=10.0),
+    ParamSpec("allow_stalling", True, "a stalled GripperCommand (tactile force limit or "
+              "current limit) succeeds; false: it aborts"),
 ]
+
+#: The actions served, as ``~/<name>``: message type and the goal's meaning
+#: (control/actions.py). A new interface is one more entry.
+ACTIONS: dict[str, tuple[Any, Any]] = {
+    "grasp": (Grasp, accept_grasp),
+    "release": (Release, accept_release),
+    "gripper_cmd": (GripperCommand, accept_gripper_command),
+    "parallel_gripper_cmd": (ParallelGripperCommand, accept_parallel_gripper_command),
+}
 
 
 class GripperNode(Node):
@@ -103,6 +133,7 @@ class GripperNode(Node):
         self._values: dict[str, Any] = {}
         self._client: Xm430Client | None = None
         self._config: GraspConfig | None = None
+        self._settings: GoalSettings | None = None
         self._state: ServoState | None = None
         #: The control loop's latest sample, when the servo took it (monotonic [s]) and half
         #: that read's round trip (how long a packet takes to reach the servo) [s].
@@ -147,6 +178,7 @@ class GripperNode(Node):
                                  closing_current_a=values["closing_current"],
                                  hold_current_a=values["closing_current"],
                                  stale_after_s=values["tactile_timeout"])
+            settings = goal_settings(config, values)
         except (ParameterError, ValueError, ControlError) as exc:
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
@@ -160,18 +192,15 @@ class GripperNode(Node):
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
         self._values, self._client, self._config = values, client, config
+        self._settings = settings
         self._joint_pub = self.create_lifecycle_publisher(JointState, "~/joint_states", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._force_sub = self.create_subscription(
             WrenchStamped, "tactile_wrench", self._on_force, 100, callback_group=self._group)
         self._entities = [
             self._force_sub,
-            ActionServer(self, Grasp, "~/grasp", self._execute_grasp,
-                         goal_callback=self._on_goal, cancel_callback=self._on_cancel,
-                         callback_group=self._group),
-            ActionServer(self, Release, "~/release", self._execute_release,
-                         goal_callback=self._on_goal, cancel_callback=self._on_cancel,
-                         callback_group=self._group),
+            *(self._action_server(name, action_type, accept)
+              for name, (action_type, accept) in ACTIONS.items()),
             self.create_service(Trigger, "~/reboot", self._on_reboot,
                                 callback_group=self._group),
         ]
@@ -280,11 +309,13 @@ class GripperNode(Node):
             self._on_hardware_error(state.hardware_error)
         self._hw_error = state.hardware_error
         assert self._config is not None
-        msg = JointState(name=["finger_opening"],
-                         position=[self._config.geometry.opening_m(state.position_rad)],
-                         velocity=[-2.0 * self._config.geometry.pitch_radius_m
-                                   * state.velocity_rad_s],
-                         effort=[state.current_a])
+        # effort = the tactile force [N], as in the control_msgs results (docs/gripper.md)
+        force = self._force
+        geometry = self._config.geometry
+        msg = JointState(name=[self._values["joint_name"]],
+                         position=[geometry.opening_m(state.position_rad)],
+                         velocity=[geometry.opening_rate_m_s(state.velocity_rad_s)],
+                         effort=[force[0] if force else math.nan])
         msg.header.stamp = read_at.to_msg()
         if self._joint_pub is not None:
             self._joint_pub.publish(msg)
@@ -414,7 +445,25 @@ class GripperNode(Node):
         return total / count if count else None
 
     # -- actions -----------------------------------------------------------------------------
-    def _on_goal(self, goal: Any) -> GoalResponse:
+    def _action_server(self, name: str, action_type: Any, accept: Any) -> ActionServer:
+        return ActionServer(
+            self, action_type, f"~/{name}",
+            lambda handle: self._execute(handle, action_type, accept),
+            goal_callback=lambda goal: self._on_goal(name, goal, accept),
+            cancel_callback=self._on_cancel, callback_group=self._group)
+
+    def _on_goal(self, name: str, goal: Any, accept: Any) -> GoalResponse:
+        """Invalid goals are rejected before anything moves, with one sentence."""
+        if self._settings is None or self._timer is None:
+            self.get_logger().error(f"{name} goal rejected: the gripper is not active; "
+                                    f"activate it (ros2 lifecycle set {self.get_name()} "
+                                    "activate).")
+            return GoalResponse.REJECT
+        try:
+            accept(goal, self._settings)
+        except ControlError as exc:
+            self.get_logger().error(f"{name} goal rejected: {exc}")
+            return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
     def _on_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
@@ -440,121 +489,92 @@ class GripperNode(Node):
             self._active_goal = None
             self._abort_reason = reason
 
-    def _execute_grasp(self, goal_handle: ServerGoalHandle) -> Grasp.Result:
+    def _snapshot(self, step: Step) -> Snapshot:
+        force, state, config = self._force, self._state, self._config
+        assert config is not None
+        velocity = (config.geometry.opening_rate_m_s(state.velocity_rad_s)
+                    if state is not None else math.nan)
+        return Snapshot(step, force[0] if force else math.nan, velocity)
+
+    def _execute(self, goal_handle: ServerGoalHandle, action_type: Any, accept: Any) -> Any:
+        """The loop every action shares: start, tick at the control rate, finish."""
         self._take_over(goal_handle)
-        goal = goal_handle.request
-        assert self._config is not None
-        request = GraspRequest(
-            target_force_n=goal.target_force,
-            speed_m_s=goal.closing_speed or self._values["default_closing_speed"],
-            timeout_s=goal.timeout or self._values["default_timeout"])
-        controller = GraspController(self._config)
+        goal: ActiveGoal | None = None
 
-        def feedback(step: Step) -> None:
-            force = self._force[0] if self._force else math.nan
-            goal_handle.publish_feedback(Grasp.Feedback(force=force, opening=step.opening_m))
+        def finish(step: Step | None, succeeded: bool, message: str) -> Any:
+            if succeeded:
+                goal_handle.succeed()
+            else:
+                goal_handle.abort()
+                self.get_logger().warning(f"{action_type.__name__} goal aborted: {message}")
+            if goal is None:  # deactivated between acceptance and execution
+                return action_type.Result()
+            if step is None:  # never started: report where the fingers are
+                opening = (self._config.geometry.opening_m(self._state.position_rad)
+                           if self._config and self._state else math.nan)
+                step = Step(Phase.IDLE, None, None, message, opening)
+            return _message(action_type.Result, goal.result(self._snapshot(step), message))
 
-        def result(step: Step, message: str | None = None) -> Grasp.Result:
-            force = self._force[0] if self._force else math.nan
-            return Grasp.Result(contact_detected=step.outcome is Outcome.CONTACT,
-                                force=force, opening=step.opening_m,
-                                message=message or f"{step.outcome}: {step.message}")
-
-        def tick(now: float, state: ServoState) -> Step:
-            force = self._force
-            return controller.tick(now, force[0] if force else None,
-                                   force[1] if force else None, state)
-
-        settler = ForceSettler(self._config.geometry, request.target_force_n,
-                               self._values["skin_stiffness"])
-        return self._run(goal_handle, lambda now, state: controller.start(request, now, state),
-                         tick, controller, feedback, result, Grasp.Result, settler)
-
-    def _execute_release(self, goal_handle: ServerGoalHandle) -> Release.Result:
-        self._take_over(goal_handle)
-        assert self._config is not None
-        opening = goal_handle.request.opening or self._config.geometry.open_opening_m
-        controller = ReleaseController(self._config)
-
-        def feedback(step: Step) -> None:
-            goal_handle.publish_feedback(Release.Feedback(opening=step.opening_m))
-
-        def result(step: Step, message: str | None = None) -> Release.Result:
-            return Release.Result(opening=step.opening_m,
-                                  success=step.outcome is Outcome.OPENED,
-                                  message=message or f"{step.outcome}: {step.message}")
-
-        return self._run(
-            goal_handle,
-            lambda now, state: controller.start(opening, self._values["release_speed"],
-                                                self._values["default_timeout"], now, state),
-            lambda now, state: controller.tick(now, state), controller, feedback, result,
-            Release.Result)
-
-    def _run(self, goal_handle: ServerGoalHandle, start: Any, tick: Any, controller: Any,
-             feedback: Any, result: Any, result_type: Any,
-             settler: ForceSettler | None = None) -> Any:
-        """The loop both actions share: start, tick at the control rate, finish."""
-        state = self._state
-        if state is None or self._client is None:
-            goal_handle.abort()
-            return result_type(message="the gripper is not active")
+        if self._state is None or self._client is None or self._settings is None:
+            return finish(None, False, "the gripper is not active")
         try:
+            goal = accept(goal_handle.request, self._settings)
             if self._hw_error:
                 raise ServoHardwareError("servo hardware error: "
                                          + ", ".join(sorted(self._hw_error)), self._hw_error)
             if not self._retrying(self._client.torque_enabled):
                 self._retrying(lambda: self._hold_here(torque=True))
-            step = start(time.time(), self._state)
+            step = goal.start(time.time(), self._state)
             self._send(step.command, goal_handle)
         except (ControlError, DynamixelError) as exc:
-            goal_handle.abort()
-            return result_type(message=str(exc))
+            return finish(None, False, str(exc))
+
+        def feedback(step: Step) -> None:
+            goal_handle.publish_feedback(
+                _message(action_type.Feedback, goal.feedback(self._snapshot(step))))
+
         period = 1.0 / self._values["control_rate"]
         feedback_period = 1.0 / self._values["feedback_rate"]
         last_feedback = 0.0
         while not step.finished:
             if goal_handle.is_cancel_requested:
-                step = controller.cancel(time.time(), self._state)
+                step = goal.cancel(time.time(), self._state)
                 if self._stop_written is not goal_handle:  # the cancel callback's stop failed
                     try:
                         self._stop(goal_handle)
                     except (DynamixelError, ControlError) as exc:
                         self.get_logger().error(f"stop on cancel failed: {exc}")
                 goal_handle.canceled()
-                return result(step, "canceled: stopped where the fingers were")
+                return _message(action_type.Result, goal.result(
+                    self._snapshot(step), "canceled: stopped where the fingers were"))
             if self._superseded(goal_handle):
                 # no stop command: the newer goal (or the reboot) owns the servo now
-                step = controller.cancel(time.time(), self._state)
-                goal_handle.abort()
-                return result(step, self._abort_reason)
+                return finish(goal.cancel(time.time(), self._state), False, self._abort_reason)
             self._state_event.clear()
             self._state_event.wait(2 * period)
             if self._comm_error:
-                goal_handle.abort()
-                return result(step, f"servo unreachable: {self._comm_error}")
-            step = tick(time.time(), self._state)
+                return finish(step, False, f"servo unreachable: {self._comm_error}")
+            force = self._force
+            step = goal.tick(time.time(), force[0] if force else None,
+                             force[1] if force else None, self._state)
             if not self._send_safely(step.command, goal_handle):
-                goal_handle.abort()
-                return result(step, f"servo unreachable: {self._comm_error}")
+                return finish(step, False, f"servo unreachable: {self._comm_error}")
             now = time.monotonic()
             if now - last_feedback >= feedback_period:
                 feedback(step)
                 last_feedback = now
-        if step.outcome is Outcome.CONTACT and settler is not None:
+        settler = goal.settler(step)
+        if settler is not None:
             aborted = self._settle(goal_handle, settler, step, feedback, period)
             if aborted is not None:
-                return result(step, aborted)
+                return finish(step, False, aborted)
         if step.outcome is Outcome.HARDWARE_ERROR:
             self._on_hardware_error(self._state.hardware_error)
-        if step.outcome is not None and step.outcome.succeeded:
-            goal_handle.succeed()
-        else:
-            goal_handle.abort()
         with self._goal_lock:
             if self._active_goal is goal_handle:
                 self._active_goal = None
-        return result(step)
+        failure = goal.failure(step)
+        return finish(step, failure is None, failure or f"{step.outcome}: {step.message}")
 
     def _settle(self, goal_handle: ServerGoalHandle, settler: ForceSettler, step: Step,
                 feedback: Any, period: float) -> str | None:
@@ -616,6 +636,27 @@ class GripperNode(Node):
         self._abort_active("the servo is being rebooted")
         response.success, response.message = self._reboot()
         return response
+
+
+def goal_settings(config: GraspConfig, values: dict[str, Any]) -> GoalSettings:
+    """The parameters the goals read (control/actions.py)."""
+    return GoalSettings(
+        config=config, joint_name=values["joint_name"],
+        closing_speed_m_s=values["default_closing_speed"],
+        opening_speed_m_s=values["release_speed"], timeout_s=values["default_timeout"],
+        goal_tolerance_m=values["goal_tolerance"], stall_time_s=values["stall_timeout"],
+        allow_stalling=values["allow_stalling"],
+        skin_stiffness_n_per_m=values["skin_stiffness"])
+
+
+def _message(message_type: Any, fields: dict[str, Any]) -> Any:
+    """A message from a dict of its fields (nested dicts for nested messages)."""
+    message = message_type()
+    for name, value in fields.items():
+        if isinstance(value, dict):
+            value = _message(type(getattr(message, name)), value)
+        setattr(message, name, value)
+    return message
 
 
 #: The GIL switch interval of the gripper process [s]. Its threads (executor, control loop,

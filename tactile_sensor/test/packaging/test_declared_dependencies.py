@@ -41,7 +41,9 @@ PROVIDER = {
     "mcap": "python3-mcap-pip",
     "pytest": "python3-pytest",
     "hypothesis": "python3-hypothesis",
-    "yourdfpy": "python3-yourdfpy-pip",
+    "action_msgs": "action_msgs",
+    "xacro": "xacro",
+    "urdf_parser_py": "urdfdom_py",
 }
 FIRST_PARTY = {"tactile_sensor", "conftest", "interface_servers"}
 

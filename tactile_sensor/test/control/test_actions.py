@@ -1,0 +1,202 @@
+"""Each action's meaning (control/actions.py): goal -> controller, step -> feedback/result,
+success, and every rejected goal. Goals are plain namespaces shaped like the messages."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from types import SimpleNamespace as NS
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from tactile_sensor.control.actions import (
+    GoalSettings,
+    MoveGoal,
+    ParallelMoveGoal,
+    Snapshot,
+    accept_grasp,
+    accept_gripper_command,
+    accept_parallel_gripper_command,
+    accept_release,
+)
+from tactile_sensor.control.errors import InvalidRequest
+from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.control.grasp import GraspConfig, Outcome, Phase, Step
+
+G = GripperGeometry()
+SETTINGS = GoalSettings(GraspConfig(), joint_name="finger_opening")
+
+
+def at(opening_m: float, moving: bool = True,
+       hardware_error: frozenset[str] = frozenset()) -> NS:
+    """A servo sample at this opening, as the controllers read it (ServoReading)."""
+    return NS(position_rad=G.position_rad(opening_m), moving=moving,
+              hardware_error=hardware_error)
+
+
+def gripper_command(position: float, max_effort: float) -> NS:
+    return NS(command=NS(position=position, max_effort=max_effort))
+
+
+def parallel(position=(0.01,), velocity=(), effort=(), name=("finger_opening",)) -> NS:
+    return NS(command=NS(name=list(name), position=list(position), velocity=list(velocity),
+                         effort=list(effort)))
+
+
+def finished(outcome: Outcome, opening: float = 0.02) -> Step:
+    return Step(Phase.DONE, None, outcome, "why", opening)
+
+
+@given(st.floats(0.002, 0.06), st.floats(0.0, 50.0))
+def test_gripper_command_position_is_the_opening_and_effort_the_tactile_limit(pos, effort):
+    goal = accept_gripper_command(gripper_command(pos, effort), SETTINGS)
+    assert goal.request.opening_m == pos and goal.request.max_effort_n == effort
+    step = goal.start(0.0, at(0.061 if pos < 0.06 else 0.03))
+    assert step.command.goal_position_rad == pytest.approx(G.position_rad(pos))
+
+
+@given(st.floats(0.002, 0.06), st.just(0.0) | st.floats(1e-4, 0.2), st.floats(0.0, 50.0))
+def test_parallel_command_reads_the_joint_state_fields(pos, velocity, effort):
+    goal = accept_parallel_gripper_command(parallel([pos], [velocity], [effort]), SETTINGS)
+    request = goal.request
+    assert request.opening_m == pos and request.max_effort_n == effort
+    if velocity > 0:  # the joint's velocity is the opening's rate: twice a finger's speed
+        assert request.closing_speed_m_s == pytest.approx(velocity / 2)
+    else:
+        assert request.closing_speed_m_s == SETTINGS.closing_speed_m_s
+    without = accept_parallel_gripper_command(parallel([pos]), SETTINGS).request
+    assert without.max_effort_n == 0.0
+    assert without.opening_speed_m_s == SETTINGS.opening_speed_m_s
+
+
+@pytest.mark.parametrize("goal, words", [
+    (gripper_command(math.nan, 1.0), "not a number"),
+    (gripper_command(0.01, math.nan), "not a number"),
+    (gripper_command(0.01, -1.0), "negative"),
+    (gripper_command(0.001, 1.0), r"outside the travel \[0.002, 0.06\]"),
+    (gripper_command(0.07, 1.0), "outside the travel"),
+])
+def test_invalid_gripper_commands_are_rejected_with_one_sentence(goal, words):
+    with pytest.raises(InvalidRequest, match=words):
+        accept_gripper_command(goal, SETTINGS)
+
+
+@pytest.mark.parametrize("goal, words", [
+    (parallel(name=["gripper_joint"]), r"joint\(s\) \['gripper_joint'\].*'finger_opening'"),
+    (parallel(name=[]), "'finger_opening'"),
+    (parallel(name=["finger_opening", "other"]), "'finger_opening'"),
+    (parallel(position=[]), "exactly one"),
+    (parallel(position=[0.01, 0.02]), "exactly one"),
+    (parallel(velocity=[0.01, 0.01]), "at most one"),
+    (parallel(effort=[1.0, 1.0]), "at most one"),
+    (parallel(position=[math.nan]), "not a number"),
+    (parallel(position=[0.1]), "outside the travel"),
+    (parallel(effort=[-2.0]), "negative"),
+    (parallel(effort=[math.nan]), "not a number"),
+    (parallel(velocity=[-0.01]), "positive number"),
+    (parallel(velocity=[math.nan]), "positive number"),
+    (parallel(velocity=[10.0]), "slower speed"),
+])
+def test_invalid_parallel_commands_are_rejected_with_one_sentence(goal, words):
+    with pytest.raises(InvalidRequest, match=words):
+        accept_parallel_gripper_command(goal, SETTINGS)
+
+
+@pytest.mark.parametrize("goal, words", [
+    (NS(target_force=math.nan, closing_speed=0.0, timeout=0.0), "positive"),
+    (NS(target_force=-1.0, closing_speed=0.0, timeout=0.0), "positive"),
+    (NS(target_force=2.0, closing_speed=-0.01, timeout=0.0), "speed"),
+    (NS(target_force=2.0, closing_speed=math.nan, timeout=0.0), "speed"),
+    (NS(target_force=2.0, closing_speed=0.0, timeout=-1.0), "timeout"),
+])
+def test_invalid_grasps_are_rejected_before_they_start(goal, words):
+    with pytest.raises(InvalidRequest, match=words):
+        accept_grasp(goal, SETTINGS)
+
+
+@pytest.mark.parametrize("opening", [math.nan, 0.001, 0.07, -0.01])
+def test_invalid_releases_are_rejected_before_they_start(opening):
+    with pytest.raises(InvalidRequest, match="outside the travel"):
+        accept_release(NS(opening=opening), SETTINGS)
+
+
+def test_zero_means_the_node_s_defaults_for_grasp_and_release():
+    grasp = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0), SETTINGS)
+    assert grasp.request.speed_m_s == SETTINGS.closing_speed_m_s
+    assert grasp.request.timeout_s == SETTINGS.timeout_s
+    assert accept_release(NS(opening=0.0), SETTINGS).opening_m == G.open_opening_m
+
+
+@pytest.mark.parametrize("outcome, allow, succeeded, stalled, reached", [
+    (Outcome.REACHED, True, True, False, True),
+    (Outcome.REACHED, False, True, False, True),
+    (Outcome.FORCE_LIMIT, True, True, True, False),
+    (Outcome.FORCE_LIMIT, False, False, True, False),
+    (Outcome.STALLED, True, True, True, False),
+    (Outcome.STALLED, False, False, True, False),
+    (Outcome.TIMEOUT, True, False, False, False),
+    (Outcome.HARDWARE_ERROR, True, False, False, False),
+    (Outcome.CANCELED, True, False, False, False),
+])
+def test_move_results_follow_ros2_controllers(outcome, allow, succeeded, stalled, reached):
+    settings = replace(SETTINGS, allow_stalling=allow)
+    goal = accept_gripper_command(gripper_command(0.002, 2.0), settings)
+    step = finished(outcome, 0.019)
+    assert goal.succeeded(step) is succeeded
+    assert (goal.failure(step) is None) is succeeded
+    if outcome in (Outcome.FORCE_LIMIT, Outcome.STALLED) and not allow:
+        assert "allow_stalling is false" in goal.failure(step)
+    result = goal.result(Snapshot(step, 2.05, -0.001), "why")
+    assert result == {"position": 0.019, "effort": 2.05, "stalled": stalled,
+                      "reached_goal": reached}
+    assert goal.feedback(Snapshot(step, 2.05, -0.001)) == result
+
+
+def test_parallel_results_are_a_joint_state_of_our_joint():
+    goal = accept_parallel_gripper_command(parallel(effort=[2.0]), SETTINGS)
+    assert isinstance(goal, ParallelMoveGoal) and isinstance(goal, MoveGoal)
+    snap = Snapshot(finished(Outcome.FORCE_LIMIT, 0.0195), 1.98, 0.0)
+    state = {"name": ["finger_opening"], "position": [0.0195], "velocity": [0.0],
+             "effort": [1.98]}
+    assert goal.result(snap, "") == {"state": state, "stalled": True, "reached_goal": False}
+    assert goal.feedback(snap) == {"state": state}  # the action's feedback has no flags
+
+
+def test_a_force_limit_is_settled_onto_the_limit_other_outcomes_are_not():
+    goal = accept_gripper_command(gripper_command(0.002, 3.0), SETTINGS)
+    settler = goal.settler(finished(Outcome.FORCE_LIMIT))
+    assert settler is not None and settler.target_force_n == 3.0
+    assert settler.skin_stiffness_n_per_m == SETTINGS.skin_stiffness_n_per_m
+    assert goal.settler(finished(Outcome.STALLED)) is None
+    assert goal.settler(finished(Outcome.REACHED)) is None
+    grasp = accept_grasp(NS(target_force=1.5, closing_speed=0.0, timeout=0.0), SETTINGS)
+    assert grasp.settler(finished(Outcome.CONTACT)).target_force_n == 1.5
+    assert grasp.settler(finished(Outcome.TIMEOUT)) is None
+
+
+def test_grasp_and_release_results_keep_their_fields():
+    grasp = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0), SETTINGS)
+    snap = Snapshot(finished(Outcome.CONTACT, 0.0195), 2.01, 0.0)
+    assert grasp.result(snap, "contact: reached 2.01 N") == {
+        "contact_detected": True, "force": 2.01, "opening": 0.0195,
+        "message": "contact: reached 2.01 N"}
+    assert grasp.feedback(snap) == {"force": 2.01, "opening": 0.0195}
+    assert grasp.succeeded(snap.step) and grasp.failure(snap.step) is None
+    release = accept_release(NS(opening=0.0), SETTINGS)
+    snap = Snapshot(finished(Outcome.OPENED, 0.06), math.nan, 0.0)
+    assert release.result(snap, "ok") == {"opening": 0.06, "success": True, "message": "ok"}
+    timeout = finished(Outcome.TIMEOUT)
+    assert release.failure(timeout) == "timeout: why"
+
+
+def test_each_goal_runs_its_controller_start_tick_cancel():
+    for goal in (accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0), SETTINGS),
+                 accept_release(NS(opening=0.05), SETTINGS),
+                 accept_gripper_command(gripper_command(0.002, 2.0), SETTINGS)):
+        servo = at(0.03)
+        step = goal.start(0.0, servo)
+        assert step.command is not None and not step.finished
+        assert not goal.tick(0.05, 0.0, 0.04, servo).finished
+        assert goal.cancel(0.1, servo).outcome is Outcome.CANCELED
