@@ -42,6 +42,7 @@ from tactile_sensor.hardware.errors import (
     DynamixelError,
     InvalidServoValue,
     ModelMismatch,
+    PortLost,
     PortOpenError,
     ServoHardwareError,
     ServoRejected,
@@ -92,6 +93,32 @@ class _QuietPortHandler(PortHandler):
     def setPacketTimeout(self, packet_length: int) -> None:
         self.packet_start_time = self.getCurrentTime()
         self.packet_timeout = self.tx_time_per_byte * packet_length + self.timeout_ms
+
+    # pyserial raises when the device goes away (a pulled U2D2, a mock that exited): the SDK
+    # would let that escape from every call, so it becomes the typed PortLost here, and
+    # the SDK's busy flag is cleared so the next call can report the same again.
+    def readPort(self, length: int) -> bytes:
+        try:
+            return super().readPort(length)
+        except (serial.SerialException, OSError) as exc:
+            raise self._lost(exc) from None
+
+    def writePort(self, packet: list[int]) -> int:
+        try:
+            return super().writePort(packet)
+        except (serial.SerialException, OSError) as exc:
+            raise self._lost(exc) from None
+
+    def clearPort(self) -> None:
+        try:
+            super().clearPort()
+        except (serial.SerialException, OSError) as exc:
+            raise self._lost(exc) from None
+
+    def _lost(self, exc: BaseException) -> PortLost:
+        self.is_using = False
+        return PortLost(f"The serial port {self.port_name} failed ({exc}): the adapter was "
+                        "unplugged or the device closed; reconnect it, then reconfigure.")
 
 
 def _raw(name: str, value_si: float, scale: float) -> int:
