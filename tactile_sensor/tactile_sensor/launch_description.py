@@ -113,8 +113,9 @@ def _nodes(context: LaunchContext, configuration: Configuration,
         devices = [ports[arg] for _, arg in spec.port_parameters]
         actions += [
             node,
+            # only after configuring: a user's 'ros2 lifecycle set ... deactivate' stays
             RegisterEventHandler(OnStateTransition(
-                target_lifecycle_node=node, goal_state="inactive",
+                target_lifecycle_node=node, start_state="configuring", goal_state="inactive",
                 entities=[LogInfo(msg=f"{spec.name} configured, activating"),
                           EmitEvent(event=ChangeState(
                               lifecycle_node_matcher=matches_action(node),
