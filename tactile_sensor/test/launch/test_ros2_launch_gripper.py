@@ -1,10 +1,10 @@
 """``ros2 launch tactile_sensor gripper.launch.py`` for real, then the README's robot
 commands and the runtime ones a user types, all with the real ``ros2`` command line:
 the grasp line verbatim, a release, ``ros2 param set`` on the driver (a contact threshold
-taken at once; refused for a bad combination and for a device parameter), ``ros2 lifecycle set /driver
-deactivate/activate`` (publishing stops and resumes, checked in the recording), a tare at
-rest, and Ctrl-C (SIGINT to the whole process group, as a terminal sends it).
-One launch serves every check (a start costs ~10 s).
+taken at once; refused for a bad combination and for a device parameter),
+``ros2 lifecycle set /driver deactivate/activate`` (publishing stops and resumes, checked
+in the recording), a tare at rest, and Ctrl-C (SIGINT to the whole process group, as a
+terminal sends it). One launch serves every check (a start costs ~10 s).
 """
 
 from __future__ import annotations
