@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import math
+import termios
 import threading
 import time
 from dataclasses import dataclass
@@ -77,6 +78,10 @@ class ServoState:
     trajectory_position_rad: float = 0.0
 
 
+#: What pyserial raises when the device goes away mid-call (termios.error from a flush).
+PORT_FAILURES = (serial.SerialException, OSError, termios.error)
+
+
 class _QuietPortHandler(PortHandler):
     """PortHandler whose reads block briefly instead of spinning, with our packet timeout."""
 
@@ -100,19 +105,19 @@ class _QuietPortHandler(PortHandler):
     def readPort(self, length: int) -> bytes:
         try:
             return super().readPort(length)
-        except (serial.SerialException, OSError) as exc:
+        except PORT_FAILURES as exc:
             raise self._lost(exc) from None
 
     def writePort(self, packet: list[int]) -> int:
         try:
             return super().writePort(packet)
-        except (serial.SerialException, OSError) as exc:
+        except PORT_FAILURES as exc:
             raise self._lost(exc) from None
 
     def clearPort(self) -> None:
         try:
             super().clearPort()
-        except (serial.SerialException, OSError) as exc:
+        except PORT_FAILURES as exc:
             raise self._lost(exc) from None
 
     def _lost(self, exc: BaseException) -> PortLost:
