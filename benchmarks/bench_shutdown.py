@@ -88,13 +88,23 @@ def main() -> int:
         times, bad = [], []
         for run in range(args.runs):
             with tempfile.TemporaryDirectory(prefix=f"bench_shutdown_{name}_") as tmp:
-                seconds, code, faults, noisy = one_run(name, Path(tmp), args.settle,
-                                                       args.group)
+                try:
+                    seconds, code, faults, noisy = one_run(name, Path(tmp), args.settle,
+                                                           args.group)
+                except RuntimeError as exc:  # did not come up: a failed run, not a crash
+                    print(f"  {name} run {run + 1}/{args.runs}: {exc}; log:\n"
+                          + (Path(tmp) / f"{name}.log").read_text(errors="replace")[-1500:])
+                    bad.append(run + 1)
+                    continue
             times.append(seconds)
             print(f"  {name} run {run + 1}/{args.runs}: exit {code} after {seconds:.2f} s, "
                   f"{faults} fault(s), {noisy} ERROR/WARN line(s) at start", flush=True)
             if code != 0 or faults or noisy or seconds >= 5.0:
                 bad.append(run + 1)
+        if not times:
+            print(f"{name}.launch.py: no run came up")
+            failed = True
+            continue
         print(f"{name}.launch.py: time to exit after SIGINT min {min(times):.2f} s, median "
               f"{statistics.median(times):.2f} s, max {max(times):.2f} s over {len(times)} "
               f"runs; runs with a non-zero status, a fault, a noisy start or >= 5 s: "
