@@ -10,7 +10,8 @@ and times the exit. Each run also counts the faults a user must never see (Trace
     python benchmarks/bench_shutdown.py [--runs 10] [--settle 2] [--group] [bench gripper]
 
 Run with ``scripts/env.sh`` sourced (``ros2`` on PATH, built by ``make setup``). ROS domain:
-$ROS_DOMAIN_ID (default 178); discovery stays on localhost.
+$ROS_DOMAIN_ID (default 215, outside the test suite's block of ids); discovery stays
+on localhost.
 """
 
 from __future__ import annotations
@@ -79,7 +80,7 @@ def main() -> int:
     parser.add_argument("--group", action="store_true",
                         help="SIGINT to the whole process group (Ctrl-C in a terminal)")
     args = parser.parse_args()
-    os.environ.setdefault("ROS_DOMAIN_ID", "178")
+    os.environ.setdefault("ROS_DOMAIN_ID", "215")
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     target = "process group" if args.group else "ros2 launch"
     print(f"SIGINT to the {target}; {args.runs} runs per launch file", flush=True)
