@@ -7,6 +7,7 @@ drift apart. ``launch`` and ``launch_ros`` are imported here only.
 
 from __future__ import annotations
 
+import asyncio
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +17,7 @@ from launch.actions import (
     DeclareLaunchArgument,
     EmitEvent,
     LogInfo,
+    OpaqueCoroutine,
     OpaqueFunction,
     RegisterEventHandler,
 )
@@ -27,6 +29,12 @@ from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
 from tactile_sensor.configurations import PACKAGE, Configuration, config_dir
+
+DEVICE_POLL_S = 0.05  # how often the launch looks for the mock rig's device links
+
+
+class LaunchArgumentError(RuntimeError):
+    """A launch argument cannot work; ``ros2 launch`` prints the message as one line."""
 
 
 def _truthy(text: str) -> bool:
@@ -67,11 +75,15 @@ def _nodes(context: LaunchContext, configuration: Configuration,
     protocol = LaunchConfiguration("protocol").perform(context)
     ports = {name: LaunchConfiguration(name).perform(context) for name in configuration.ports}
     if protocol and protocol not in protocols:
-        raise RuntimeError(f"Unknown protocol '{protocol}'; choose one of "
-                           f"{', '.join(protocols)}.")
+        raise LaunchArgumentError(f"Unknown protocol '{protocol}'; choose one of "
+                                  f"{', '.join(protocols)}.")
+    if extra and not Path(extra).is_file():  # launch_ros would only warn and go on without it
+        raise LaunchArgumentError(f"config:={extra} does not exist; give the path of a ROS "
+                                  "parameter YAML file.")
     protocol_parameters = ({"protocol.name": protocol, **(protocols[protocol] or {})}
                            if protocol else {})
     actions: list[Any] = []
+    mock: Node | None = None
     if record:
         ns = f"/{namespace.strip('/')}" if namespace.strip("/") else ""
         actions.append(Node(
@@ -92,17 +104,33 @@ def _nodes(context: LaunchContext, configuration: Configuration,
                       remappings=list(spec.remappings), output="screen")
         if not spec.lifecycle:
             actions.append(Node(**common))
+            if spec.mock_only:
+                mock = actions[-1]
             continue
         node = LifecycleNode(**common)
+        configure = ChangeState(lifecycle_node_matcher=matches_action(node),
+                                transition_id=Transition.TRANSITION_CONFIGURE)
+        devices = [ports[arg] for _, arg in spec.port_parameters]
         actions += [
             node,
+            # only after configuring: a user's 'ros2 lifecycle set ... deactivate' stays
             RegisterEventHandler(OnStateTransition(
-                target_lifecycle_node=node, goal_state="inactive",
+                target_lifecycle_node=node, start_state="configuring", goal_state="inactive",
                 entities=[LogInfo(msg=f"{spec.name} configured, activating"),
                           EmitEvent(event=ChangeState(
                               lifecycle_node_matcher=matches_action(node),
                               transition_id=Transition.TRANSITION_ACTIVATE))])),
-            EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(node),
-                                        transition_id=Transition.TRANSITION_CONFIGURE)),
+            OpaqueCoroutine(coroutine=_once_devices_exist, args=[configure, devices, mock])
+            if mock is not None and devices else EmitEvent(event=configure),
         ]
     return actions
+
+
+async def _once_devices_exist(context: LaunchContext, event: ChangeState, devices: list[str],
+                              mock: Node) -> None:
+    """Emit ``event`` once the mock rig has created ``devices``, so a node never opens a
+    port before it exists (which it would report as an unplugged device). If the mock
+    process ends first, the event goes out anyway and the node reports what is missing."""
+    while mock.return_code is None and not all(Path(d).exists() for d in devices):
+        await asyncio.sleep(DEVICE_POLL_S)
+    await context.emit_event(event)

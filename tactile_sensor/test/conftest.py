@@ -8,6 +8,7 @@ never answer another. Child processes inherit the environment of ``make test`` (
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -62,6 +63,21 @@ class Spawned:
         if self.proc.poll() is None:
             os.killpg(self.proc.pid, sig)
 
+    def interrupt(self, *, group: bool, timeout_s: float = 5.0) -> tuple[int | None, float]:
+        """SIGINT to the process (``group=False``, as a supervisor sends it) or to its whole
+        process group (as Ctrl-C in a terminal); (exit status or None, seconds to exit)."""
+        start = time.monotonic()
+        if self.proc.poll() is None:
+            if group:
+                os.killpg(self.proc.pid, signal.SIGINT)
+            else:
+                self.proc.send_signal(signal.SIGINT)
+        try:
+            code: int | None = self.proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            code = None
+        return code, time.monotonic() - start
+
     def stop(self, timeout_s: float = 10.0) -> int | None:
         if self.proc.poll() is None:
             self.send_signal(signal.SIGINT)
@@ -112,3 +128,96 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         if "/test/nodes/" in str(item.path):
             item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
+
+
+#: Lines that must never appear in a node's output, shutdown included.
+SHUTDOWN_FAULTS = ("Traceback", "never retrieved", "context is invalid")
+
+
+@pytest.fixture
+def own_processes(monkeypatch: pytest.MonkeyPatch) -> Callable[[], list[str]]:
+    """Lists the processes this test started that still run (children inherit a mark in
+    their environment, also the ones that detach, such as a ros2 daemon)."""
+    mark = f"{os.getpid()}.{next(_counter)}"
+    monkeypatch.setenv("TACTILE_TEST_PROCESS_MARK", mark)
+    needle = f"\0TACTILE_TEST_PROCESS_MARK={mark}\0".encode()
+
+    def running() -> list[str]:
+        found = []
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit() or int(entry.name) == os.getpid():
+                continue
+            try:
+                environ = b"\0" + (entry / "environ").read_bytes()
+                cmdline = (entry / "cmdline").read_bytes()
+            except OSError:
+                continue
+            if needle in environ and cmdline:
+                command = cmdline.replace(b"\0", b" ").decode(errors="replace")
+                found.append(f"{entry.name}: {command}")
+        return found
+
+    return running
+
+
+@pytest.fixture
+def ros2(ros_domain: int, tmp_path: Path) -> Callable[..., subprocess.CompletedProcess[str]]:
+    """The real ``ros2`` command line (built by ``make setup``) in this test's domain; each
+    call's command and output are appended to ``ros2-cli.log``. Tests pass ``--no-daemon``
+    where a verb has it, so no daemon outlives them. Without a daemon a verb discovers the
+    graph itself for ``--spin-time`` and may answer 'Node not found' for a node that runs
+    (the ros2 CLI's discovery window, not the node): such a call is repeated, up to 4
+    times."""
+    if shutil.which("ros2") is None:
+        pytest.fail("the ros2 command line is missing: run 'make setup' (it builds launch and "
+                    "ros2cli from ../shared/ros2-src) and source scripts/env.sh")
+    log = tmp_path / "ros2-cli.log"
+
+    def run(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
+        for _ in range(4):
+            result = subprocess.run(["ros2", *args], capture_output=True, text=True,
+                                    timeout=timeout_s, env=dict(os.environ))
+            with log.open("a") as f:
+                f.write(f"$ ros2 {' '.join(args)}  -> {result.returncode}\n{result.stdout}"
+                        f"{result.stderr}\n")
+            if "Node not found" not in result.stderr:
+                break
+        return result
+
+    return run
+
+
+@pytest.fixture
+def lifecycle_states(ros2: Callable[..., subprocess.CompletedProcess[str]]
+                     ) -> Callable[[set[str]], dict[str, str]]:
+    """``ros2 lifecycle get`` (every lifecycle node in one call), repeated until ``nodes``
+    are all discovered and active or 60 s passed; node -> state label."""
+
+    def get(nodes: set[str]) -> dict[str, str]:
+        deadline = time.monotonic() + 60.0
+        while True:
+            out = ros2("lifecycle", "get", "--no-daemon", "--spin-time", "2").stdout
+            states = dict(line.split(": ", 1) for line in out.splitlines() if ": " in line)
+            states = {name: state.split()[0] for name, state in states.items()}
+            if all(states.get(n) == "active" for n in nodes) or time.monotonic() > deadline:
+                return states
+            time.sleep(0.5)
+
+    return get
+
+
+def _check_compression_metrics(mt: dict) -> None:
+    """The paper's compression response (Sec. III-B), with the tolerances explained in
+    test_bench_protocols.py."""
+    assert mt["cycles"] == 1
+    assert mt["full_scale_n"] == pytest.approx(7.0, rel=0.15)  # "approximately 7 N" at 3 mm
+    assert mt["sensitivity_v_per_n"] == pytest.approx(0.07, rel=0.25)
+    assert mt["dynamic_range_db"] == pytest.approx(31.49, abs=3.0)
+    assert 0 < mt["hysteresis_pct_fs"] < 8.0
+    assert mt["prediction"]["rmse_pct_fs"] < 15.0  # Fig. 7b: model and measurement agree
+
+
+@pytest.fixture
+def check_compression_metrics() -> Callable[[dict], None]:
+    """Asserts ``tactile-sensor analyze``'s metrics.json of one compression run."""
+    return _check_compression_metrics

@@ -29,6 +29,10 @@ class PortOpenError(DynamixelError):
     """The servo's serial port cannot be opened (missing, busy, unsupported baud rate)."""
 
 
+class PortLost(DynamixelError):
+    """The servo's serial port failed while in use (adapter unplugged, device closed)."""
+
+
 class CommunicationTimeout(DynamixelError):
     """No status packet came back in time (power, id, baud rate or cable)."""
 

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import itertools
 import math
+import termios
 import threading
 import time
 from dataclasses import dataclass
@@ -42,6 +43,7 @@ from tactile_sensor.hardware.errors import (
     DynamixelError,
     InvalidServoValue,
     ModelMismatch,
+    PortLost,
     PortOpenError,
     ServoHardwareError,
     ServoRejected,
@@ -76,6 +78,10 @@ class ServoState:
     trajectory_position_rad: float = 0.0
 
 
+#: What pyserial raises when the device goes away mid-call (termios.error from a flush).
+PORT_FAILURES = (serial.SerialException, OSError, termios.error)
+
+
 class _QuietPortHandler(PortHandler):
     """PortHandler whose reads block briefly instead of spinning, with our packet timeout."""
 
@@ -92,6 +98,32 @@ class _QuietPortHandler(PortHandler):
     def setPacketTimeout(self, packet_length: int) -> None:
         self.packet_start_time = self.getCurrentTime()
         self.packet_timeout = self.tx_time_per_byte * packet_length + self.timeout_ms
+
+    # pyserial raises when the device goes away (a pulled U2D2, a mock that exited): the SDK
+    # would let that escape from every call, so it becomes the typed PortLost here, and
+    # the SDK's busy flag is cleared so the next call can report the same again.
+    def readPort(self, length: int) -> bytes:
+        try:
+            return super().readPort(length)
+        except PORT_FAILURES as exc:
+            raise self._lost(exc) from None
+
+    def writePort(self, packet: list[int]) -> int:
+        try:
+            return super().writePort(packet)
+        except PORT_FAILURES as exc:
+            raise self._lost(exc) from None
+
+    def clearPort(self) -> None:
+        try:
+            super().clearPort()
+        except PORT_FAILURES as exc:
+            raise self._lost(exc) from None
+
+    def _lost(self, exc: BaseException) -> PortLost:
+        self.is_using = False
+        return PortLost(f"The serial port {self.port_name} failed ({exc}): the adapter was "
+                        "unplugged or the device closed; reconnect it, then reconfigure.")
 
 
 def _raw(name: str, value_si: float, scale: float) -> int:

@@ -17,7 +17,7 @@ from typing import Any
 
 import yaml
 
-from tactile_sensor.configurations import CONFIGURATIONS, Configuration, NodeSpec, config_dir
+from tactile_sensor.configurations import CONFIGURATIONS, Configuration, config_dir
 
 
 class BringupError(Exception):
@@ -92,19 +92,6 @@ def _override(params: dict[str, Any], item: str, spec: str) -> dict[str, Any]:
         raise BringupError(f"--protocol value '{item}' is not a number of the kind "
                            f"'{key.strip()}' takes (as in config/protocols.yaml).") from None
     return {name: value}
-
-
-def node_arguments(spec: NodeSpec, extra_config: Path | None) -> list[str]:
-    """The --ros-args a launch file would give this node (device ports go in as parameter
-    overrides instead: a node-specific section of a file would beat a global ``-p``)."""
-    args = ["--ros-args"]
-    for name in spec.config_files:
-        args += ["--params-file", str(config_dir() / name)]
-    if extra_config is not None:
-        args += ["--params-file", str(extra_config)]
-    for source, target in spec.remappings:
-        args += ["-r", f"{source}:={target}"]
-    return args
 
 
 def resolve_ports(configuration: Configuration, given: list[str]) -> dict[str, str]:

@@ -10,24 +10,39 @@
 from __future__ import annotations
 
 import math
+import sys
 import threading
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from geometry_msgs.msg import WrenchStamped
 from rclpy.action import ActionClient
 
 from tactile_sensor_interfaces.action import Grasp, Release
 
-if TYPE_CHECKING:
-    from tactile_sensor.nodes.bringup_runner import BringupRunner
-
 READY_TIMEOUT_S = 120.0  # a cold FEM sweep plus the driver's tare
 DRAIN_STALL_S = 30.0  # give up waiting for the streams once they have not advanced for this long
 
 
-def run_protocol(runner: BringupRunner, duration: float | None) -> int:
-    from tactile_sensor.nodes.bringup_runner import say
+class RunningBringup(Protocol):
+    """What a protocol needs of the running bringup (``bringup_runner.BringupRunner``)."""
 
+    nodes: dict[str, Any]
+    protocol: dict[str, Any]
+    configuration: Any
+
+    def wait(self, seconds: float) -> bool: ...
+
+    @property
+    def stopped(self) -> bool: ...
+
+    def now(self) -> float: ...
+
+
+def say(message: str) -> None:
+    print(f"[bringup] {message}", file=sys.stderr, flush=True)
+
+
+def run_protocol(runner: RunningBringup, duration: float | None) -> int:
     driver = runner.nodes.get("driver")
     if driver is not None and not _wait_until(runner, lambda: driver.ready, READY_TIMEOUT_S,
                                               "driver streaming calibrated force"):
@@ -47,9 +62,7 @@ def run_protocol(runner: BringupRunner, duration: float | None) -> int:
     return 0
 
 
-def _wait_until(runner: BringupRunner, predicate: Any, timeout_s: float, what: str) -> bool:
-    from tactile_sensor.nodes.bringup_runner import say
-
+def _wait_until(runner: RunningBringup, predicate: Any, timeout_s: float, what: str) -> bool:
     deadline = runner.now() + timeout_s
     said = runner.now()
     while not predicate():
@@ -62,9 +75,7 @@ def _wait_until(runner: BringupRunner, predicate: Any, timeout_s: float, what: s
     return True
 
 
-def _run_bench(runner: BringupRunner, bench: Any, duration: float | None) -> int:
-    from tactile_sensor.nodes.bringup_runner import say
-
+def _run_bench(runner: RunningBringup, bench: Any, duration: float | None) -> int:
     bench.start_protocol()
     total = bench.protocol_duration_s + 0.5
     limit = total if duration is None else min(duration, total)
@@ -83,7 +94,7 @@ def _run_bench(runner: BringupRunner, bench: Any, duration: float | None) -> int
     return _drain(runner, bench, runner.nodes.get("driver"), limit)
 
 
-def _drain(runner: BringupRunner, bench: Any, driver: Any, limit_s: float) -> int:
+def _drain(runner: RunningBringup, bench: Any, driver: Any, limit_s: float) -> int:
     """Keep running until the stage, gauge and driver have published up to the protocol's
     end (their stamps, not the clock), so the recording holds every press.
 
@@ -91,8 +102,6 @@ def _drain(runner: BringupRunner, bench: Any, driver: Any, limit_s: float) -> in
     trails the protocol's clock by seconds to minutes, and stopping at the clock's end
     cut the last presses out of the recording. So wait as long as the streams advance.
     """
-    from tactile_sensor.nodes.bringup_runner import say
-
     end_ns = bench.protocol_start_ns + int(limit_s * 1e9)
 
     def position() -> tuple[int, int]:
@@ -134,9 +143,7 @@ class _ForceTrace:
             return self.values[index:]
 
 
-def _run_grasp(runner: BringupRunner, duration: float | None) -> int:
-    from tactile_sensor.nodes.bringup_runner import say
-
+def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
     node = runner.nodes["gripper"]
     p = runner.protocol
     trace = _ForceTrace()
@@ -174,9 +181,7 @@ def _run_grasp(runner: BringupRunner, duration: float | None) -> int:
     return 0 if result.contact_detected and released.success else 1
 
 
-def _call(runner: BringupRunner, client: ActionClient, goal: Any, timeout_s: float) -> Any:
-    from tactile_sensor.nodes.bringup_runner import say
-
+def _call(runner: RunningBringup, client: ActionClient, goal: Any, timeout_s: float) -> Any:
     done = threading.Event()
     box: dict[str, Any] = {}
 

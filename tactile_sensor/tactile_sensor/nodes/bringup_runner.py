@@ -18,12 +18,22 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
-from tactile_sensor.configurations import Configuration
-from tactile_sensor.nodes.bringup import node_arguments
+from tactile_sensor.configurations import Configuration, NodeSpec, config_dir
+from tactile_sensor.nodes.bringup_protocols import run_protocol, say
 
 
-def say(message: str) -> None:
-    print(f"[bringup] {message}", file=sys.stderr, flush=True)
+def node_arguments(spec: NodeSpec, extra_config: Path | None) -> list[str]:
+    """The --ros-args a launch file would give this node (device ports go in as parameter
+    overrides instead: a node-specific section of a file would beat a global ``-p``)."""
+    args = ["--ros-args"]
+    for name in spec.config_files:
+        args += ["--params-file", str(config_dir() / name)]
+    if extra_config is not None:
+        args += ["--params-file", str(extra_config)]
+    for source, target in spec.remappings:
+        args += ["-r", f"{source}:={target}"]
+    return args
+
 
 
 class BringupRunner:
@@ -126,8 +136,6 @@ class BringupRunner:
             spinner.start()
             if not self._lifecycle_up():
                 return 1
-            from tactile_sensor.nodes.bringup_protocols import run_protocol
-
             code = run_protocol(self, duration)
         finally:
             signal.signal(signal.SIGINT, previous)

@@ -18,7 +18,9 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import Node, State, TransitionCallbackReturn
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
 from std_srvs.srv import Trigger
@@ -101,6 +103,17 @@ SPECS = [
               "a connection change)", minimum=0.05, maximum=60.0),
 ]
 
+#: What 'ros2 param set' may change while the driver is configured: the signal chain's
+#: filter, tare and contact settings and how readings are published take effect at once.
+#: The rest describe the device and its wiring; they are read on configure, so setting one
+#: then is refused with how to apply it (never silently ignored).
+RUNTIME_PARAMETERS = frozenset({
+    "filter_type", "filter.window", "filter.cutoff_hz", "filter.order", "filter.min_cutoff_hz",
+    "filter.beta", "filter.d_cutoff_hz", "contact_on_force", "contact_off_force",
+    "contact_debounce", "tare_window", "tare_max_spread", "auto_tare", "publish_rate",
+    "frame_id"})
+SPEC_BY_NAME = {spec.name: spec for spec in SPECS}
+
 FILTER_KEYS = {"savgol": ("window",), "moving_average": ("window",),
                "butterworth": ("order", "cutoff_hz"),
                "one_euro": ("min_cutoff_hz", "beta", "d_cutoff_hz"), "none": ()}
@@ -133,6 +146,8 @@ class DriverNode(Node):
     def __init__(self, node_name: str = "driver", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         declare_parameters(self, SPECS)
+        self.add_on_set_parameters_callback(self._check_runtime_change)
+        self.add_post_set_parameters_callback(self._apply_runtime_change)
         self._values: dict[str, Any] = {}
         self._chain: SignalChain | None = None
         self._reader: AdcStreamReader | None = None
@@ -231,6 +246,46 @@ class DriverNode(Node):
         self._reader = self._chain = None
         self._wrench_pub = self._reading_pub = self._diag_pub = None
         self._tare_srv = self._calibration_sub = self._diag_timer = None
+
+    # -- ros2 param set while configured -------------------------------------------------------
+    def _runtime_values(self, params: list[Parameter]) -> dict[str, Any]:
+        """The configured values with ``params`` applied; ParameterError when one is bad."""
+        values = dict(self._values)
+        for param in params:
+            if param.name in RUNTIME_PARAMETERS:
+                values[param.name] = SPEC_BY_NAME[param.name].validate(param.value)
+        chain_config(values).validate()  # the combination must hold (contact hysteresis)
+        return values
+
+    def _check_runtime_change(self, params: list[Parameter]) -> SetParametersResult:
+        if self._chain is None:  # unconfigured: every parameter is read on configure
+            return SetParametersResult(successful=True)
+        fixed = [p.name for p in params
+                 if p.name in SPEC_BY_NAME and p.name not in RUNTIME_PARAMETERS]
+        if fixed:
+            node = self.get_fully_qualified_name()
+            return SetParametersResult(successful=False, reason=(
+                f"Parameter '{fixed[0]}' is read on configure and cannot change while the "
+                f"driver is configured; run 'ros2 lifecycle set {node} deactivate' and "
+                f"'... cleanup', set it, then configure and activate again."))
+        try:
+            self._runtime_values(params)
+        except (ParameterError, SensingError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_runtime_change(self, params: list[Parameter]) -> None:
+        chain = self._chain
+        changed = [p for p in params if p.name in RUNTIME_PARAMETERS]
+        if chain is None or not changed:
+            return
+        values = self._runtime_values(changed)
+        chain.reconfigure(chain_config(values))
+        rate = values["publish_rate"]
+        self._publish_every_ns = int(1e9 / rate) if rate > 0 else 0
+        self._values = values
+        self.get_logger().info("changed while running: " + ", ".join(
+            f"{p.name} = {values[p.name]}" for p in changed))
 
     # -- data path (reader thread) -----------------------------------------------------------
     def _on_sample(self, sample: Sample) -> None:

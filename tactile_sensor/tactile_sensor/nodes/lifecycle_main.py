@@ -1,19 +1,24 @@
-"""``main()`` of a lifecycle node executable, with optional autostart.
+"""``main()`` of a lifecycle node executable, with optional autostart and a clean exit.
 
 Under ``ros2 launch`` the launch file drives the transitions; for ``ros2 run`` and tests,
 ``--ros-args -p autostart:=true`` configures and activates the node at start-up, and a
 failed transition leaves it running (unconfigured) so it can be fixed with ``ros2 param``
-and ``ros2 lifecycle set`` without a restart.
+and ``ros2 lifecycle set`` without a restart. On SIGINT/SIGTERM the node goes through its
+shutdown transition (threads stopped, queued data published) before the context ends.
 """
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import Node, TransitionCallbackReturn
+
+from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
 
 
 def declare_autostart(node: Node) -> bool:
@@ -35,17 +40,24 @@ def autostart(node: Node) -> bool:
     return True
 
 
+def finalize(node: Node) -> None:
+    """The shutdown transition from wherever the node is (finalized already: nothing)."""
+    # RCLError: finalized already (e.g. by 'ros2 lifecycle set ... shutdown')
+    with contextlib.suppress(_rclpy.RCLError):
+        node.trigger_shutdown()
+
+
 def run_lifecycle_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
     try:
-        with rclpy.init(args=args):
+        with rclpy.init(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
             node = factory()
             if declare_autostart(node):
                 autostart(node)
             executor = MultiThreadedExecutor(num_threads=4)
             executor.add_node(node)
             try:
-                executor.spin()
+                spin_until_signal(executor, lambda: finalize(node))
             finally:
                 node.destroy_node()
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except KeyboardInterrupt:  # Ctrl-C before spinning (e.g. while a node loads)
         pass

@@ -24,12 +24,13 @@ from typing import Any
 import numpy as np
 import rclpy
 from geometry_msgs.msg import WrenchStamped
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
 from tactile_sensor.nodes.parameters import (
     ParameterError,
     ParamSpec,
@@ -96,6 +97,10 @@ SPECS = [
 ]
 
 
+#: On shutdown the devices stay until their clients closed them, at most this long [s].
+RELEASE_WAIT_S = 3.0
+
+
 class MockHardwareError(Exception):
     """The mock rig cannot start; the message names the parameter or file to fix."""
 
@@ -159,7 +164,7 @@ class MockHardwareNode(Node):
             if self.emulator is not None:
                 self.emulator.start()
         except (SimError, OSError, ValueError) as exc:
-            self._close_devices()
+            self.close_devices()
             raise MockHardwareError(f"Cannot start the mock devices: {exc}") from None
         self.get_logger().info(
             f"mock {values['world']} ready: ADC at {values['adc_link']}"
@@ -290,33 +295,42 @@ class MockHardwareNode(Node):
         self._truth_pub.publish(msg)
 
     # -- shutdown ------------------------------------------------------------------------------
-    def _close_devices(self) -> None:
+    def close_devices(self) -> None:
+        """Stop the gauge thread, then the devices once their clients have closed them (at
+        most ``RELEASE_WAIT_S``), so a client shutting down with us never sees its device
+        vanish (idempotent)."""
         self._stop.set()
         for thread in self._threads:
             thread.join(timeout=5.0)  # before the publishers it uses are destroyed
-        for device in (getattr(self, "adc", None), self.emulator):
-            if device is not None:
-                device.stop()
+        devices = [d for d in (getattr(self, "adc", None), self.emulator) if d is not None]
+        deadline = time.monotonic() + RELEASE_WAIT_S
+        for device in devices:
+            device.link.wait_released(max(0.0, deadline - time.monotonic()))
+        for device in devices:
+            device.stop()
 
     def destroy_node(self) -> None:
-        self._close_devices()
+        self.close_devices()
         super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:
     sys.setswitchinterval(5e-4)  # several device threads must each answer within ~1 ms
     try:
-        with rclpy.init(args=args):
+        with rclpy.init(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
             try:
                 node = MockHardwareNode()
             except MockHardwareError as exc:
                 print(f"mock_hardware: {exc}", file=sys.stderr)
                 return 2
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
             try:
-                rclpy.spin(node)
+                # the gauge thread stops before the context does
+                spin_until_signal(executor, node.close_devices)
             finally:
                 node.destroy_node()
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except KeyboardInterrupt:  # Ctrl-C while the skin model loads
         pass
     return 0
 

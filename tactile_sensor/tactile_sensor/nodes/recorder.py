@@ -15,7 +15,6 @@ import contextlib
 import importlib
 import json
 import shutil
-import signal
 import sys
 import time
 from functools import partial
@@ -24,7 +23,7 @@ from typing import Any
 
 import rclpy
 from rclpy.exceptions import InvalidHandle, InvalidTopicNameException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -35,6 +34,7 @@ from rclpy.qos import (
 from rclpy.subscription import MessageInfo, RCLError, Subscription
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
+from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
 from tactile_sensor.nodes.parameters import (
     ParameterError,
     ParamSpec,
@@ -309,19 +309,21 @@ class RecorderNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Record until Ctrl-C; a bad parameter or path prints one sentence and exits 1."""
     try:
-        with rclpy.init(args=args):
+        with rclpy.init(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
             try:
                 node = RecorderNode()
             except (ParameterError, RecordingError) as exc:
                 print(f"recorder: {exc}", file=sys.stderr)
                 return 1
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
             try:
-                rclpy.spin(node)
+                # The bag closes (last messages taken, index and metadata written, the
+                # count logged) while the context is valid; a second Ctrl-C cannot stop it.
+                spin_until_signal(executor, node.close_bag)
             finally:
-                # A second Ctrl-C must not interrupt writing the bag's index and metadata.
-                signal.signal(signal.SIGINT, signal.SIG_IGN)
                 node.destroy_node()
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except KeyboardInterrupt:
         pass
     return 0
 

@@ -94,6 +94,10 @@ class ChainConfig:
         _Parts(self)
 
 
+#: Settings of the ADC side, fixed for a chain's life (``SignalChain.reconfigure``).
+FIXED_FIELDS = ("rate_hz", "adc_bits", "vref_v", "channel")
+
+
 class _Parts:
     def __init__(self, config: ChainConfig) -> None:
         self.adc = AdcConversion(config.adc_bits, config.vref_v)
@@ -177,6 +181,30 @@ class SignalChain:
             self._volts_per_count = conversion.volts_per_count
             self._filter.reset()
             self._tare.clear()
+
+    def reconfigure(self, config: ChainConfig) -> None:
+        """Take new filter, tare and contact settings while samples flow; baseline and
+        calibration stay. A part whose settings changed starts afresh (a new filter has no
+        history). The ADC settings (``FIXED_FIELDS``) cannot change here."""
+        fixed = [name for name in FIXED_FIELDS
+                 if getattr(config, name) != getattr(self.config, name)]
+        if fixed:
+            raise SensingError(f"{', '.join(fixed)} cannot change while samples flow; build a "
+                               "new chain.")
+        parts = _Parts(config)  # validates
+        old = self.config
+        with self._lock:
+            if (config.filter_name, config.filter_params) != (old.filter_name,
+                                                              old.filter_params):
+                self._filter = parts.filter
+            if (config.tare_window_s, config.tare_max_spread_v) != (old.tare_window_s,
+                                                                    old.tare_max_spread_v):
+                self._tare = parts.tare
+                self._auto_tare_every = max(1, self._tare.size // 10)
+            if (config.contact_on_n, config.contact_off_n, config.contact_debounce_s) != (
+                    old.contact_on_n, old.contact_off_n, old.contact_debounce_s):
+                self._contact = parts.contact
+            self.config = config
 
     def reset(self) -> None:
         """Forget filter, tare window and contact state (after a reconnect), keep baseline."""

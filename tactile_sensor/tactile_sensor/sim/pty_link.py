@@ -12,6 +12,7 @@ import errno
 import os
 import select
 import termios
+import time
 import tty
 from pathlib import Path
 from types import TracebackType
@@ -74,6 +75,31 @@ class PtyLink:
                     os.close(fd)
         self._master = self._slave = None
         self.slave_name = None
+
+    def wait_released(self, timeout_s: float) -> bool:
+        """Wait until no program has the port open, at most ``timeout_s``; True if none has.
+
+        For shutting down: a mock that exits while its client still reads looks like a
+        pulled cable to the client. Our own slave fd (which keeps the master from seeing a
+        hang-up) is closed first, so the master reports POLLHUP once the last client has
+        closed the port.
+        """
+        if self._master is None:
+            return True
+        if self._slave is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._slave)
+            self._slave = None
+        poller = select.poll()
+        poller.register(self._master, 0)  # POLLHUP and POLLERR are always reported
+        deadline = time.monotonic() + timeout_s
+        while True:
+            remaining = deadline - time.monotonic()
+            events = poller.poll(max(0, int(remaining * 1000)))
+            if any(event & (select.POLLHUP | select.POLLERR) for _, event in events):
+                return True
+            if remaining <= 0:
+                return False
 
     def fileno(self) -> int:
         if self._master is None:

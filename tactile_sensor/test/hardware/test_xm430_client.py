@@ -14,6 +14,7 @@ from tactile_sensor.hardware.errors import (
     DynamixelError,
     InvalidServoValue,
     ModelMismatch,
+    PortLost,
     PortOpenError,
     ServoHardwareError,
     ServoRejected,
@@ -161,3 +162,11 @@ def test_port_and_argument_errors(tmp_path):
         Xm430Client("x", BAUD, 300)
     with pytest.raises(DynamixelError, match="not connected"):
         Xm430Client("x", BAUD, 1).read_state()
+
+
+def test_a_vanished_device_raises_port_lost_every_time(client, emulator):
+    client.read_state()
+    emulator.stop()  # the adapter is pulled (or the mock exited): pyserial raises
+    for _ in range(2):  # and again, not "port was busy": the SDK's busy flag is cleared
+        with pytest.raises(PortLost, match=r"serial port .* failed .*reconnect it"):
+            client.read_state()

@@ -115,3 +115,39 @@ def test_bad_configuration_names_the_parameter(values, match):
 def test_bad_baseline_is_refused():
     with pytest.raises(TareError, match="finite"):
         SignalChain().set_baseline(float("nan"))
+
+
+# -- settings changed while running (the driver's 'ros2 param set') -----------------------
+
+def test_reconfigure_changes_contact_thresholds_and_keeps_the_baseline():
+    chain = SignalChain(ChainConfig(filter_name="none"), CAL)
+    run(chain, [2.0] * 600)
+    baseline = chain.baseline_v
+    assert run(chain, [2.0 - 0.07] * 50, start=600)[-1].contact  # 1 N > 0.5 N
+    chain.reconfigure(ChainConfig(filter_name="none", contact_on_n=2.0, contact_off_n=1.5))
+    assert not run(chain, [2.0 - 0.07] * 50, start=650)[-1].contact  # 1 N < 1.5 N
+    assert run(chain, [2.0 - 0.21] * 50, start=700)[-1].contact  # 3 N > 2 N
+    assert chain.baseline_v == baseline and chain.config.contact_on_n == 2.0
+
+
+def test_reconfigure_swaps_the_filter_and_the_tare_window():
+    chain = SignalChain(ChainConfig(filter_name="moving_average", filter_params={"window": 4}))
+    chain.set_baseline(2.0)
+    chain.reconfigure(ChainConfig(filter_name="none", tare_window_s=0.2))
+    out = run(chain, [2.0, 1.6])
+    assert out[1].output_v == pytest.approx(0.4, abs=2e-3)  # unfiltered now
+    run(chain, [1.9] * 200, start=2)
+    assert chain.tare().samples == 200  # the new 0.2 s window at 1 kHz
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"adc_bits": 10}, "adc_bits cannot change while samples flow"),
+    ({"channel": 1, "rate_hz": 500.0}, "rate_hz, channel cannot change"),
+    ({"filter_name": "kalman"}, "kalman"),
+    ({"contact_on_n": -1.0}, "contact"),
+])
+def test_reconfigure_refuses_what_cannot_change_or_is_invalid(change, message):
+    chain = SignalChain(ChainConfig(), CAL)
+    with pytest.raises(SensingError, match=message):
+        chain.reconfigure(ChainConfig(**change))
+    assert chain.config == ChainConfig()

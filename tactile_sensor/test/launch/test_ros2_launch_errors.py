@@ -1,0 +1,48 @@
+"""What a user gets from ``ros2 launch`` for a mistake: a missing device (one error line
+naming it, the driver keeps retrying, no traceback) and bad launch arguments (one sentence
+each, nothing started)."""
+
+from __future__ import annotations
+
+import subprocess
+import time
+
+import pytest
+
+pytestmark = pytest.mark.flaky(reruns=1, reruns_delay=1)
+
+FAULTS = ("Traceback", "never retrieved", "context is invalid")
+
+
+def test_a_missing_adc_port_gives_one_error_line_and_the_driver_keeps_retrying(
+        spawn, ros_domain, own_processes):
+    launch = spawn("ros2", "launch", "tactile_sensor", "bench.launch.py",
+                   "use_mock_hardware:=false", "adc_port:=/dev/does-not-exist")
+    assert launch.wait_for_output("/dev/does-not-exist does not exist", 60), launch.output()
+    time.sleep(3.0)  # 15 attempts at the driver's 0.2 s retry interval
+    assert launch.proc.poll() is None  # the launch and its nodes keep running
+    errors = [line for line in launch.output().splitlines() if "[ERROR]" in line]
+    assert len(errors) == 1, errors
+    assert "[driver]: ADC disconnected: /dev/does-not-exist does not exist (device " \
+           "unplugged?); retrying every 0.2 s" in errors[0]
+    code, seconds = launch.interrupt(group=False)
+    assert code == 0 and seconds < 5.0, (code, seconds, launch.output()[-2000:])
+    for fault in FAULTS:
+        assert fault not in launch.output()
+    assert own_processes() == []
+
+
+@pytest.mark.parametrize(("argument", "sentence"), [
+    ("protocol:=nonsense",
+     "Unknown protocol 'nonsense'; choose one of compression, repeatability, speeds, rest."),
+    ("config:=/no/such/extra.yaml",
+     "config:=/no/such/extra.yaml does not exist; give the path of a ROS parameter YAML file."),
+])
+def test_a_bad_launch_argument_gives_one_sentence(ros_domain, argument, sentence):
+    result = subprocess.run(["ros2", "launch", "tactile_sensor", "bench.launch.py", argument],
+                            capture_output=True, text=True, timeout=60)
+    output = result.stdout + result.stderr
+    assert result.returncode == 1, output
+    assert [line for line in output.splitlines() if sentence in line] != [], output
+    assert len([line for line in output.splitlines() if "[ERROR]" in line]) == 1, output
+    assert "Traceback" not in output and "process started" not in output, output
