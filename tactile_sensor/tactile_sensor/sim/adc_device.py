@@ -138,8 +138,10 @@ class AdcSampler:
         self._drift = np.zeros(channels)
 
     def counts(self, voltages_v: np.ndarray) -> np.ndarray:
-        """Codes (shape ``(n, channels)``) for noise-free voltages of shape ``(n,)``."""
-        v = np.asarray(voltages_v, dtype=float).reshape(-1, 1) + np.zeros((1, self.channels))
+        """Codes (shape ``(n, channels)``) for noise-free voltages of shape ``(n,)`` (the
+        same voltage on every channel) or ``(n, channels)`` (one per channel: an array)."""
+        v = np.asarray(voltages_v, dtype=float)
+        v = (v if v.ndim == 2 else v.reshape(-1, 1)) + np.zeros((1, self.channels))
         noise = self.noise
         if noise.white_v > 0:
             v = v + self._rng.normal(0.0, noise.white_v, v.shape)
@@ -396,10 +398,14 @@ class MockAdcDevice:
 
     def _voltages(self, times: np.ndarray) -> np.ndarray:
         if self._vectorised:
-            v = np.asarray(self._source(times), dtype=float).reshape(-1)
-        else:
-            v = np.fromiter((self._source(float(t)) for t in times), float, len(times))
-        return v
+            v = np.asarray(self._source(times), dtype=float)
+            if v.ndim == 2 and v.shape == (len(times), self.channels):
+                return v  # one voltage per channel (a module array)
+            if v.size != len(times):
+                raise SimError(f"The voltage source gave shape {v.shape} for {len(times)} "
+                               f"times; give (n,) or (n, {self.channels}) voltages.")
+            return v.reshape(-1)
+        return np.fromiter((self._source(float(t)) for t in times), float, len(times))
 
     def _counts(self, k: int, n: int) -> tuple[np.ndarray, np.ndarray]:
         times = (k + np.arange(n)) / self.rate_hz
@@ -458,7 +464,7 @@ def _is_vectorised(source: VoltageSource) -> bool:
         out = np.asarray(source(probe), dtype=float)  # type: ignore[arg-type]
     except (TypeError, ValueError):
         return False
-    return out.shape == probe.shape
+    return out.shape == probe.shape or (out.ndim == 2 and out.shape[0] == probe.size)
 
 
 # -- command line --------------------------------------------------------------------------
