@@ -15,6 +15,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rosbags.rosbag2 import Writer
+from rosbags.typesys import get_types_from_msg
 
 from tactile_sensor.analysis import array as arr
 from tactile_sensor.analysis import characterise as ch
@@ -22,14 +26,19 @@ from tactile_sensor.analysis import cli
 from tactile_sensor.analysis.bag_reader import Recording, Series
 from tactile_sensor.analysis.synthetic import (
     ARRAY_SENSITIVITY_V_PER_N,
+    JOINT_TYPE,
+    READING_TYPE,
+    WRENCH_TYPE,
     ArrayTruth,
     PressProtocol,
     SensorTruth,
     ShearProtocol,
     press_signals,
+    serialize_many,
     shear_signals,
     write_array_bag,
     write_press_bag,
+    writer_typestore,
 )
 
 PROTOCOL = ShearProtocol()
@@ -262,3 +271,59 @@ def test_array_topics_that_do_not_overlap(tmp_path, capsys):
                                                                 outputs_v=outputs))
     code, err = run([str(bag), "--out", str(tmp_path / "o"), "--prediction", "none"], capsys)
     assert_one_sentence(code, err, "do not overlap")
+
+
+def test_reference_of_a_type_without_lateral_force(tmp_path, capsys):
+    """A one-axis gauge type (force.z only) on an array recording: no lateral reference."""
+    store = writer_typestore()
+    store.register({**get_types_from_msg("float64 z", "test_msgs/msg/ZForce"),
+                    **get_types_from_msg("test_msgs/ZForce force", "test_msgs/msg/ZWrench"),
+                    **get_types_from_msg("std_msgs/Header header\ntest_msgs/ZWrench wrench",
+                                         "test_msgs/msg/ZWrenchStamped")})
+    signals = shear_signals(dataclasses.replace(PROTOCOL, rate_hz=50.0), ArrayTruth())
+    stamps = 1_700_000_000_000_000_000 + np.round(signals.t_s * 1e9).astype(np.int64)
+    faces = signals.faces
+    reading = {"output": signals.outputs_v[:, 0],
+               **{f"outputs[{i}]": signals.outputs_v[:, i] for i in range(len(faces))}}
+    wrench = {f"wrench.force.{a}": signals.estimate_n[:, j] for j, a in enumerate("xyz")}
+    streams = [("/driver/reading", READING_TYPE, reading),
+               ("/driver/wrench", WRENCH_TYPE, wrench),
+               ("/bench/stage/joint_states", JOINT_TYPE,
+                {f"position[{j}]": signals.stage_m[:, j] for j in range(3)})]
+    with Writer(tmp_path / "bag", version=9) as writer:
+        for topic, msgtype, values in streams:
+            conn = writer.add_connection(topic, msgtype, typestore=store)
+            for ts, row in zip(stamps.tolist(), serialize_many(store, msgtype, stamps, values,
+                                                               faces, joints=3), strict=True):
+                writer.write(conn, ts, row.tobytes())
+        typ = "test_msgs/msg/ZWrenchStamped"
+        T = store.types
+        conn = writer.add_connection("/bench/gauge/wrench", typ, typestore=store)
+        for ts, fz in zip(stamps.tolist(), signals.reference_n[:, 2], strict=True):
+            header = T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+                sec=ts // 10**9, nanosec=ts % 10**9), frame_id="gauge")
+            msg = T[typ](header=header, wrench=T["test_msgs/msg/ZWrench"](
+                force=T["test_msgs/msg/ZForce"](z=float(fz))))
+            writer.write(conn, ts, bytes(store.serialize_cdr(msg, typ)))
+    code, err = run([str(tmp_path / "bag"), "--out", str(tmp_path / "o"), "--prediction",
+                     "none"], capsys)
+    assert_one_sentence(code, err, "ZWrenchStamped", "no lateral force", "--reference-topic")
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(-0.5, 0.5), min_size=12, max_size=12),
+       st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
+       st.integers(0, 2**16))
+def test_pure_fits_recover_any_linear_truth(s_flat, offset, seed):
+    """Any S and any constant estimate offset, on forces exciting all three axes."""
+    rng = np.random.default_rng(seed)
+    force = rng.uniform(-2.0, 2.0, (200, 3)) * np.array([1.0, 1.5, 3.0])
+    s = np.array(s_flat).reshape(4, 3)
+    sens = arr.sensitivity_matrix(force @ s.T + 0.3, force, ("a", "b", "c", "d"))
+    np.testing.assert_allclose(sens.matrix_v_per_n, s, atol=1e-9)
+    np.testing.assert_allclose(sens.offset_v, 0.3, atol=1e-9)
+    rmse, span = arr.force_errors(force + np.array(offset), force)
+    np.testing.assert_allclose(rmse, np.abs(offset), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(span, force.max(axis=0) - force.min(axis=0))
+    np.testing.assert_allclose(arr.cross_talk(force + np.array(offset), force), np.eye(3),
+                               atol=1e-9)
