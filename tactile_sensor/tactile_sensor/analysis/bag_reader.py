@@ -17,7 +17,7 @@ import numpy as np
 from rosbags.rosbag2 import Reader
 from rosbags.rosbag2.errors import ReaderError
 
-from .cdr_columns import CdrLayoutError, decode_columns, missing_fields
+from .cdr_columns import CdrLayoutError, decode_columns, missing_fields, read_strings
 from .errors import BagError, TopicError
 from .message_types import field_definitions
 
@@ -38,6 +38,18 @@ class TopicSpec:
     fields: dict[str, str]  # our name -> field path, e.g. "force_n": "wrench.force.z"
     option: str  # the CLI option that sets the topic, for error messages
     expected_type: str  # what the user should point the option at
+    # decoded only when the type declares them (module arrays, lateral force): our name ->
+    # field path; absent ones are simply not in Series.values
+    optional: dict[str, str] = field(default_factory=dict)
+    # float sequences read whole (our name -> sequence path, e.g. "outputs"): an (n, k)
+    # matrix in Series.arrays, k the longest sequence, NaN-padded; only if declared
+    sequences: dict[str, str] = field(default_factory=dict)
+    # string sequences (our name -> path, e.g. "faces"): read from one message holding the
+    # longest one, into Series.labels
+    labels: dict[str, str] = field(default_factory=dict)
+    # False: a topic the analysis can do without; its absence is recorded in
+    # Recording.absent (the sentence to raise if it turns out to be needed)
+    required: bool = True
 
 
 @dataclass(frozen=True)
@@ -49,6 +61,8 @@ class Series:
     stamp_ns: np.ndarray  # int64; header stamps unless they were all zero
     values: dict[str, np.ndarray]
     stamp_source: str  # "header" or "bag"
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (n, k)
+    labels: dict[str, list[str]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -59,6 +73,7 @@ class Recording:
     storage: str
     series: dict[str, Series]
     notes: list[str] = field(default_factory=list)
+    absent: dict[str, str] = field(default_factory=dict)  # optional role -> why it is missing
 
 
 def storage_of(path: Path) -> str:
@@ -107,22 +122,16 @@ def _read(reader: Reader, path: Path, specs: Sequence[TopicSpec],
     topics = reader.topics
     defs = field_definitions(reader.connections)
     chosen = {}
+    absent: dict[str, str] = {}
     for spec in specs:
-        if spec.topic not in topics:
-            have = ", ".join(sorted(topics)) or "no topics"
-            raise TopicError(f"topic {spec.topic} is not in the bag {path} (it has: {have}); "
-                             f"pass {spec.option} naming the {spec.expected_type} topic.")
+        problem = _topic_problem(spec, path, topics, defs)
+        if problem is not None:
+            if spec.required:
+                raise TopicError(problem)
+            absent[spec.role] = problem
+            continue
         info = topics[spec.topic]
-        msgtype = info.msgtype or ""
-        missing = missing_fields(msgtype, defs, list(spec.fields.values()))
-        if missing:
-            raise TopicError(f"topic {spec.topic} carries {msgtype or 'mixed types'}, which "
-                             f"has no field {missing[0]}; pass {spec.option} naming the "
-                             f"{spec.expected_type} topic.")
-        if info.msgcount == 0:
-            raise TopicError(f"topic {spec.topic} has no messages in the bag {path}; "
-                             f"record it or pass {spec.option} naming another topic.")
-        chosen[spec.role] = (spec, msgtype, info.connections)
+        chosen[spec.role] = (spec, info.msgtype or "", info.connections)
 
     conn_role = {c.id: role for role, (_, _, conns) in chosen.items() for c in conns}
     total = sum(c.msgcount for _, _, conns in chosen.values() for c in conns)
@@ -151,18 +160,64 @@ def _read(reader: Reader, path: Path, specs: Sequence[TopicSpec],
     series = {}
     for role, (spec, msgtype, _) in chosen.items():
         if not raws[role]:
-            raise TopicError(f"topic {spec.topic} has no messages in the bag {path}; "
-                             f"record it or pass {spec.option} naming another topic.")
+            problem = (f"topic {spec.topic} has no messages in the bag {path}; "
+                       f"record it or pass {spec.option} naming another topic.")
+            if spec.required:
+                raise TopicError(problem)
+            absent[role] = problem
+            continue
         series[role] = _decode(path, spec, msgtype, defs, raws[role], bag_ns[role], notes)
-    return Recording(path=path, storage=storage_of(path), series=series, notes=notes)
+    return Recording(path=path, storage=storage_of(path), series=series, notes=notes,
+                     absent=absent)
+
+
+def _topic_problem(spec: TopicSpec, path: Path, topics: dict, defs: dict) -> str | None:
+    """The sentence saying why a topic cannot be read, or None when it can."""
+    if spec.topic not in topics:
+        have = ", ".join(sorted(topics)) or "no topics"
+        return (f"topic {spec.topic} is not in the bag {path} (it has: {have}); "
+                f"pass {spec.option} naming the {spec.expected_type} topic.")
+    info = topics[spec.topic]
+    msgtype = info.msgtype or ""
+    missing = missing_fields(msgtype, defs, list(spec.fields.values()))
+    if missing:
+        return (f"topic {spec.topic} carries {msgtype or 'mixed types'}, which "
+                f"has no field {missing[0]}; pass {spec.option} naming the "
+                f"{spec.expected_type} topic.")
+    if info.msgcount == 0:
+        return (f"topic {spec.topic} has no messages in the bag {path}; "
+                f"record it or pass {spec.option} naming another topic.")
+    return None
 
 
 def _decode(path: Path, spec: TopicSpec, msgtype: str, defs: dict, raws: list[bytes],
             bag_ns: list[int], notes: list[str]) -> Series:
     has_header = not missing_fields(msgtype, defs, list(_STAMP_PATHS))
-    paths = list(spec.fields.values()) + (list(_STAMP_PATHS) if has_header else [])
+    fields = dict(spec.fields)
+    fields.update({k: p for k, p in spec.optional.items()
+                   if not missing_fields(msgtype, defs, [p])})
+    sequences = {k: p for k, p in spec.sequences.items()
+                 if not missing_fields(msgtype, defs, [p])}
+    labels = {k: p for k, p in spec.labels.items() if not missing_fields(msgtype, defs, [p])}
+    lengths = [f"len({p})" for p in (*sequences.values(), *labels.values())]
+    paths = (list(fields.values()) + lengths
+             + (list(_STAMP_PATHS) if has_header else []))
     try:
         cols = decode_columns(raws, msgtype, defs, paths)
+        arrays = {}
+        for name, seq in sequences.items():
+            k = _longest(cols[f"len({seq})"])
+            items = [f"{seq}[{i}]" for i in range(k)]
+            got = decode_columns(raws, msgtype, defs, items) if k else {}
+            arrays[name] = (np.column_stack([got[p] for p in items]) if k
+                            else np.empty((len(raws), 0)))
+        texts = {}
+        for name, seq in labels.items():
+            column = cols[f"len({seq})"]
+            k = _longest(column)
+            first = int(np.flatnonzero(column == k)[0]) if k else 0
+            found = read_strings(raws[first], msgtype, defs, [f"{seq}[{i}]" for i in range(k)])
+            texts[name] = [t or "" for t in found]
     except CdrLayoutError as err:
         raise BagError(f"messages on {spec.topic} in the bag {path} do not match their type "
                        f"{msgtype} ({err}); the bag is corrupt or its definitions are "
@@ -180,6 +235,12 @@ def _decode(path: Path, spec: TopicSpec, msgtype: str, defs: dict, raws: list[by
         stamps, stamp_source = received, "bag"
         notes.append(f"{spec.topic}: {msgtype} has no header; used the bag's receive times.")
     order = np.argsort(stamps, kind="stable")
-    values = {name: cols[p][order] for name, p in spec.fields.items()}
+    values = {name: cols[p][order] for name, p in fields.items()}
     return Series(topic=spec.topic, msgtype=msgtype, stamp_ns=stamps[order], values=values,
-                  stamp_source=stamp_source)
+                  stamp_source=stamp_source,
+                  arrays={name: a[order] for name, a in arrays.items()}, labels=texts)
+
+
+def _longest(lengths: np.ndarray) -> int:
+    finite = lengths[np.isfinite(lengths)]
+    return int(finite.max()) if finite.size else 0

@@ -40,6 +40,7 @@ class _Layout:
 
     little: bool
     fields: dict[str, tuple[int, str]] = field(default_factory=dict)
+    texts: dict[str, str] = field(default_factory=dict)  # wanted string fields' values
     prefixes: list[tuple[int, int]] = field(default_factory=list)  # (offset, uint32 value)
 
 
@@ -76,6 +77,9 @@ class _Walker:
             length = self.prefix()
             width = 2 if typ == "wstring" else 1
             self.need(length * width)
+            if path in self.wanted and typ == "string":
+                text = bytes(self.data[self.pos:self.pos + length])
+                self.layout.texts[path] = text.rstrip(b"\0").decode("utf-8", "replace")
             self.pos += length * width
             return
         if typ not in _PRIMITIVES:
@@ -98,6 +102,9 @@ class _Walker:
             sub, count = arg
             if kind == Nodetype.SEQUENCE:
                 count = self.prefix()
+                if f"len({path})" in self.wanted:  # the length as a column of its own
+                    self.layout.fields[f"len({path})"] = (
+                        self.pos - 4, "<u4" if self.layout.little else ">u4")
             for i in range(count):
                 self.node(sub, f"{path}[{i}]")
         else:  # pragma: no cover - rosbags has no other node kinds
@@ -139,7 +146,10 @@ def _decode_one(data: bytes, msgtype: str, defs: FieldDefs,
 
 def decode_columns(raws: Sequence[bytes], msgtype: str, defs: FieldDefs,
                    paths: Sequence[str]) -> dict[str, np.ndarray]:
-    """Float64 column per path (NaN where a message lacks it, e.g. an empty position[])."""
+    """Float64 column per path (NaN where a message lacks it, e.g. an empty position[]).
+
+    A path ``len(P)`` gives the length of the sequence P in each message.
+    """
     n = len(raws)
     result = {p: np.full(n, np.nan) for p in paths}
     if n == 0:
@@ -168,12 +178,23 @@ def decode_columns(raws: Sequence[bytes], msgtype: str, defs: FieldDefs,
     return result
 
 
+def read_strings(data: bytes, msgtype: str, defs: FieldDefs,
+                 paths: Sequence[str]) -> list[str | None]:
+    """Values of string fields (e.g. ``faces[2]``) of one message; None where it has none."""
+    layout = walk(data, msgtype, defs, set(paths))
+    return [layout.texts.get(p) for p in paths]
+
+
 def missing_fields(msgtype: str, defs: Mapping[str, Any], paths: Sequence[str]) -> list[str]:
-    """Paths (ignoring [i] indices) that the type does not declare; empty when all exist."""
+    """Paths (ignoring [i] indices) that the type does not declare; empty when all exist.
+
+    ``len(P)`` names the length of the sequence P (decoded as a column like any field).
+    """
     missing = []
     for path in paths:
         typ = msgtype
-        for part in path.split("."):
+        inner = path[4:-1] if path.startswith("len(") and path.endswith(")") else path
+        for part in inner.split("."):
             name = part.split("[", 1)[0]
             fields = dict(defs.get(typ, ([], []))[1]) if typ else {}
             if name not in fields:

@@ -8,14 +8,17 @@ from typing import Any
 
 import numpy as np
 
+from . import array as arr
 from . import metrics as m
 from .alignment import Aligned, align
 from .bag_reader import Progress, Recording, TopicSpec, read_recording
 from .calibration_fit import Calibration, fit_calibration
+from .errors import SegmentError, TopicError
 from .prediction import Prediction
 from .segmentation import GAP_SHARE, Segmentation, segment
 
 SCHEMA = "tactile_sensor/analysis-metrics"
+ROLES = ("reading", "reference", "position")  # the single-module analysis' topics
 PAPER: dict[str, Any] = {
     "sensitivity_v_per_n": 0.07,
     "dynamic_range_db": 31.49,
@@ -32,15 +35,24 @@ class Topics:
     reading: str = "/driver/reading"
     reference: str = "/bench/gauge/wrench"
     position: str = "/bench/stage/joint_states"
+    estimate: str = "/driver/wrench"  # the driver's force estimate; read when present
 
     def specs(self) -> list[TopicSpec]:
+        """Today's three topics, plus what an array recording adds where the bag has it:
+        every module's output and face, the gauge's lateral force, the driver's wrench."""
         return [
             TopicSpec("reading", self.reading, {"output_v": "output"}, "--reading-topic",
-                      "TactileReading"),
+                      "TactileReading", sequences={"outputs_v": "outputs"},
+                      labels={"faces": "faces"}),
             TopicSpec("reference", self.reference, {"force_n": "wrench.force.z"},
-                      "--reference-topic", "WrenchStamped"),
+                      "--reference-topic", "WrenchStamped",
+                      optional={"force_x_n": "wrench.force.x", "force_y_n": "wrench.force.y"}),
             TopicSpec("position", self.position, {"indentation_m": "position[0]"},
                       "--position-topic", "JointState"),
+            TopicSpec("estimate", self.estimate,
+                      {"force_x_n": "wrench.force.x", "force_y_n": "wrench.force.y",
+                       "force_n": "wrench.force.z"}, "--estimate-topic", "WrenchStamped",
+                      required=False),
         ]
 
 
@@ -200,8 +212,8 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
     metrics: dict[str, Any] = {
         "schema": SCHEMA, "version": 1,
         "bag": str(recording.path), "storage": recording.storage,
-        "topics": {r: s.topic for r, s in recording.series.items()},
-        "stamps": {r: s.stamp_source for r, s in recording.series.items()},
+        "topics": {r: recording.series[r].topic for r in ROLES},
+        "stamps": {r: recording.series[r].stamp_source for r in ROLES},
         "samples": int(aligned.t_s.size), "duration_s": _num(float(aligned.t_s[-1])),
         "sample_rate_hz": _num(aligned.rate_hz),
         "cycles": len(cycles), "reference_speed_mm_s": float(ref_key),
@@ -227,3 +239,63 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
     }
     return Characterisation(metrics, recording, aligned, seg, sig, hyst, rep, pred_cmp, fitted,
                             evaluated, lags)
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """What ``tactile-sensor analyze`` writes: the metrics, the single-module
+    characterisation (None when an array recording cannot be segmented into presses) and
+    the array analysis (None for a single module)."""
+
+    metrics: dict[str, Any]
+    single: Characterisation | None
+    array: arr.ArrayAnalysis | None
+
+    @property
+    def fitted(self) -> Calibration | None:
+        return self.single.fitted if self.single is not None else None
+
+
+def unavailable_metrics(recording: Recording, note: str) -> dict[str, Any]:
+    """Today's metric keys, all null: the paper's characterisation could not be made (an
+    array recording without a usable press); the array's metrics are added beside them."""
+    return {
+        "schema": SCHEMA, "version": 1,
+        "bag": str(recording.path), "storage": recording.storage,
+        "topics": {r: recording.series[r].topic for r in ROLES},
+        "stamps": {r: recording.series[r].stamp_source for r in ROLES},
+        "samples": None, "duration_s": None, "sample_rate_hz": None,
+        "cycles": 0, "reference_speed_mm_s": None,
+        "full_scale_n": None, "full_scale_output_v": None,
+        "output_baseline_v": None, "force_baseline_n": None,
+        "sensitivity_v_per_n": None, "sensitivity_r2": None,
+        "noise_v": None, "noise_estimate": None, "resolution_n": None,
+        "dynamic_range_db": None, "hysteresis_pct_fs": None,
+        "peak_output_cv_pct": None, "drift_pct": None, "drift_cycles_compared": None,
+        "phase_lag_s": {}, "by_speed": {},
+        "calibration_error": None, "prediction": None,
+        "paper": PAPER, "notes": [*recording.notes, note],
+    }
+
+
+def analyse(bag: str, options: Options, progress: Progress | None = None) -> Analysis:
+    """Single-module characterisation as always; on an array recording (detected from the
+    data, ``array.detect``) the array's metrics too, and the paper's metrics where the
+    recording has presses to give them."""
+    recording = read_recording(bag, options.topics.specs(), progress)
+    reason = arr.detect(recording)
+    if reason is None:
+        single = characterise(recording, options)
+        return Analysis(single.metrics, single, None)
+    array = arr.analyse_array(recording, reason)
+    try:
+        single = characterise(recording, options)
+        metrics = dict(single.metrics)
+    except (SegmentError, TopicError) as err:
+        single = None
+        metrics = unavailable_metrics(
+            recording, "the paper's single-module characterisation does not apply to this "
+            f"recording ({str(err).rstrip('.')}); only the array's metrics are given.")
+    metrics.update(array.metrics)
+    metrics["notes"] = list(metrics["notes"]) + array.notes
+    return Analysis(metrics, single, array)

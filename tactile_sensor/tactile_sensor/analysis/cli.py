@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from .calibration_fit import load_calibration, save_calibration
-from .characterise import Options, Topics, analyse_bag
+from .characterise import Options, Topics, analyse
 from .errors import AnalysisError
 from .prediction import Prediction, load_prediction_file, physics_prediction
 
@@ -32,6 +32,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--position-topic", default=d.position,
                    help="JointState topic, indentation position[0] [m], positive into the "
                         f"sensor (default {d.position})")
+    p.add_argument("--estimate-topic", default=d.estimate,
+                   help="WrenchStamped topic, the driver's force estimate force.x/y/z [N]; "
+                        f"read when present, needed for a module array (default {d.estimate})")
     p.add_argument("--reference-speed", type=float, default=1.0, metavar="MM_S",
                    help="speed group used for sensitivity, hysteresis, repeatability, "
                         "full scale and fitting (nearest one; default 1.0 mm/s)")
@@ -96,19 +99,22 @@ def run(args: argparse.Namespace) -> int:
         raise AnalysisError(f"cannot create the output directory {args.out} "
                             f"({err.strerror}); pass a writable --out.") from None
     options = Options(topics=Topics(args.reading_topic, args.reference_topic,
-                                    args.position_topic),
+                                    args.position_topic, args.estimate_topic),
                       reference_speed_mm_s=args.reference_speed,
                       noise_window=args.noise_window, calibration=calibration,
                       fit_calibration=args.fit_calibration, prediction=prediction,
                       prediction_note=note)
-    result = analyse_bag(args.bag, options, _Progress(verbose))
+    result = analyse(args.bag, options, _Progress(verbose))
     from .report import write_report
 
     figures = {}
     if not args.no_figures:
-        from .plots import all_figures  # matplotlib only once there is something to draw
+        from .plots import all_figures, array_figures  # matplotlib only when drawing
 
-        figures = all_figures(result, args.out)
+        if result.single is not None:
+            figures.update(all_figures(result.single, args.out))
+        if result.array is not None:
+            figures.update(array_figures(result.array, args.out))
     (args.out / "metrics.json").write_text(json.dumps(result.metrics, indent=2) + "\n",
                                            encoding="utf-8")
     if result.fitted is not None:
@@ -116,9 +122,11 @@ def run(args: argparse.Namespace) -> int:
     md, _ = write_report(result, figures, args.out)
     if verbose:
         mt = result.metrics
+        array = (f"; array force rmse {mt['force_rmse_n']} N over ranges "
+                 f"{mt['force_range_n']} N" if result.array is not None else "")
         print(f"analysed {mt['cycles']} cycles in {time.perf_counter() - started:.1f} s: "
               f"sensitivity {mt['sensitivity_v_per_n']} V/N, dynamic range "
-              f"{mt['dynamic_range_db']} dB; report {md}", file=sys.stderr)
+              f"{mt['dynamic_range_db']} dB{array}; report {md}", file=sys.stderr)
     return 0
 
 

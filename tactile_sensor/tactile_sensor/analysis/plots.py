@@ -13,8 +13,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from .array import AXES, ArrayAnalysis
 from .characterise import Characterisation
 from .metrics import ramp_indices
 
@@ -167,3 +169,123 @@ def all_figures(ch: Characterisation, out_dir: Path) -> dict[str, Path]:
         "speeds": speeds,
     }
     return {name: make(ch, out_dir / f"{name}.png") for name, make in makers.items()}
+
+
+def array_force_time(an: ArrayAnalysis, path: Path) -> Path:
+    """Estimated (driver) and reference (gauge) force per axis over the recording."""
+    sig = an.signals
+    idx = _thin(np.arange(sig.t_s.size))
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for j, (ax, name) in enumerate(zip(axes, AXES, strict=True)):
+        ax.plot(sig.t_s[idx], sig.reference_n[idx, j], lw=0.8, color="tab:gray",
+                label="reference (gauge)")
+        ax.plot(sig.t_s[idx], sig.estimate_n[idx, j], lw=0.6, color="tab:red",
+                label="estimated (driver)")
+        ax.set_ylabel(f"F{name} [N]")
+        ax.set_title(f"F{name}: rmse {an.rmse_n[j]:.3g} N over a range of {an.range_n[j]:.3g} N",
+                     fontsize=9)
+    axes[0].legend(fontsize=8, loc="upper right")
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle("Estimated vs reference force per axis")
+    return _save(fig, path, top=0.9)
+
+
+def array_force_scatter(an: ArrayAnalysis, path: Path) -> Path:
+    """Each estimated axis against each reference axis: the diagonal is the estimate's
+    accuracy, the off-diagonal panels its cross-talk (slopes of force_cross_talk)."""
+    sig = an.signals
+    idx = _thin(np.arange(sig.t_s.size))
+    fig, axes = plt.subplots(3, 3, figsize=(9, 8.5))
+    for i, est in enumerate(AXES):
+        for j, ref in enumerate(AXES):
+            ax = axes[i, j]
+            ax.plot(sig.reference_n[idx, j], sig.estimate_n[idx, i], ".", ms=1,
+                    color="tab:red" if i == j else "tab:blue")
+            if i == j:
+                lo = float(min(sig.reference_n[:, j].min(), sig.estimate_n[:, i].min()))
+                hi = float(max(sig.reference_n[:, j].max(), sig.estimate_n[:, i].max()))
+                ax.plot([lo, hi], [lo, hi], "k--", lw=0.8)
+            k = an.cross_talk[i, j]
+            ax.set_title(f"slope {k:.3g}" if np.isfinite(k) else "slope n/a", fontsize=8)
+            if i == 2:
+                ax.set_xlabel(f"reference F{ref} [N]")
+            if j == 0:
+                ax.set_ylabel(f"estimated F{est} [N]")
+    fig.suptitle("Estimated vs reference force, every axis pair (diagonal: accuracy; "
+                 "off-diagonal: cross-talk)", fontsize=10)
+    return _save(fig, path, top=0.92)
+
+
+def _heatmap(ax: Axes, values: np.ndarray, rows: list[str], cols: list[str], title: str,
+             vmax: float) -> None:
+    shown = np.ma.masked_invalid(values)
+    image = ax.imshow(shown, cmap="RdBu_r", vmin=-vmax, vmax=vmax)
+    ax.set_xticks(range(len(cols)), cols)
+    ax.set_yticks(range(len(rows)), rows)
+    for (r, c), v in np.ndenumerate(values):
+        ax.text(c, r, f"{v:.2f}" if np.isfinite(v) else "n/a", ha="center", va="center",
+                fontsize=8)
+    ax.set_title(title, fontsize=9)
+    plt.colorbar(image, ax=ax, shrink=0.8)
+
+
+def array_crosstalk(an: ArrayAnalysis, path: Path) -> Path:
+    """Left: the sensitivity matrix with each column scaled by its axis' reference range and
+    each row by its largest entry (which axes move each module, relative to each other).
+    Right: the estimate's cross-talk matrix (ideally the identity)."""
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+    sens = an.sensitivity
+    if sens is not None:
+        scaled = sens.matrix_v_per_n * an.range_n[None, :]
+        top = np.nanmax(np.abs(scaled), axis=1, initial=0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            norm = np.where(top[:, None] > 0, scaled / top[:, None], np.nan)
+        _heatmap(left, norm, list(sens.faces), [f"F{a}" for a in AXES],
+                 "module output change over each axis' range\n(row-normalised S x range)", 1.0)
+    else:
+        left.text(0.5, 0.5, "no per-module outputs", ha="center", va="center")
+        left.set_axis_off()
+    _heatmap(right, an.cross_talk, [f"est F{a}" for a in AXES], [f"ref F{a}" for a in AXES],
+             "estimate's cross-talk [N/N]\n(est = K ref + b; ideal: identity)", 1.0)
+    return _save(fig, path, top=0.85)
+
+
+def array_shear_direction(an: ArrayAnalysis, path: Path) -> Path:
+    """Lateral force direction, applied (gauge) and estimated (driver), on polar axes with
+    the lateral magnitude as radius, where the applied lateral force reaches the threshold."""
+    fig = plt.figure(figsize=(9, 4.5))
+    polar = fig.add_subplot(1, 2, 1, projection="polar")
+    err_ax = fig.add_subplot(1, 2, 2)
+    sh = an.shear
+    if sh is None:
+        polar.set_title("no lateral force above the threshold", fontsize=9)
+        err_ax.set_axis_off()
+    else:
+        idx = _thin(np.arange(sh.applied_rad.size))
+        polar.plot(sh.applied_rad[idx], sh.applied_n[idx], ".", ms=2, color="tab:gray",
+                   label="applied (gauge)")
+        polar.plot(sh.estimated_rad[idx], sh.estimated_n[idx], ".", ms=2, color="tab:red",
+                   label="estimated (driver)")
+        polar.set_title(f"lateral force direction [N radius], |F_lat,ref| >= "
+                        f"{sh.threshold_n:.3g} N", fontsize=9)
+        polar.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
+        err_ax.plot(np.degrees(sh.applied_rad[idx]), np.degrees(sh.error_rad[idx]), ".", ms=2)
+        err_ax.axhline(0.0, color="k", lw=0.6)
+        err_ax.set(xlabel="applied direction [deg] (0 = +x, 90 = +y)",
+                   ylabel="estimated - applied [deg]", title="direction error")
+    fig.suptitle("Shear direction, estimated vs applied")
+    fig.subplots_adjust(left=0.06, right=0.97, bottom=0.14, top=0.83, wspace=0.35)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def array_figures(an: ArrayAnalysis, out_dir: Path) -> dict[str, Path]:
+    """Write the array's figures; returns name -> file."""
+    makers = {
+        "array_force_time": array_force_time,
+        "array_force_scatter": array_force_scatter,
+        "array_crosstalk": array_crosstalk,
+        "array_shear_direction": array_shear_direction,
+    }
+    return {name: make(an, out_dir / f"{name}.png") for name, make in makers.items()}

@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import html
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
-from .characterise import Characterisation
+
+class _HasMetrics(Protocol):
+    metrics: dict[str, Any]
 
 
 def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
@@ -15,7 +17,7 @@ def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
     return f"{value:.{digits}g}{(' ' + unit) if unit else ''}"
 
 
-def rows(ch: Characterisation) -> list[tuple[str, str, str]]:
+def rows(ch: _HasMetrics) -> list[tuple[str, str, str]]:
     """(metric, measured, paper) rows of the summary table."""
     mt, paper = ch.metrics, ch.metrics["paper"]
     out = [
@@ -51,7 +53,51 @@ def rows(ch: Characterisation) -> list[tuple[str, str, str]]:
     return out
 
 
-def write_report(ch: Characterisation, figures: dict[str, Path], out_dir: Path
+def array_lines(mt: dict[str, Any]) -> list[str]:
+    """The array section (Markdown): force error per axis, sensitivity matrix, cross-talk
+    and shear direction; empty for a single module."""
+    ar = mt.get("array")
+    if not ar:
+        return []
+    rmse, span, pct = mt["force_rmse_n"], mt["force_range_n"], mt["force_rmse_pct_range"]
+    out = ["", "## Module array", "",
+           f"{len(ar['faces'])} modules ({', '.join(ar['faces']) or 'no per-module outputs'}); "
+           f"detected because {ar['detected_by']}. The driver's wrench on "
+           f"{ar['topics']['estimate']} against the gauge on {ar['topics']['reference']}, "
+           f"{ar['samples']} samples over {ar['duration_s']} s at {ar['sample_rate_hz']} Hz.",
+           "", "| axis | force RMSE | reference range | RMSE / range | goal |",
+           "|---|---|---|---|---|"]
+    goals = {"x": "<= 10 %", "y": "<= 10 %", "z": "<= 5 %"}
+    for a in ("x", "y", "z"):
+        out.append(f"| F{a} | {_fmt(rmse[a], 'N')} | {_fmt(span[a], 'N')} | "
+                   f"{_fmt(pct[a], '%')} | {goals[a]} |")
+    sens = ar["sensitivity_matrix"]
+    if sens:
+        out += ["", "Sensitivity matrix S [V/N] (least squares outputs = S F + c over the "
+                "recording):", "", "| face | " + " | ".join(f"F{a}" for a in sens["axes"])
+                + " | offset | R² |", "|---" * (len(sens["axes"]) + 3) + "|"]
+        for face, row, off, r2 in zip(sens["faces"], sens["values_v_per_n"], sens["offset_v"],
+                                      sens["r2"], strict=True):
+            out.append(f"| {face} | " + " | ".join(_fmt(v) for v in row)
+                       + f" | {_fmt(off, 'V')} | {_fmt(r2)} |")
+    talk = ar["force_cross_talk"]
+    out += ["", "Cross-talk K [N/N] (estimated = K reference + b; ideal: identity):", "",
+            "| estimated (rows) / reference (columns) | Fx | Fy | Fz |", "|---|---|---|---|"]
+    for a, row in zip(talk["axes"], talk["values"], strict=True):
+        out.append(f"| F{a} | " + " | ".join(_fmt(v) for v in row) + " |")
+    sd = ar["shear_direction"]
+    out += [""]
+    if sd:
+        out.append(f"Shear direction (where the applied lateral force is at least "
+                   f"{_fmt(sd['threshold_n'], 'N')}, {sd['samples']} samples): error RMS "
+                   f"{_fmt(sd['rmse_deg'], 'deg')}, median |error| "
+                   f"{_fmt(sd['median_abs_deg'], 'deg')}, max {_fmt(sd['max_abs_deg'], 'deg')}.")
+    else:
+        out.append("Shear direction: no lateral reference force large enough to define one.")
+    return out
+
+
+def write_report(ch: _HasMetrics, figures: dict[str, Path], out_dir: Path
                  ) -> tuple[Path, Path]:
     """report.md and report.html in out_dir, linking the figures by file name."""
     mt = ch.metrics
@@ -62,6 +108,8 @@ def write_report(ch: Characterisation, figures: dict[str, Path], out_dir: Path
              "Definitions: docs/analysis-metrics.md.", "",
              "| metric | measured | paper |", "|---|---|---|"]
     lines += [f"| {a} | {b} | {c} |" for a, b, c in rows(ch)]
+    section = array_lines(mt)
+    lines += section
     lines += [""] + [f"![{name}]({p.name})" for name, p in figures.items()]
     if mt["notes"]:
         lines += ["", "Notes:"] + [f"- {n}" for n in mt["notes"]]
@@ -73,13 +121,15 @@ def write_report(ch: Characterisation, figures: dict[str, Path], out_dir: Path
     imgs = "".join(f'<img src="{html.escape(p.name)}" alt="{html.escape(n)}">'
                    for n, p in figures.items())
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in mt["notes"])
+    array_html = (f"<h2>Module array</h2><pre>{html.escape(chr(10).join(section[3:]))}</pre>"
+                  if section else "")
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
             "</title><style>body{font-family:sans-serif;max-width:1100px;margin:auto}"
             "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px}"
             "img{max-width:49%;margin:2px}</style></head><body>"
             f"<h1>{html.escape(title)}</h1><p>{html.escape(lines[2])}</p>"
             f"<table><tr><th>metric</th><th>measured</th><th>paper</th></tr>{table}</table>"
-            f"<div>{imgs}</div><ul>{notes}</ul></body></html>\n")
+            f"{array_html}<div>{imgs}</div><ul>{notes}</ul></body></html>\n")
     page_path = out_dir / "report.html"
     page_path.write_text(page, encoding="utf-8")
     return md, page_path

@@ -129,8 +129,13 @@ def writer_typestore() -> Typestore:
     return store
 
 
-def _templates(store: Typestore) -> dict[str, tuple[bytes, dict[str, tuple[int, str]]]]:
-    """One serialized message per type and where its stamp and value fields sit in it."""
+def _templates(store: Typestore, faces: Sequence[str] = (), joints: int = 1
+               ) -> dict[str, tuple[bytes, dict[str, tuple[int, str]]]]:
+    """One serialized message per type and where its stamp and value fields sit in it.
+
+    ``faces``: a module array's reading (faces, voltages[i], outputs[i] filled; empty for
+    one module, as the driver sends it); ``joints``: positions in the stage's JointState.
+    """
     T = store.types
     header = T["std_msgs/msg/Header"]
     time = T["builtin_interfaces/msg/Time"]
@@ -138,19 +143,24 @@ def _templates(store: Typestore) -> dict[str, tuple[bytes, dict[str, tuple[int, 
     msgs = {
         READING_TYPE: (T[READING_TYPE](header=header(stamp=time(sec=0, nanosec=0),
                                                      frame_id="tactile"),
-                                       voltage=0.0, output=0.0, force=0.0, contact=False),
-                       ["voltage", "output", "force", "contact"]),
+                                       voltage=0.0, output=0.0, force=0.0, contact=False,
+                                       faces=list(faces), voltages=np.zeros(len(faces)),
+                                       outputs=np.zeros(len(faces))),
+                       ["voltage", "output", "force", "contact",
+                        *(f"{a}[{i}]" for a in ("voltages", "outputs")
+                          for i in range(len(faces)))]),
         WRENCH_TYPE: (T[WRENCH_TYPE](header=header(stamp=time(sec=0, nanosec=0),
                                                    frame_id="gauge"),
                                      wrench=T["geometry_msgs/msg/Wrench"](
                                          force=vec(x=0.0, y=0.0, z=0.0),
                                          torque=vec(x=0.0, y=0.0, z=0.0))),
-                      ["wrench.force.z"]),
+                      ["wrench.force.x", "wrench.force.y", "wrench.force.z"]),
         JOINT_TYPE: (T[JOINT_TYPE](header=header(stamp=time(sec=0, nanosec=0),
                                                  frame_id="stage"),
-                                   name=["z"], position=np.zeros(1), velocity=np.zeros(0),
+                                   name=["stage_z", "stage_x", "stage_y"][:joints],
+                                   position=np.zeros(joints), velocity=np.zeros(0),
                                    effort=np.zeros(0)),
-                     ["position[0]"]),
+                     [f"position[{i}]" for i in range(joints)]),
     }
     out = {}
     for typ, (msg, paths) in msgs.items():
@@ -161,9 +171,10 @@ def _templates(store: Typestore) -> dict[str, tuple[bytes, dict[str, tuple[int, 
 
 
 def serialize_many(store: Typestore, msgtype: str, stamp_ns: np.ndarray,
-                   values: Mapping[str, np.ndarray]) -> np.ndarray:
+                   values: Mapping[str, np.ndarray], faces: Sequence[str] = (),
+                   joints: int = 1) -> np.ndarray:
     """A (n, length) uint8 matrix of CDR messages: the template with stamps and values set."""
-    raw, fields = _templates(store)[msgtype]
+    raw, fields = _templates(store, faces, joints)[msgtype]
     n = stamp_ns.size
     matrix = np.tile(np.frombuffer(raw, dtype=np.uint8), (n, 1))
     columns = {"header.stamp.sec": stamp_ns // 1_000_000_000,
@@ -225,4 +236,157 @@ def write_press_bag(path: Path | str, signals: PressSignals, storage: str = "sql
             done += stamps.size
             if progress is not None:
                 progress(done / total)
+    return path
+
+
+# --- module arrays -------------------------------------------------------------------------
+
+ARRAY_FACES = ("front", "back", "left", "right")
+# outputs per newton (faces x [Fx, Fy, Fz]): the face the probe moves toward bulges out
+# (right +x, front +y), the opposite one draws in; pressing raises every module
+ARRAY_SENSITIVITY_V_PER_N = ((0.01, 0.20, 0.05),
+                             (-0.01, -0.20, 0.05),
+                             (-0.20, 0.01, 0.05),
+                             (0.20, -0.01, 0.05))
+SHEAR_DIRECTIONS_RAD = tuple(np.radians([0, 180, 90, 270, 45, 225, 135, 315]))
+
+
+@dataclass(frozen=True)
+class ShearProtocol:
+    """Rest, press to depth_m, then per direction (+x, -x, +y, -y, then the diagonals) out
+    to shear_m and back, then release and rest, all at speed_mm_s (the contract's shear
+    protocol). press=False: the probe is at depth from the first sample to the last (no
+    press for the single-module segmentation to find)."""
+
+    depth_m: float = 2e-3
+    shear_m: float = 3e-3
+    directions: int = 4
+    speed_mm_s: float = 2.0
+    rest_s: float = 1.0
+    rate_hz: float = 200.0
+    press: bool = True
+    untared_s: float = 0.0  # outputs and driver wrench NaN for this long (before the tare)
+
+
+@dataclass(frozen=True)
+class ArrayTruth:
+    """Ground truth of a synthetic array: force from the stage, outputs = S F + c + noise,
+    the driver's estimate = F + offset + noise (per axis)."""
+
+    faces: tuple[str, ...] = ARRAY_FACES
+    sensitivity_v_per_n: tuple[tuple[float, float, float], ...] = ARRAY_SENSITIVITY_V_PER_N
+    output_offset_v: tuple[float, ...] = (0.01, 0.02, 0.03, 0.04)
+    output_noise_v: float = 0.0
+    force_at_depth_n: float = 6.0
+    exponent: float = 1.2
+    lateral_n_per_m: float = 400.0  # lateral force per lateral probe displacement
+    estimate_offset_n: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    estimate_noise_n: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class ShearSignals:
+    """Sampled array signals and the truth behind them."""
+
+    t_s: np.ndarray
+    stage_m: np.ndarray  # (n, 3): indentation, lateral x, lateral y
+    reference_n: np.ndarray  # (n, 3) the gauge
+    estimate_n: np.ndarray  # (n, 3) the driver's wrench
+    outputs_v: np.ndarray  # (n, k)
+    faces: tuple[str, ...]
+    estimate_noise_n: np.ndarray  # (n, 3) the noise added to the estimate
+
+
+def shear_signals(protocol: ShearProtocol, truth: ArrayTruth, seed: int = 0) -> ShearSignals:
+    """Stage path, gauge force, module outputs and driver estimate at protocol.rate_hz."""
+    rng = np.random.default_rng(seed)
+    v = protocol.speed_mm_s * 1e-3
+    knots = [(0.0, 0.0, 0.0, 0.0)]  # (t, d, x, y)
+
+    def go(d: float, x: float, y: float) -> None:
+        t, d0, x0, y0 = knots[-1]
+        dist = float(np.hypot(np.hypot(d - d0, x - x0), y - y0))
+        knots.append((t + dist / v, d, x, y))
+
+    depth = protocol.depth_m
+    if protocol.press:
+        knots.append((protocol.rest_s, 0.0, 0.0, 0.0))
+        go(depth, 0.0, 0.0)
+    else:
+        knots[0] = (0.0, depth, 0.0, 0.0)
+        knots.append((protocol.rest_s, depth, 0.0, 0.0))
+    for angle in SHEAR_DIRECTIONS_RAD[:protocol.directions]:
+        go(depth, protocol.shear_m * np.cos(angle), protocol.shear_m * np.sin(angle))
+        go(depth, 0.0, 0.0)
+    if protocol.press:
+        go(0.0, 0.0, 0.0)
+    t_end = knots[-1][0] + protocol.rest_s
+    knots.append((t_end, *knots[-1][1:]))
+    k = np.array(knots)
+    t = np.arange(round(t_end * protocol.rate_hz)) / protocol.rate_hz
+    stage = np.column_stack([np.interp(t, k[:, 0], k[:, j]) for j in (1, 2, 3)])
+    fz = truth.force_at_depth_n * np.clip(stage[:, 0] / depth, 0.0, None) ** truth.exponent
+    reference = np.column_stack([truth.lateral_n_per_m * stage[:, 1],
+                                 truth.lateral_n_per_m * stage[:, 2], fz])
+    s = np.asarray(truth.sensitivity_v_per_n, dtype=float)
+    outputs = (reference @ s.T + np.asarray(truth.output_offset_v)
+               + truth.output_noise_v * rng.standard_normal((t.size, s.shape[0])))
+    noise = np.asarray(truth.estimate_noise_n) * rng.standard_normal((t.size, 3))
+    estimate = reference + np.asarray(truth.estimate_offset_n) + noise
+    untared = t < protocol.untared_s
+    outputs[untared] = np.nan
+    estimate[untared] = np.nan
+    return ShearSignals(t_s=t, stage_m=stage, reference_n=reference, estimate_n=estimate,
+                        outputs_v=outputs, faces=tuple(truth.faces), estimate_noise_n=noise)
+
+
+@dataclass(frozen=True)
+class ArrayBagTopics:
+    """Topic names of a synthetic array bag (the array bringup's)."""
+
+    reading: str = "/driver/reading"
+    estimate: str = "/driver/wrench"
+    reference: str = "/bench/gauge/wrench"
+    position: str = "/bench/stage/joint_states"
+
+
+def write_array_bag(path: Path | str, signals: ShearSignals, storage: str = "sqlite3",
+                    topics: ArrayBagTopics = ArrayBagTopics(),
+                    start_ns: int = 1_700_000_000_000_000_000,
+                    omit: Sequence[str] = ()) -> Path:
+    """Write an array recording (reading with faces/voltages/outputs, the driver's wrench,
+    the gauge's three-axis wrench, the three-axis stage) with the package's own message
+    definitions; ``omit`` leaves out streams by role ('reading', 'estimate', 'reference',
+    'position'). The stage stream is offset by a third sample, as in write_press_bag."""
+    path = Path(path)
+    store = writer_typestore()
+    faces = signals.faces
+    stamp = start_ns + np.round(signals.t_s * 1e9).astype(np.int64)
+    dt_ns = int(np.median(np.diff(stamp))) if stamp.size > 1 else 1_000_000
+    est = signals.estimate_n
+    reading = {"voltage": 2.0 - signals.outputs_v[:, 0], "output": signals.outputs_v[:, 0],
+               "force": est[:, 2], "contact": np.nan_to_num(est[:, 2]) > 0.2}
+    for i in range(len(faces)):
+        reading[f"voltages[{i}]"] = 2.0 - signals.outputs_v[:, i]
+        reading[f"outputs[{i}]"] = signals.outputs_v[:, i]
+
+    def wrench(f: np.ndarray) -> dict[str, np.ndarray]:
+        return {"wrench.force.x": f[:, 0], "wrench.force.y": f[:, 1], "wrench.force.z": f[:, 2]}
+
+    streams = {
+        "reading": (topics.reading, READING_TYPE, stamp, reading),
+        "estimate": (topics.estimate, WRENCH_TYPE, stamp, wrench(est)),
+        "reference": (topics.reference, WRENCH_TYPE, stamp, wrench(signals.reference_n)),
+        "position": (topics.position, JOINT_TYPE, stamp + dt_ns // 3,
+                     {f"position[{j}]": signals.stage_m[:, j] for j in range(3)}),
+    }
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    with Writer(path, version=9, storage_plugin=plugin) as writer:
+        for role, (topic, msgtype, stamps, values) in streams.items():
+            if role in omit:
+                continue
+            conn = writer.add_connection(topic, msgtype, typestore=store)
+            matrix = serialize_many(store, msgtype, stamps, values, faces, joints=3)
+            for ts, row in zip(stamps.tolist(), matrix, strict=True):
+                writer.write(conn, ts, row.tobytes())
     return path

@@ -8,7 +8,12 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rosbags.typesys import Stores, get_typestore
 
-from tactile_sensor.analysis.cdr_columns import CdrLayoutError, decode_columns, missing_fields
+from tactile_sensor.analysis.cdr_columns import (
+    CdrLayoutError,
+    decode_columns,
+    missing_fields,
+    read_strings,
+)
 from tactile_sensor.analysis.synthetic import writer_typestore
 
 STORE = get_typestore(Stores.ROS2_KILTED)
@@ -55,7 +60,8 @@ def test_tactile_readings_match_rosbags(items):
     time = OURS.types["builtin_interfaces/msg/Time"]
     raws = [bytes(OURS.serialize_cdr(OURS.types[typ](
         header=header(stamp=time(sec=7, nanosec=9), frame_id=frame), voltage=v, output=o,
-        force=1.0, contact=c), typ)) for frame, v, o, c in items]
+        force=1.0, contact=c, faces=[], voltages=np.zeros(0), outputs=np.zeros(0)), typ))
+        for frame, v, o, c in items]
     cols = decode_columns(raws, typ, OURS.fielddefs, ["output", "voltage", "contact"])
     np.testing.assert_array_equal(cols["output"], [it[2] for it in items])
     np.testing.assert_array_equal(cols["voltage"], [it[1] for it in items])
@@ -76,3 +82,46 @@ def test_missing_fields_names_the_absent_path():
     assert missing_fields("sensor_msgs/msg/JointState", defs, ["wrench.force.z"]) == [
         "wrench.force.z"]
     assert missing_fields("sensor_msgs/msg/JointState", defs, ["position[0]"]) == []
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.lists(st.tuples(st.sampled_from(["front", "back", "left", "right", ""]),
+                                   floats, floats), max_size=4),
+                min_size=1, max_size=12))
+def test_variable_length_module_arrays_match_rosbags(items):
+    """outputs[i], voltages[i], their lengths and the faces of readings whose arrays have
+    any length (0 for one module, 4 for an array, mixed in one topic)."""
+    typ = "tactile_sensor_interfaces/msg/TactileReading"
+    header = OURS.types["std_msgs/msg/Header"]
+    time = OURS.types["builtin_interfaces/msg/Time"]
+    msgs = [OURS.types[typ](header=header(stamp=time(sec=1, nanosec=2), frame_id="t"),
+                            voltage=0.5, output=0.25, force=1.0, contact=False,
+                            faces=[m[0] for m in mods],
+                            voltages=np.array([m[1] for m in mods], dtype=float),
+                            outputs=np.array([m[2] for m in mods], dtype=float))
+            for mods in items]
+    raws = [bytes(OURS.serialize_cdr(m, typ)) for m in msgs]
+    paths = ["len(outputs)", "len(faces)", "output"] + [
+        f"{a}[{i}]" for a in ("outputs", "voltages") for i in range(4)]
+    cols = decode_columns(raws, typ, OURS.fielddefs, paths)
+    for i, (raw, msg) in enumerate(zip(raws, msgs, strict=True)):
+        back = OURS.deserialize_cdr(raw, typ)
+        assert cols["len(outputs)"][i] == len(back.outputs) == len(msg.outputs)
+        assert cols["len(faces)"][i] == len(back.faces)
+        assert cols["output"][i] == 0.25
+        for k in range(4):
+            for name in ("outputs", "voltages"):
+                seq = getattr(back, name)
+                np.testing.assert_equal(cols[f"{name}[{k}]"][i],
+                                        seq[k] if k < len(seq) else np.nan)
+        assert read_strings(raw, typ, OURS.fielddefs,
+                            [f"faces[{k}]" for k in range(len(back.faces) + 1)]) == [
+            *back.faces, None]
+
+
+def test_sequence_length_paths_are_checked_like_fields():
+    defs = OURS.fielddefs
+    typ = "tactile_sensor_interfaces/msg/TactileReading"
+    assert missing_fields(typ, defs, ["len(outputs)", "outputs[3]", "faces[0]"]) == []
+    assert missing_fields("geometry_msgs/msg/WrenchStamped", defs, ["len(outputs)"]) == [
+        "len(outputs)"]
