@@ -86,7 +86,21 @@ GRIPPER = Configuration(
                    "/gripper_world/ground_truth", "/diagnostics"),
 )
 
-CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER)}
+ARRAY = Configuration(
+    name="array",
+    description="Modules on four side faces of one skin on the bench, with a three-axis "
+                "stage and gauge: normal and shear force (the paper's future work).",
+    nodes=(
+        replace(BENCH.nodes[0], config_files=("physics.yaml", "bench.yaml", "array.yaml")),
+        replace(_MODEL, config_files=(*_MODEL.config_files, "array.yaml")),
+        replace(_DRIVER, config_files=(*SENSOR_FILES, "array.yaml")),
+    ),
+    ports={"adc_port": ("/tmp/tactile_sensor/array_adc",
+                        "serial device of the array's ADC (one channel per module)")},
+    record_topics=BENCH.record_topics,
+)
+
+CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER, ARRAY)}
 
 
 def config_dir() -> Path:

@@ -52,7 +52,8 @@ def reading_cdr(i: int) -> bytes:
     msg = t[READING](
         header=t["std_msgs/msg/Header"](
             stamp=t["builtin_interfaces/msg/Time"](sec=i, nanosec=0), frame_id="skin"),
-        voltage=1.5, output=0.01 * i, force=0.1 * i, contact=bool(i % 2))
+        voltage=1.5, output=0.01 * i, force=0.1 * i, contact=bool(i % 2),
+        faces=[], voltages=np.zeros(0), outputs=np.zeros(0))
     return bytes(TYPESTORE.serialize_cdr(msg, READING))
 
 
