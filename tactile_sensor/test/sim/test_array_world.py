@@ -175,6 +175,9 @@ def test_world_stage_voltages_and_shapes(skin):
     assert world.photoreflector_voltage(3.0).shape == (4,)
     assert world.force_n(t).shape == (77, 3) and world.stage_m(t).shape == (77, 3)
     assert isinstance(world.indentation_m(4.0), float)
+    # before the start and after the end the stage rests where the run starts and ends
+    np.testing.assert_allclose(world.stage_m([-1.0, 1e6]), [[0.0] * 3, [0.0] * 3])
+    np.testing.assert_allclose(world.photoreflector_voltage(-1.0), [skin.rest_voltage_v] * 4)
     np.testing.assert_allclose(world.stage_m(t), stage_path(profile, t), atol=1e-12)
     np.testing.assert_allclose(world.photoreflector_voltage(0.5), [skin.rest_voltage_v] * 4)
     # at the +x extreme (4 + 6 s): the modules read the skin at the stage's state, the
