@@ -3,11 +3,16 @@
 One world per process, shared by every mock device in it, so the tactile signal, the
 servo and the reference instruments agree:
 
-- ``world: bench`` — the paper's compression rig. The mock ADC streams the module's
-  signal; ``~/stage/joint_states`` (``position[0]``: indentation [m], positive into the
-  sensor) and ``~/gauge/wrench`` (``force.z`` [N], with the viscoelastic rate effect) are
-  published at the gauge rate with the sample times. The protocol (config/protocols.yaml)
-  starts ``protocol.start_delay`` s after start-up, or on ``~/start``.
+- ``world: bench`` — the paper's compression rig with a three-axis stage and gauge. The
+  mock ADC streams the module's signal; ``~/stage/joint_states`` (``stage_z``, ``stage_x``,
+  ``stage_y``: indentation [m], positive into the sensor, and the probe's lateral
+  displacement along +x and +y [m]) and ``~/gauge/wrench`` (``force.x/y/z`` [N], the probe's
+  force on the skin, +z pressing in, with the viscoelastic rate effect) are published at
+  the gauge rate with the sample times. When the physics parameter ``modules`` names
+  several faces, the skin is the FEM array grid (``sim/array_world.py``) and ADC channel i
+  carries the i-th face; ``protocol.shear`` > 0 runs the shear sweep. The protocol
+  (config/protocols.yaml) starts ``protocol.start_delay`` s after start-up, or on
+  ``~/start``.
 - ``world: gripper`` — the soft gripper: an emulated XM430 moves the fingers, the rod
   indents the fingertip skin, the mock ADC streams finger A's signal, and
   ``~/ground_truth`` carries finger A's true skin force.
@@ -42,9 +47,10 @@ from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.prediction import load_or_compute_curve
 from tactile_sensor.physics.viscoelastic import RateDependentForce
 from tactile_sensor.sim.adc_device import AdcNoise, MockAdcDevice
+from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin
 from tactile_sensor.sim.bench_world import BenchWorld
 from tactile_sensor.sim.errors import SimError
-from tactile_sensor.sim.profiles import LoadProfile
+from tactile_sensor.sim.profiles import MAX_SHEAR_M, LoadProfile, array_profile
 from tactile_sensor.sim.skin_response import TabulatedSkin
 
 SPECS = [
@@ -73,6 +79,12 @@ SPECS = [
               minimum=0.0),
     ParamSpec("protocol.rest", 1.0, "rest before the first and after each cycle [s]",
               minimum=0.0),
+    ParamSpec("protocol.shear", 0.0, "lateral amplitude of the shear sweep [m] (module "
+              "arrays only: set the physics parameter modules); 0 = press only", minimum=0.0,
+              maximum=MAX_SHEAR_M),
+    ParamSpec("protocol.shear_directions", 8, "directions of the shear sweep: 4 = +x, -x, "
+              "+y, -y; 8 = then the diagonals +x+y, -x-y, -x+y, +x-y", minimum=4, maximum=8,
+              check=lambda n: None if n in (4, 8) else "give 4 or 8."),
     ParamSpec("protocol.start_delay", 5.0, "start the protocol this long after start-up "
               "[s] (time for the driver to tare); < 0 = wait for ~/start"),
     # gripper
@@ -113,7 +125,7 @@ class ProtocolSource:
     module stay aligned to the ADC's clock.
     """
 
-    def __init__(self, world: BenchWorld) -> None:
+    def __init__(self, world: BenchWorld | ArrayBenchWorld) -> None:
         self.world = world
         self.start_device_s: float | None = None
 
@@ -122,6 +134,21 @@ class ProtocolSource:
         if start is None:
             return self.world.photoreflector_voltage(np.zeros_like(np.asarray(t, float)))
         return self.world.photoreflector_voltage(np.maximum(np.asarray(t, float) - start, 0.0))
+
+
+#: The stage's joints: indentation (+ into the skin), lateral probe displacement along +x, +y.
+STAGE_JOINTS = ("stage_z", "stage_x", "stage_y")
+
+
+def stage_and_gauge(world: BenchWorld | ArrayBenchWorld, t: float
+                    ) -> tuple[list[float], tuple[float, float, float]]:
+    """Stage positions (d, sx, sy) [m] and gauge force (Fx, Fy, Fz) [N] at protocol time t;
+    a single-module bench has no lateral axis (0)."""
+    if isinstance(world, ArrayBenchWorld):
+        d, sx, sy = (float(x) for x in world.stage_m(t))
+        fx, fy, fz = (float(x) for x in world.force_n(t))
+        return [d, sx, sy], (fx, fy, fz)
+    return [float(world.indentation_m(t)), 0.0, 0.0], (0.0, 0.0, float(world.force_n(t)))
 
 
 class MockHardwareNode(Node):
@@ -139,13 +166,28 @@ class MockHardwareNode(Node):
         except (ParameterError, PhysicsError, SimError) as exc:
             raise MockHardwareError(str(exc)) from None
         self.values = values
+        self.faces: tuple[str, ...] = physics.module_faces
+        array = values["world"] == "bench" and len(self.faces) > 1
+        if values["world"] == "bench" and values["protocol.shear"] > 0 and not array:
+            raise MockHardwareError(
+                "A shear protocol needs a module array; set the physics parameter modules "
+                "to several faces (e.g. front,back,left,right) or protocol.shear to 0.")
         cache = Path(values["cache_dir"]) if values["cache_dir"] else None
-        self.get_logger().info("loading the skin model (a first run computes the FEM sweep)")
+        skin: Any
         try:
-            self.curve = load_or_compute_curve(physics, cache, self._progress)
-        except PhysicsError as exc:
+            if array:
+                self.get_logger().info(
+                    f"loading the array skin ({', '.join(self.faces)}; a first run computes "
+                    "the FEM grid)")
+                skin = ArraySkin.from_params(physics, cache, self._grid_progress)
+            else:
+                self.get_logger().info(
+                    "loading the skin model (a first run computes the FEM sweep)")
+                self.curve = load_or_compute_curve(physics, cache, self._progress)
+                skin = TabulatedSkin.from_prediction_curve(self.curve)
+        except (PhysicsError, SimError) as exc:
             raise MockHardwareError(str(exc)) from None
-        skin = TabulatedSkin.from_prediction_curve(self.curve)
+        channels = len(self.faces) if array else 1
         seed = values["seed"] if values["seed"] >= 0 else None
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -159,7 +201,8 @@ class MockHardwareNode(Node):
             for path in self._links():
                 Path(path).parent.mkdir(parents=True, exist_ok=True)
             self.adc = MockAdcDevice(values["adc_link"], self.source,
-                                     rate_hz=values["adc_rate"], noise=noise, seed=seed)
+                                     rate_hz=values["adc_rate"], noise=noise, seed=seed,
+                                     channels=channels)
             self.adc.start()
             if self.emulator is not None:
                 self.emulator.start()
@@ -168,6 +211,7 @@ class MockHardwareNode(Node):
             raise MockHardwareError(f"Cannot start the mock devices: {exc}") from None
         self.get_logger().info(
             f"mock {values['world']} ready: ADC at {values['adc_link']}"
+            + (f" ({channels} channels: {', '.join(self.faces)})" if array else "")
             + (f", XM430 at {values['servo_link']}" if self.emulator is not None else ""))
 
     def _links(self) -> list[str]:
@@ -178,15 +222,28 @@ class MockHardwareNode(Node):
         self.get_logger().info(f"FEM sweep {fraction:4.0%}: {message}",
                                throttle_duration_sec=2.0)
 
+    def _grid_progress(self, fraction: float, message: str) -> None:
+        self.get_logger().info(f"FEM array grid {fraction:4.0%}: {message}",
+                               throttle_duration_sec=2.0)
+
     # -- bench ---------------------------------------------------------------------------------
-    def _build_bench(self, skin: TabulatedSkin, physics: Any) -> None:
+    def _build_bench(self, skin: TabulatedSkin | ArraySkin, physics: Any) -> None:
         v = self.values
-        profile = LoadProfile(depth_m=v["protocol.depth"],
-                              speeds_m_s=tuple(v["protocol.speeds"]),
-                              cycles=v["protocol.cycles"], hold_s=v["protocol.hold"],
-                              rest_s=v["protocol.rest"])
-        self.world = BenchWorld(profile, skin, RateDependentForce.from_params(physics),
-                                output_play_m=physics.output_play)
+        rate = RateDependentForce.from_params(physics)
+        self.world: BenchWorld | ArrayBenchWorld
+        if isinstance(skin, ArraySkin):
+            profile = array_profile(depth_m=v["protocol.depth"],
+                                    speeds_m_s=tuple(v["protocol.speeds"]),
+                                    cycles=v["protocol.cycles"], hold_s=v["protocol.hold"],
+                                    rest_s=v["protocol.rest"], shear_m=v["protocol.shear"],
+                                    shear_directions=v["protocol.shear_directions"])
+            self.world = ArrayBenchWorld(profile, skin, rate, output_play_m=physics.output_play)
+        else:
+            profile = LoadProfile(depth_m=v["protocol.depth"],
+                                  speeds_m_s=tuple(v["protocol.speeds"]),
+                                  cycles=v["protocol.cycles"], hold_s=v["protocol.hold"],
+                                  rest_s=v["protocol.rest"])
+            self.world = BenchWorld(profile, skin, rate, output_play_m=physics.output_play)
         self.source = ProtocolSource(self.world)
         self._start_host_ns: int | None = None
         self.published_until_ns = 0  # host time of the last stage/gauge sample published
@@ -251,12 +308,13 @@ class MockHardwareNode(Node):
             while next_ns <= now and not self._stop.is_set():  # catch up after a stall
                 t = 0.0 if start is None else max(0.0, (next_ns - start) * 1e-9)
                 stamp = Time(nanoseconds=next_ns).to_msg()
-                stage = JointState(name=["stage_z"],
-                                   position=[float(self.world.indentation_m(t))])
+                position, force = stage_and_gauge(self.world, t)
+                stage = JointState(name=list(STAGE_JOINTS), position=position)
                 stage.header.stamp = stamp
                 gauge = WrenchStamped()
                 gauge.header.stamp, gauge.header.frame_id = stamp, "force_gauge"
-                gauge.wrench.force.z = float(self.world.force_n(t))
+                f = gauge.wrench.force
+                f.x, f.y, f.z = force
                 self._stage_pub.publish(stage)
                 self._gauge_pub.publish(gauge)
                 self.published_until_ns = next_ns

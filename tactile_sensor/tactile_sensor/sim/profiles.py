@@ -10,6 +10,12 @@ The protocols of the paper are parameter sets (``PROTOCOLS``); the CLI option
     speeds                            0.1, 1 and 10 mm/s, 5 cycles each
     compression:cycles=3,hold=0.5     a protocol with overrides
     ramp:depth=0.003,speed=0.001/0.01,cycles=2,hold=1,rest=1,preload=0
+
+A ``ShearProfile`` adds the probe's lateral path for a skin with modules on several faces
+(``sim/array_world.py``): press, sweep out and back along 4 or 8 directions, release.
+The array protocols (config/protocols.yaml, section ``array``) are ``ARRAY_PROTOCOLS``;
+``array_profile_from_protocol`` turns one into a ``ShearProfile`` (shear > 0) or a
+``LoadProfile`` (shear 0).
 """
 
 from __future__ import annotations
@@ -84,13 +90,15 @@ _KEYS = {"depth": "depth_m", "speed": "speeds_m_s", "speeds": "speeds_m_s", "cyc
          "hold": "hold_s", "rest": "rest_s", "preload": "preload_m"}
 
 
-def _load_protocols() -> dict[str, dict[str, Any]]:
-    """The bench protocols of config/protocols.yaml (one definition for the mock CLI, the
-    bench node, the launch files and the bringup), as LoadProfile keyword arguments."""
+def _load_protocols(section: str = "bench", keys: Mapping[str, str] | None = None
+                    ) -> dict[str, dict[str, Any]]:
+    """A section's protocols of config/protocols.yaml (one definition for the mock CLI, the
+    bench node, the launch files and the bringup), as profile keyword arguments."""
     from tactile_sensor.configurations import config_dir
 
-    table = yaml.safe_load((config_dir() / "protocols.yaml").read_text())["bench"]
-    return {name: {_KEYS[key.removeprefix("protocol.")]:
+    names = _KEYS if keys is None else keys
+    table = yaml.safe_load((config_dir() / "protocols.yaml").read_text())[section]
+    return {name: {names[key.removeprefix("protocol.")]:
                    tuple(value) if isinstance(value, list) else value
                    for key, value in (params or {}).items()}
             for name, params in table.items()}
@@ -143,3 +151,127 @@ def _check(name: str, value: object, lo: float, hi: float, unit: str) -> None:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
             value) or not lo <= value <= hi:
         raise SimError(f"Profile {name} must be within [{lo:g}, {hi:g}] {unit}, got {value!r}.")
+
+
+# -- shear (module arrays) ---------------------------------------------------------------------
+
+#: Unit vectors of the sweep directions, in order: +x, -x, +y, -y, then the diagonals.
+SHEAR_DIRECTIONS: tuple[tuple[float, float], ...] = (
+    (1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0),
+    (math.sqrt(0.5), math.sqrt(0.5)), (-math.sqrt(0.5), -math.sqrt(0.5)),
+    (-math.sqrt(0.5), math.sqrt(0.5)), (math.sqrt(0.5), -math.sqrt(0.5)))
+MAX_SHEAR_M = 0.05
+
+
+@dataclass(frozen=True)
+class ShearProfile:
+    """Probe path [m] versus time [s] of the shear protocol.
+
+    Per cycle (after an initial rest): press from contact to ``depth_m`` at ``speed_m_s``,
+    hold ``hold_s``, then for each of ``directions`` (4: +x, -x, +y, -y; 8: then +x+y,
+    -x-y, -x+y, +x-y) move the probe sideways out to ``amplitude_m`` (the distance from
+    the centre, diagonals included) and back to the centre at the same speed, holding
+    ``hold_s`` after each return; then release at the speed and rest ``rest_s``.
+    """
+
+    depth_m: float = 0.003
+    speed_m_s: float = 0.001
+    amplitude_m: float = 0.006
+    directions: int = 8
+    cycles: int = 1
+    hold_s: float = 0.0
+    rest_s: float = 1.0
+    _knots: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] = field(
+        init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        _check("depth", self.depth_m, 1e-6, MAX_DEPTH_M, "m (a shear needs contact)")
+        _check("speed", self.speed_m_s, 1e-6, 1.0, "m/s")
+        _check("shear amplitude", self.amplitude_m, 0.0, MAX_SHEAR_M, "m")
+        _check("hold", self.hold_s, 0.0, 3600.0, "s")
+        _check("rest", self.rest_s, 0.0, 3600.0, "s")
+        if isinstance(self.directions, bool) or not isinstance(self.directions, int) or \
+                self.directions not in (4, 8):
+            raise SimError(f"Shear directions must be 4 (+x, -x, +y, -y) or 8 (with the "
+                           f"diagonals), got {self.directions!r}.")
+        if isinstance(self.cycles, bool) or not isinstance(self.cycles, int) or not (
+                1 <= self.cycles <= 100_000):
+            raise SimError(f"Profile cycles must be an integer 1..100000, got {self.cycles!r}.")
+        press = self.depth_m / self.speed_m_s
+        sweep = self.amplitude_m / self.speed_m_s
+        times, points = [0.0, self.rest_s], [(0.0, 0.0, 0.0)] * 2
+
+        def add(dt: float, point: tuple[float, float, float]) -> None:
+            times.append(times[-1] + dt)
+            points.append(point)
+
+        bottom = (self.depth_m, 0.0, 0.0)
+        for _ in range(self.cycles):
+            add(press, bottom)
+            add(self.hold_s, bottom)
+            for ux, uy in SHEAR_DIRECTIONS[:self.directions]:
+                add(sweep, (self.depth_m, self.amplitude_m * ux, self.amplitude_m * uy))
+                add(sweep, bottom)
+                add(self.hold_s, bottom)
+            add(press, (0.0, 0.0, 0.0))
+            add(self.rest_s, (0.0, 0.0, 0.0))
+        object.__setattr__(self, "_knots", (np.asarray(times), np.asarray(points)))
+
+    @property
+    def duration_s(self) -> float:
+        return float(self._knots[0][-1])
+
+    @property
+    def shear_ratio(self) -> float:
+        """The largest lateral displacement per unit indentation along the path."""
+        return self.amplitude_m / self.depth_m
+
+    def _column(self, t_s: float | npt.ArrayLike, c: int) -> Any:
+        times, points = self._knots
+        return np.interp(t_s, times, points[:, c], left=0.0, right=0.0)
+
+    def indentation(self, t_s: float | npt.ArrayLike) -> Any:
+        """d(t) [m]; before 0 and after the end the probe rests just touching."""
+        return self._column(t_s, 0)
+
+    def lateral(self, t_s: float | npt.ArrayLike) -> tuple[Any, Any]:
+        """(sx(t), sy(t)) [m], the probe's lateral displacement along +x and +y."""
+        return self._column(t_s, 1), self._column(t_s, 2)
+
+    def knots(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """Corner times [s] and (n, 3) positions (d, sx, sy) [m] (copies)."""
+        return self._knots[0].copy(), self._knots[1].copy()
+
+
+_ARRAY_KEYS = {**_KEYS, "shear": "shear_m", "shear_directions": "shear_directions"}
+
+ARRAY_PROTOCOLS: dict[str, dict[str, Any]] = _load_protocols("array", _ARRAY_KEYS)
+
+
+def array_profile(depth_m: float = 0.003, speeds_m_s: tuple[float, ...] = (0.001,),
+                  cycles: int = 1, hold_s: float = 0.0, rest_s: float = 1.0,
+                  preload_m: float = 0.0, shear_m: float = 0.0, shear_directions: int = 8
+                  ) -> LoadProfile | ShearProfile:
+    """The array bench's profile from the mock rig's protocol parameters: a shear sweep
+    when ``shear_m`` > 0, the plain load profile otherwise."""
+    _check("shear", shear_m, 0.0, MAX_SHEAR_M, "m")
+    if shear_m == 0:
+        return LoadProfile(depth_m=depth_m, speeds_m_s=speeds_m_s, cycles=cycles,
+                           hold_s=hold_s, rest_s=rest_s, preload_m=preload_m)
+    speeds = tuple(speeds_m_s)
+    if len(speeds) != 1:
+        raise SimError(f"A shear protocol runs at one speed; give protocol.speeds one value, "
+                       f"not {len(speeds)}.")
+    if preload_m:
+        raise SimError("A shear protocol starts from contact; set protocol.preload to 0.")
+    return ShearProfile(depth_m=depth_m, speed_m_s=speeds[0], amplitude_m=shear_m,
+                        directions=shear_directions, cycles=cycles, hold_s=hold_s,
+                        rest_s=rest_s)
+
+
+def array_profile_from_protocol(name: str, **overrides: Any) -> LoadProfile | ShearProfile:
+    """A protocol of the ``array`` section of config/protocols.yaml, with overrides."""
+    if name not in ARRAY_PROTOCOLS:
+        raise SimError(f"Unknown array protocol '{name}'; choose one of "
+                       f"{', '.join(ARRAY_PROTOCOLS)}.")
+    return array_profile(**{**ARRAY_PROTOCOLS[name], **overrides})
