@@ -234,7 +234,7 @@ class ArrayChain:
         """Run one sample through every module; ``SensingError`` if it lacks a channel."""
         counts, scale = sample.counts, self._volts_per_count
         try:
-            volts = tuple(counts[c] * scale for c in self.channels)
+            volts = tuple([counts[c] * scale for c in self.channels])
         except IndexError:
             raise SensingError(
                 f"The sample has {len(counts)} channel(s) but the modules use channel "
@@ -242,8 +242,8 @@ class ArrayChain:
                 "firmware.") from None
         t_us = sample.device_time_us
         with self._lock:
-            filtered = [f.update(v) for f, v in zip(self._filters, volts, strict=True)]
-            for window, v in zip(self._tares, volts, strict=True):
+            filtered = [f.update(v) for f, v in zip(self._filters, volts)]  # noqa: B905
+            for window, v in zip(self._tares, volts):  # noqa: B905 - one per module
                 window.add(v)
             if self._baselines is None and self.config.auto_tare and self._tares[0].ready:
                 self._auto_tare_countdown -= 1
@@ -257,7 +257,7 @@ class ArrayChain:
                 reading = ArrayReading(volts[0], NAN, NAN, False, False, t_us,
                                        sample.host_time_ns, NAN, NAN, volts, outputs)
             else:
-                outputs = tuple(b - f for b, f in zip(baselines, filtered, strict=True))
+                outputs = tuple([b - f for b, f in zip(baselines, filtered)])  # noqa: B905
                 cal = self._calibration
                 if cal is None:
                     fx = fy = fz = NAN
