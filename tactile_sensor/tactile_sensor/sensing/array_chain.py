@@ -22,7 +22,14 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration
-from tactile_sensor.sensing.chain import ChainConfig, SampleLike, _Parts, changed_parts
+from tactile_sensor.sensing.calibration import Calibration
+from tactile_sensor.sensing.chain import (
+    ChainConfig,
+    SampleLike,
+    SignalChain,
+    _Parts,
+    changed_parts,
+)
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
 from tactile_sensor.sensing.filters import Filter, make_filter
@@ -98,6 +105,12 @@ class ArrayTareResult(NamedTuple):
     baselines_v: tuple[float, ...]
     spread_v: float  # the largest of the modules' spreads
     samples: int
+    faces: tuple[str, ...]
+
+    def describe(self) -> str:
+        each = ", ".join(f"{face} {b:.4f} V" for face, b in zip(self.faces, self.baselines_v,
+                                                                 strict=True))
+        return f"baselines {each} (largest spread {self.spread_v * 1e3:.1f} mV)"
 
 
 class ArrayChain:
@@ -142,6 +155,11 @@ class ArrayChain:
         return self._baselines
 
     @property
+    def top_channel(self) -> int:
+        """The highest ADC channel read (the device must send at least one more)."""
+        return max(self.channels)
+
+    @property
     def baseline_v(self) -> float | None:
         """The first module's baseline (as ``SignalChain.baseline_v``)."""
         return None if self._baselines is None else self._baselines[0]
@@ -183,7 +201,7 @@ class ArrayChain:
             self._baselines = tuple(r.baseline_v for r in results)
             self._contact.reset()
             return ArrayTareResult(self._baselines, max(r.spread_v for r in results),
-                                   results[0].samples)
+                                   results[0].samples, self.faces)
 
     @property
     def conversion(self) -> AdcConversion:
@@ -271,3 +289,16 @@ class ArrayChain:
                                        sample.host_time_ns, fx, fy, volts, outputs)
         self.last = reading
         return reading
+
+
+def build_chain(config: ChainConfig, modules: Sequence[Module],
+                calibration_file: str | None = None) -> SignalChain | ArrayChain:
+    """The chain for ``modules`` (() = one module on ``config.channel``), calibrated from
+    ``calibration_file`` (a curve for one module, an array calibration for several) or
+    waiting for one (None)."""
+    if modules:
+        array_cal = None if calibration_file is None else ArrayCalibration.from_file(
+            calibration_file)
+        return ArrayChain(config, modules, array_cal)
+    cal = None if calibration_file is None else Calibration.from_file(calibration_file)
+    return SignalChain(config, cal)

@@ -154,6 +154,11 @@ class SignalChain:
         return self._baseline_v is not None
 
     @property
+    def top_channel(self) -> int:
+        """The highest ADC channel read (the device must send at least one more)."""
+        return self.config.channel
+
+    @property
     def calibration(self) -> Calibration | None:
         return self._calibration
 
