@@ -19,9 +19,12 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
+from tactile_sensor.nodes import array_calibration_msg
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
+from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import TactileReading
 
 FACES = ("front", "back", "left", "right")
@@ -36,7 +39,7 @@ import signal, sys, threading
 import numpy as np
 from tactile_sensor.sim.adc_device import AdcNoise, MockAdcDevice
 link, channels = sys.argv[1], int(sys.argv[2])
-rest, hold = np.array({rest})[:channels], np.array({hold})[:channels]
+rest, hold = (np.array(sys.argv[k].split(","), float)[:channels] for k in (3, 4))
 def source(t):
     t = np.asarray(t, dtype=float)
     ramp = np.clip((t - 1.5) / 0.5, 0.0, 1.0)[:, None]
@@ -50,7 +53,7 @@ for sig in (signal.SIGINT, signal.SIGTERM):
 print("mock array adc: streaming", flush=True)
 stop.wait()
 device.stop()
-""".format(rest=list(REST_V), hold=list(HOLD_OUTPUT_V))
+"""
 
 
 def fit_calibration(path: Path, faces=FACES) -> None:
@@ -123,7 +126,8 @@ def start_driver(spawn, link: Path, calibration: Path, *extra: str):
 
 
 def start_mock(spawn, link: Path, channels: int = 4):
-    child = spawn(sys.executable, "-c", MOCK, str(link), str(channels))
+    child = spawn(sys.executable, "-c", MOCK, str(link), str(channels),
+                  ",".join(map(str, REST_V)), ",".join(map(str, HOLD_OUTPUT_V)))
     assert child.wait_for_output("mock array adc: streaming", 20), child.output()
     return child
 
@@ -186,11 +190,12 @@ def test_a_device_with_too_few_channels_is_an_error_naming_both(spawn, ros, tmp_
     driver = start_driver(spawn, tmp_path / "adc", calibration)
     assert driver.wait_for_output("active", 30), driver.output()
     start_mock(spawn, tmp_path / "adc", channels=2)
-    assert ros.wait_for(lambda: any(s.level == DiagnosticStatus.ERROR
+    expected = "The driver reads channel 3 but the device sends 2 channel(s)"
+    # (before the mock's link exists, "does not exist" is an ERROR too)
+    assert ros.wait_for(lambda: any(s.message.startswith(expected)
                                     for s in ros.diagnostics), 15), driver.output()
-    error = next(s for s in ros.diagnostics if s.level == DiagnosticStatus.ERROR)
-    assert error.message.startswith("The driver reads channel 3 but the device sends 2 "
-                                    "channel(s)"), error.message
+    error = next(s for s in ros.diagnostics if s.message.startswith(expected))
+    assert error.level == DiagnosticStatus.ERROR
     assert ros.wrenches == [] and ros.readings == []
 
 
@@ -207,3 +212,26 @@ def test_a_bad_modules_parameter_fails_configure_with_its_sentence(spawn, ros_do
     assert driver.wait_for_output("configure transition failed", 30), driver.output()
     assert "'modules'" in driver.output() and sentence in driver.output()
     assert "Traceback" not in driver.output()
+
+
+def test_the_latched_array_calibration_is_used_and_one_for_other_faces_ignored(spawn, ros,
+                                                                                tmp_path):
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                         reliability=ReliabilityPolicy.RELIABLE)
+    publisher = ros.node.create_publisher(ArrayCalibrationMsg, "/array_calibration", latched)
+    wrong, right = tmp_path / "two.json", tmp_path / "four.json"
+    fit_calibration(wrong, ("front", "back"))
+    fit_calibration(right)
+    publisher.publish(array_calibration_msg.to_msg(ArrayCalibration.from_file(wrong)))
+    driver = spawn("--ros-args", "-r", "__node:=driver", "-p", f"port:={tmp_path / 'adc'}",
+                   "-p", f"modules:={MODULES}", "-p", "autostart:=true",
+                   module="tactile_sensor.nodes.driver")
+    assert driver.wait_for_output("ignoring array calibration: The array calibration "
+                                  f"file:{wrong}", 30), driver.output()
+    start_mock(spawn, tmp_path / "adc")
+    assert ros.wait_for(lambda: len(ros.readings) > 2500, 30), driver.output()
+    assert ros.wrenches == []  # no calibration: no wrench, readings with outputs only
+    publisher.publish(array_calibration_msg.to_msg(ArrayCalibration.from_file(right)))
+    assert ros.wait_for(lambda: len(ros.wrenches) > 300, 15), driver.output()
+    np.testing.assert_allclose(np.mean(ros.wrenches[-300:], axis=0), HOLD_FORCE_N, atol=0.1)
+    assert f"array calibration from file:{right}" in driver.output()
