@@ -19,6 +19,8 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
@@ -171,6 +173,16 @@ def test_four_modules_give_the_wrench_and_every_module_in_the_reading(spawn, ros
     after = ros.readings[-1]
     np.testing.assert_allclose(after.outputs, 0.0, atol=0.01)
     np.testing.assert_allclose(ros.wrenches[-1], 0.0, atol=0.15)
+
+    # modules describes the wiring: read on configure, refused while configured
+    client = ros.node.create_client(SetParameters, "/driver/set_parameters")
+    assert client.wait_for_service(timeout_sec=10.0)
+    future = client.call_async(SetParameters.Request(parameters=[
+        Parameter("modules", value="0:front,1:back").to_parameter_msg()]))
+    assert ros.wait_for(future.done, 10.0)
+    refused = future.result().results[0]
+    assert not refused.successful
+    assert refused.reason.startswith("Parameter 'modules' is read on configure")
 
 
 def test_a_calibration_for_other_faces_is_refused(spawn, ros_domain, tmp_path):
