@@ -34,6 +34,7 @@ from tactile_sensor.hardware.adc_reader import (
     Sample,
 )
 from tactile_sensor.hardware.errors import HardwareError
+from tactile_sensor.nodes import array_calibration_msg
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
@@ -42,21 +43,40 @@ from tactile_sensor.nodes.parameters import (
     read_parameters,
 )
 from tactile_sensor.sensing.adc_settings import AdcSettings, resolve_adc
+from tactile_sensor.sensing.array_chain import (
+    ArrayChain,
+    ArrayReading,
+    build_chain,
+    parse_modules,
+)
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import ChainConfig, Reading, SignalChain
 from tactile_sensor.sensing.device_clock import DeviceClock
 from tactile_sensor.sensing.errors import SensingError, TareError
 from tactile_sensor.sensing.filters import FILTERS
+from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
 
 CALIBRATION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
+
+def _modules_problem(text: str) -> str | None:
+    try:
+        parse_modules(text)
+    except SensingError as exc:
+        return str(exc)
+    return None
+
 
 SPECS = [
     ParamSpec("port", "/dev/ttyACM0", "serial device of the ADC (path or pyserial URL)"),
     ParamSpec("baud_rate", 1_000_000, "serial baud rate [bit/s] the firmware uses",
               minimum=50, maximum=12_000_000),
     ParamSpec("channel", 0, "ADC channel wired to the photoreflector", minimum=0, maximum=7),
+    ParamSpec("modules", "", "module array as CHANNEL:FACE pairs, e.g. '0:front,1:back,2:left,"
+              "3:right' (faces front +y, back -y, left -x, right +x): ~/wrench then carries "
+              "force x, y and z from an array calibration; empty = one module on 'channel'",
+              check=_modules_problem),
     ParamSpec("adc_bits", 0, "ADC resolution [bit]; 0 = as the device states (protocol 2); "
               "a value the device contradicts is an error", minimum=0, maximum=16),
     ParamSpec("reference_voltage", 0.0, "ADC reference voltage [V] (full scale); 0 = as the "
@@ -81,9 +101,12 @@ SPECS = [
     ParamSpec("frame_id", "tactile_sensor", "frame of the wrench; +z is the skin normal "
               "pointing into the sensor"),
     ParamSpec("calibration_source", "model", "where output->force comes from: 'model' "
-              "(latched curve on calibration_curve) or 'file'", choices=("model", "file")),
+              "(latched curve on calibration_curve; with modules, the latched "
+              "array_calibration) or 'file'", choices=("model", "file")),
     ParamSpec("calibration_file", "", "calibration JSON written by 'tactile-sensor "
-              "analyze --fit-calibration' (calibration_source: file)"),
+              "analyze --fit-calibration', with modules an array calibration written by "
+              "'tactile-sensor model array-calibration --calibration' (calibration_source: "
+              "file)"),
     ParamSpec("contact_on_force", 0.5, "contact when the force rises above this [N]",
               minimum=0.0, exclusive_minimum=True),
     ParamSpec("contact_off_force", 0.3, "contact ends when the force falls below this [N]",
@@ -149,7 +172,8 @@ class DriverNode(Node):
         self.add_on_set_parameters_callback(self._check_runtime_change)
         self.add_post_set_parameters_callback(self._apply_runtime_change)
         self._values: dict[str, Any] = {}
-        self._chain: SignalChain | None = None
+        self._faces: list[str] = []  # of the modules, [] with one module
+        self._chain: SignalChain | ArrayChain | None = None
         self._reader: AdcStreamReader | None = None
         self._clock_map = DeviceClock()
         self._publish_every_ns = 0
@@ -174,10 +198,9 @@ class DriverNode(Node):
     def on_configure(self, state: State) -> TransitionCallbackReturn:
         try:
             values = read_parameters(self, SPECS)
-            config = chain_config(values)
-            calibration = (Calibration.from_file(values["calibration_file"])
-                           if values["calibration_source"] == "file" else None)
-            chain = SignalChain(config, calibration)
+            modules = parse_modules(values["modules"])
+            chain = build_chain(chain_config(values), modules, values["calibration_file"]
+                                if values["calibration_source"] == "file" else None)
             reader = AdcStreamReader(values["port"], self._on_sample, self._on_state,
                                      baudrate=values["baud_rate"],
                                      backlog=values["reader_backlog"],
@@ -186,6 +209,7 @@ class DriverNode(Node):
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
         self._values, self._chain, self._reader = values, chain, reader
+        self._faces = [m.face for m in modules]
         self._clock_map = DeviceClock()
         self._lost_reported = 0
         self._adc = self._info_logged = None
@@ -195,14 +219,19 @@ class DriverNode(Node):
         self._reading_pub = self.create_lifecycle_publisher(TactileReading, "~/reading", 100)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._tare_srv = self.create_service(Trigger, "~/tare", self._on_tare)
-        if values["calibration_source"] == "model":
+        if values["calibration_source"] == "model" and modules:
+            self._calibration_sub = self.create_subscription(
+                ArrayCalibrationMsg, "array_calibration", self._on_array_calibration,
+                CALIBRATION_QOS)
+        elif values["calibration_source"] == "model":
             self._calibration_sub = self.create_subscription(
                 CalibrationCurve, "calibration_curve", self._on_calibration, CALIBRATION_QOS)
         self._diag_timer = self.create_timer(values["diagnostics_period"],
                                              self._publish_diagnostics)
         self.get_logger().info(
             f"configured: {values['port']} at {values['baud_rate']} bit/s, filter "
-            f"{values['filter_type']}, calibration from {values['calibration_source']}")
+            f"{values['filter_type']}, calibration from {values['calibration_source']}"
+            + (f", modules {values['modules']}" if modules else ""))
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: State) -> TransitionCallbackReturn:
@@ -305,13 +334,17 @@ class DriverNode(Node):
             self._next_publish_ns = stamp_ns + self._publish_every_ns
         self._publish(reading, stamp_ns)
 
-    def _publish(self, reading: Reading, stamp_ns: int) -> None:
+    def _publish(self, reading: Reading | ArrayReading, stamp_ns: int) -> None:
         self.published_until_ns = stamp_ns
         stamp = Time(nanoseconds=stamp_ns).to_msg()
         frame = self._values["frame_id"]
         msg = TactileReading(voltage=reading.voltage_v, output=reading.output_v,
                              force=reading.force_n, contact=reading.contact)
         msg.header.stamp, msg.header.frame_id = stamp, frame
+        array = isinstance(reading, ArrayReading)
+        if array:
+            msg.faces, msg.voltages, msg.outputs = (self._faces, list(reading.voltages_v),
+                                                    list(reading.outputs_v))
         if self._reading_pub is not None:
             self._reading_pub.publish(msg)
             self.published_readings += 1
@@ -319,15 +352,21 @@ class DriverNode(Node):
             wrench = WrenchStamped()
             wrench.header.stamp, wrench.header.frame_id = stamp, frame
             wrench.wrench.force.z = reading.force_n
+            if array:
+                wrench.wrench.force.x, wrench.wrench.force.y = (reading.force_x_n,
+                                                                reading.force_y_n)
             self._wrench_pub.publish(wrench)
 
     def _on_info(self, info: DeviceInfo) -> None:
         """The device said what its codes mean (before its first sample, on each connection)."""
         values = self._values
+        chain = self._chain
+        if chain is None:
+            return
         adc = resolve_adc(info, values["adc_bits"] or None, values["reference_voltage"] or None,
-                          values["channel"], values["sample_rate"])
-        if adc.conversion is not None and self._chain is not None:
-            self._chain.set_conversion(adc.conversion)
+                          chain.top_channel, values["sample_rate"])
+        if adc.conversion is not None:
+            chain.set_conversion(adc.conversion)
         self._adc = adc
         if info != self._info_logged:  # once per device, not once per reconnection
             self._info_logged = info
@@ -360,9 +399,7 @@ class DriverNode(Node):
         except TareError as exc:
             response.success, response.message = False, str(exc)
             return response
-        response.success = True
-        response.message = (f"baseline {result.baseline_v:.4f} V (spread "
-                            f"{result.spread_v * 1e3:.1f} mV)")
+        response.success, response.message = True, result.describe()
         self.get_logger().info(f"tared: {response.message}")
         return response
 
@@ -378,6 +415,18 @@ class DriverNode(Node):
         self._chain.set_calibration(calibration)
         self.get_logger().info(f"calibration from {calibration.source} "
                                f"({len(msg.output)} points)")
+
+    def _on_array_calibration(self, msg: ArrayCalibrationMsg) -> None:
+        chain = self._chain
+        if not isinstance(chain, ArrayChain):
+            return
+        try:
+            chain.set_calibration(array_calibration_msg.from_msg(msg))
+        except SensingError as exc:
+            self.get_logger().error(f"ignoring array calibration: {exc}")
+            return
+        self.get_logger().info(f"array calibration from {chain.calibration_source} "
+                               f"({', '.join(chain.faces)})")
 
     # -- diagnostics ---------------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:
@@ -431,6 +480,10 @@ class DriverNode(Node):
             "reference_voltage": (f"{chain.conversion.vref_v:g}" if adc and adc.usable
                                   else "none"),
         }
+        if isinstance(chain, ArrayChain):
+            baselines = chain.baselines_v or (None,) * len(chain.faces)
+            values.update({f"baseline_v.{face}": "none" if b is None else f"{b:.4f}"
+                           for face, b in zip(chain.faces, baselines, strict=True)})
         status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()

@@ -3,6 +3,9 @@
 Wiring only: physics parameters become ROS parameters, a background thread loads or
 computes the prediction curve (so a cold FEM sweep never blocks the executor), ``~/predict``
 answers from it, and the output -> force curve goes out latched on ``calibration_curve``.
+When the physics parameter ``modules`` names several faces, a second thread loads or
+computes the array grid and latches its fitted outputs -> (Fx, Fy, Fz) calibration on
+``array_calibration`` (docs/array.md).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from typing import Any
 from rclpy.lifecycle import Node, State, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+from tactile_sensor.nodes import array_calibration_msg
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
@@ -22,15 +26,22 @@ from tactile_sensor.nodes.parameters import (
     read_parameters,
 )
 from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
+from tactile_sensor.physics.array_grid import load_or_compute_grid
+from tactile_sensor.physics.array_report import fit_grid
 from tactile_sensor.physics.errors import OutOfRangeError, PhysicsError
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import PredictionCurve, load_or_compute_curve
+from tactile_sensor.sensing.array_calibration import ArrayCalibration
+from tactile_sensor.sensing.errors import SensingError
+from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import CalibrationCurve
 from tactile_sensor_interfaces.srv import PredictOutput
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                      reliability=ReliabilityPolicy.RELIABLE)
 
+
+ARRAY_DEGREE = 3  # the polynomial degree of docs/array.md (held-out error 0.13 % of range)
 
 NODE_SPECS = [
     ParamSpec("cache_dir", "", "folder of the prediction cache; empty = "
@@ -47,8 +58,11 @@ class ModelNode(Node):
         self._progress = 0.0
         self._failure: str | None = None
         self._worker: threading.Thread | None = None
+        self._array_worker: threading.Thread | None = None
         self._publisher = None
         self._service = None
+        self._array: ArrayCalibration | None = None
+        self._array_publisher = None
 
     # -- lifecycle -------------------------------------------------------------------------
     def on_configure(self, state: State) -> TransitionCallbackReturn:
@@ -60,23 +74,35 @@ class ModelNode(Node):
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
         self._curve, self._failure, self._progress = None, None, 0.0
+        self._array = None
         self._publisher = self.create_lifecycle_publisher(
             CalibrationCurve, "calibration_curve", LATCHED)
+        if len(params.module_faces) > 1:
+            self._array_publisher = self.create_lifecycle_publisher(
+                ArrayCalibrationMsg, "array_calibration", LATCHED)
         self._service = self.create_service(PredictOutput, "~/predict", self._on_predict)
         self._worker = threading.Thread(
             target=self._compute, args=(params, cache_dir), name="fem-sweep", daemon=True)
         self._worker.start()
+        if self._array_publisher is not None:  # independent of the curve: its own thread
+            self._array_worker = threading.Thread(
+                target=self._compute_array, args=(params, cache_dir), name="array-grid",
+                daemon=True)
+            self._array_worker.start()
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: State) -> TransitionCallbackReturn:
         result = super().on_activate(state)
         if self._curve is not None:
             self._publish_curve()
+        if self._array is not None:
+            self._publish_array()
         return result
 
     def on_cleanup(self, state: State) -> TransitionCallbackReturn:
-        if self._worker is not None:
-            self._worker.join()
+        for worker in (self._worker, self._array_worker):
+            if worker is not None:
+                worker.join()
         self._destroy_interfaces()
         return TransitionCallbackReturn.SUCCESS
 
@@ -87,10 +113,11 @@ class ModelNode(Node):
     def _destroy_interfaces(self) -> None:
         if self._service is not None:
             self.destroy_service(self._service)
-        if self._publisher is not None:
-            self.destroy_lifecycle_publisher(self._publisher)
-        self._service = self._publisher = None
-        self._curve = None
+        for publisher in (self._publisher, self._array_publisher):
+            if publisher is not None:
+                self.destroy_lifecycle_publisher(publisher)
+        self._service = self._publisher = self._array_publisher = None
+        self._curve = self._array = None
 
     # -- work --------------------------------------------------------------------------------
     def _compute(self, params: PhysicsParams, cache_dir: str | None) -> None:
@@ -114,6 +141,34 @@ class ModelNode(Node):
             f"output {curve.output_v[-1]:.3f} V ({curve.nodes} nodes, {curve.seconds:.1f} s)")
         if self._publisher is not None and self._publisher.is_activated:
             self._publish_curve()
+
+    def _compute_array(self, params: PhysicsParams, cache_dir: str | None) -> None:
+        def progress(fraction: float, message: str) -> None:
+            self.get_logger().info(f"array grid {fraction:4.0%}: {message}",
+                                   throttle_duration_sec=2.0)
+
+        try:
+            grid = load_or_compute_grid(params, Path(cache_dir) if cache_dir else None,
+                                        progress)
+            calibration, report = fit_grid(grid, degree=ARRAY_DEGREE)
+        except (PhysicsError, SensingError) as exc:
+            self.get_logger().error(f"array calibration failed: {exc}")
+            return
+        self._array = calibration
+        rmse = report["held_out_rmse_n"]
+        self.get_logger().info(
+            f"array calibration ready: {', '.join(grid.faces)}, {report['points']} grid "
+            f"points, held-out rmse x {rmse['x'] * 1e3:.1f} mN, y {rmse['y'] * 1e3:.1f} mN, "
+            f"z {rmse['z'] * 1e3:.1f} mN ({calibration.source})")
+        publisher = self._array_publisher
+        if publisher is not None and publisher.is_activated:
+            self._publish_array()
+
+    def _publish_array(self) -> None:
+        assert self._array is not None and self._array_publisher is not None
+        msg = array_calibration_msg.to_msg(self._array)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._array_publisher.publish(msg)
 
     def _publish_curve(self) -> None:
         assert self._curve is not None and self._publisher is not None

@@ -98,6 +98,21 @@ class ChainConfig:
 FIXED_FIELDS = ("rate_hz", "adc_bits", "vref_v", "channel")
 
 
+def changed_parts(old: ChainConfig, new: ChainConfig) -> set[str]:
+    """Which of 'filter', 'tare' and 'contact' a reconfiguration from ``old`` to ``new``
+    rebuilds; ``SensingError`` if a ``FIXED_FIELDS`` setting changes or ``new`` is bad."""
+    fixed = [name for name in FIXED_FIELDS if getattr(new, name) != getattr(old, name)]
+    if fixed:
+        raise SensingError(f"{', '.join(fixed)} cannot change while samples flow; build a "
+                           "new chain.")
+    new.validate()
+    keys = {"filter": ("filter_name", "filter_params"),
+            "tare": ("tare_window_s", "tare_max_spread_v"),
+            "contact": ("contact_on_n", "contact_off_n", "contact_debounce_s")}
+    return {part for part, names in keys.items()
+            if any(getattr(new, n) != getattr(old, n) for n in names)}
+
+
 class _Parts:
     def __init__(self, config: ChainConfig) -> None:
         self.adc = AdcConversion(config.adc_bits, config.vref_v)
@@ -137,6 +152,11 @@ class SignalChain:
     @property
     def tared(self) -> bool:
         return self._baseline_v is not None
+
+    @property
+    def top_channel(self) -> int:
+        """The highest ADC channel read (the device must send at least one more)."""
+        return self.config.channel
 
     @property
     def calibration(self) -> Calibration | None:
@@ -186,23 +206,15 @@ class SignalChain:
         """Take new filter, tare and contact settings while samples flow; baseline and
         calibration stay. A part whose settings changed starts afresh (a new filter has no
         history). The ADC settings (``FIXED_FIELDS``) cannot change here."""
-        fixed = [name for name in FIXED_FIELDS
-                 if getattr(config, name) != getattr(self.config, name)]
-        if fixed:
-            raise SensingError(f"{', '.join(fixed)} cannot change while samples flow; build a "
-                               "new chain.")
-        parts = _Parts(config)  # validates
-        old = self.config
+        changed = changed_parts(self.config, config)  # validates
+        parts = _Parts(config)
         with self._lock:
-            if (config.filter_name, config.filter_params) != (old.filter_name,
-                                                              old.filter_params):
+            if "filter" in changed:
                 self._filter = parts.filter
-            if (config.tare_window_s, config.tare_max_spread_v) != (old.tare_window_s,
-                                                                    old.tare_max_spread_v):
+            if "tare" in changed:
                 self._tare = parts.tare
                 self._auto_tare_every = max(1, self._tare.size // 10)
-            if (config.contact_on_n, config.contact_off_n, config.contact_debounce_s) != (
-                    old.contact_on_n, old.contact_off_n, old.contact_debounce_s):
+            if "contact" in changed:
                 self._contact = parts.contact
             self.config = config
 

@@ -22,6 +22,9 @@ class TareResult(NamedTuple):
     spread_v: float
     samples: int
 
+    def describe(self) -> str:
+        return f"baseline {self.baseline_v:.4f} V (spread {self.spread_v * 1e3:.1f} mV)"
+
 
 class TareWindow:
     """Keeps the last ``window_s`` of voltages so a tare can be answered at once."""

@@ -1,5 +1,6 @@
 """Model node in its own process: ~/predict answers from the FEM curve, the latched
-calibration reaches a subscriber that starts late, bad input is refused with a message."""
+calibration reaches a subscriber that starts late, bad input is refused with a message; with
+several modules the array calibration is latched too."""
 
 from __future__ import annotations
 
@@ -11,8 +12,12 @@ import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tactile_sensor.configurations import config_dir
+from tactile_sensor.nodes import array_calibration_msg
+from tactile_sensor.physics.array_grid import load_or_compute_grid
+from tactile_sensor.physics.array_report import fit_grid
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import load_or_compute_curve
+from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import CalibrationCurve
 from tactile_sensor_interfaces.srv import PredictOutput
 
@@ -89,3 +94,43 @@ def test_not_ready_while_computing_and_bad_physics_parameter(spawn, ros_domain, 
     bad = start_model(spawn, "-r", "__node:=model_bad", "-p", "height:=-0.01")
     assert bad.wait_for_output("configure transition failed", 30), bad.output()
     assert "'height'" in bad.output() and "Traceback" not in bad.output()
+
+
+def test_an_array_latches_the_calibration_fitted_on_its_grid(spawn, ros_domain):
+    # The grid comes from the cache ($XDG_CACHE_HOME/tactile_sensor, as the curve above);
+    # computed cold it takes minutes on a loaded machine.
+    faces = ("front", "back", "left", "right")
+    params = PhysicsParams().replace(modules=",".join(faces))
+    expected, _ = fit_grid(load_or_compute_grid(params), degree=3)
+    model = start_model(spawn, "-p", f"modules:={','.join(faces)}")
+    assert model.wait_for_output("array calibration ready", 600), model.output()
+    with rclpy.init():
+        node = rclpy.create_node("array_client")
+        received: list[ArrayCalibrationMsg] = []
+        node.create_subscription(ArrayCalibrationMsg, "/array_calibration", received.append,
+                                 LATCHED)
+        deadline = time.monotonic() + 20
+        while not received and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)
+        node.destroy_node()
+    assert received, model.output()
+    msg = received[0]
+    assert list(msg.faces) == list(faces)
+    assert msg.source == f"fem-array:{params.grid_digest()}" == expected.source
+    calibration = array_calibration_msg.from_msg(msg)
+    np.testing.assert_array_equal(calibration.terms, expected.terms)
+    np.testing.assert_allclose(calibration.coefficients, expected.coefficients, rtol=1e-12)
+    outputs = [0.2, 0.15, 0.05, 0.3]
+    assert calibration.force(outputs) == pytest.approx(expected.force(outputs), rel=1e-12)
+
+
+def test_a_single_module_model_latches_no_array_calibration(spawn, ros_domain):
+    model = start_model(spawn)
+    assert model.wait_for_output("prediction ready", 120), model.output()
+    with rclpy.init():
+        node = rclpy.create_node("array_client")
+        time.sleep(1.0)
+        names = dict(node.get_topic_names_and_types())
+        node.destroy_node()
+    assert "/calibration_curve" in names and "/array_calibration" not in names
+    assert "array" not in model.output()

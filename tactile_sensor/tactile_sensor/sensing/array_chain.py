@@ -1,0 +1,304 @@
+"""The signal chain of a module array: N modules on N channels of one ADC stream.
+
+Per sample: counts -> volts (one ``AdcConversion`` for the whole device) -> one filter per
+module (the single chain's filters and settings) -> outputs = baselines - filtered ->
+(Fx, Fy, Fz) by ``ArrayCalibration.force`` -> contact on the magnitude |F|. The parts are
+the single chain's (``sensing.chain``), one per module; only the fan-out lives here.
+
+Tare zeroes every module at once: one decision over all the channels' windows, refused if
+any module is not at rest (naming it), so the outputs the calibration sees always share one
+rest state. Forces are NaN until tared and calibrated.
+
+Threading as ``SignalChain``: ``process`` in the reader's thread; ``tare``,
+``set_calibration`` and the properties from any other; one lock guards the state.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+from collections.abc import Sequence
+from typing import NamedTuple
+
+from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration
+from tactile_sensor.sensing.calibration import Calibration
+from tactile_sensor.sensing.chain import (
+    ChainConfig,
+    SampleLike,
+    SignalChain,
+    _Parts,
+    changed_parts,
+)
+from tactile_sensor.sensing.conversion import AdcConversion
+from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
+from tactile_sensor.sensing.filters import Filter, make_filter
+from tactile_sensor.sensing.tare import TareWindow
+
+NAN = float("nan")
+MAX_CHANNEL = 7
+
+
+class Module(NamedTuple):
+    channel: int
+    face: str
+
+
+def parse_modules(text: str) -> tuple[Module, ...]:
+    """``"0:front,1:back,..."`` -> modules in that order; ``""`` -> () (one module on
+    ``channel``, the single chain). ``SensingError`` with one sentence per mistake."""
+    text = text.strip()
+    if not text:
+        return ()
+    modules: list[Module] = []
+    for entry in (e.strip() for e in text.split(",")):
+        channel_text, sep, face = (part.strip() for part in entry.partition(":"))
+        if not sep or not channel_text or not face:
+            raise SensingError(f"Module '{entry}' in modules is not CHANNEL:FACE; write it like "
+                               "'0:front,1:back,2:left,3:right'.")
+        try:
+            channel = int(channel_text)
+        except ValueError:
+            raise SensingError(f"Module '{entry}' in modules has channel '{channel_text}', "
+                               f"which is not a whole number 0..{MAX_CHANNEL}.") from None
+        if not 0 <= channel <= MAX_CHANNEL:
+            raise SensingError(f"Module '{entry}' in modules has channel {channel}; ADC "
+                               f"channels are 0..{MAX_CHANNEL}.")
+        if face not in FACES:
+            raise SensingError(f"Module '{entry}' in modules has face '{face}'; faces are "
+                               f"{', '.join(FACES)}.")
+        for other in modules:
+            if other.channel == channel:
+                raise SensingError(f"Channel {channel} appears twice in modules "
+                                   f"({other.face} and {face}); give each module its own "
+                                   "channel.")
+            if other.face == face:
+                raise SensingError(f"Face {face} appears twice in modules (channels "
+                                   f"{other.channel} and {channel}); a face carries one "
+                                   "module.")
+        modules.append(Module(channel, face))
+    if len(modules) < 2:
+        raise SensingError(f"modules names one module ({text}); leave modules empty and set "
+                           "channel for a single module, or name two or more.")
+    return tuple(modules)
+
+
+class ArrayReading(NamedTuple):
+    """One processed sample of the array. The first seven fields mean what ``Reading``'s
+    do (the first module's voltage and output, Fz as ``force_n``), so a consumer of single
+    readings reads an array's too."""
+
+    voltage_v: float
+    output_v: float
+    force_n: float  # Fz: pressing positive
+    contact: bool  # decided on |F|
+    saturated: bool  # some output beyond the calibration's fitted range
+    device_time_us: int
+    host_time_ns: int
+    force_x_n: float
+    force_y_n: float
+    voltages_v: tuple[float, ...]  # per module, in modules order, unfiltered
+    outputs_v: tuple[float, ...]  # per module: baseline - filtered voltage (NaN untared)
+
+
+class ArrayTareResult(NamedTuple):
+    baselines_v: tuple[float, ...]
+    spread_v: float  # the largest of the modules' spreads
+    samples: int
+    faces: tuple[str, ...]
+
+    def describe(self) -> str:
+        each = ", ".join(f"{face} {b:.4f} V" for face, b in zip(self.faces, self.baselines_v,
+                                                                 strict=True))
+        return f"baselines {each} (largest spread {self.spread_v * 1e3:.1f} mV)"
+
+
+class ArrayChain:
+    """Stateful per-sample processing for several modules; the surface of ``SignalChain``."""
+
+    def __init__(self, config: ChainConfig, modules: Sequence[Module],
+                 calibration: ArrayCalibration | None = None) -> None:
+        if len(modules) < 2:
+            raise SensingError("An array chain needs two or more modules; use SignalChain "
+                               "for one.")
+        self.config = config
+        self.config.validate()
+        self.modules = tuple(Module(*m) for m in modules)
+        self.faces = tuple(m.face for m in self.modules)
+        self.channels = tuple(m.channel for m in self.modules)
+        self._lock = threading.Lock()
+        parts = _Parts(config)
+        self._conversion = parts.adc
+        self._volts_per_count = parts.adc.volts_per_count
+        self._filters = [parts.filter] + [self._new_filter() for _ in self.modules[1:]]
+        self._tares = [parts.tare] + [self._new_tare() for _ in self.modules[1:]]
+        self._contact = parts.contact
+        self._calibration: ArrayCalibration | None = None
+        self.set_calibration(calibration)
+        self._baselines: tuple[float, ...] | None = None
+        self._auto_tare_every = max(1, self._tares[0].size // 10)
+        self._auto_tare_countdown = 0
+        self.last: ArrayReading | None = None
+
+    def _new_filter(self) -> Filter:
+        c = self.config
+        return make_filter(c.filter_name, c.rate_hz, c.filter_params)
+
+    def _new_tare(self) -> TareWindow:
+        c = self.config
+        return TareWindow(c.rate_hz, c.tare_window_s, c.tare_max_spread_v)
+
+    # -- state others read or set ----------------------------------------------------------
+
+    @property
+    def baselines_v(self) -> tuple[float, ...] | None:
+        return self._baselines
+
+    @property
+    def top_channel(self) -> int:
+        """The highest ADC channel read (the device must send at least one more)."""
+        return max(self.channels)
+
+    @property
+    def baseline_v(self) -> float | None:
+        """The first module's baseline (as ``SignalChain.baseline_v``)."""
+        return None if self._baselines is None else self._baselines[0]
+
+    @property
+    def tared(self) -> bool:
+        return self._baselines is not None
+
+    @property
+    def calibration(self) -> ArrayCalibration | None:
+        return self._calibration
+
+    @property
+    def calibration_source(self) -> str:
+        cal = self._calibration
+        return cal.source if cal is not None else "none"
+
+    def set_calibration(self, calibration: ArrayCalibration | None) -> None:
+        """Use ``calibration``; ``CalibrationError`` if its faces are not the modules'."""
+        if calibration is not None and calibration.faces != self.faces:
+            raise CalibrationError(
+                f"The array calibration {calibration.source} is for faces "
+                f"{', '.join(calibration.faces)} but the driver's modules are "
+                f"{', '.join(self.faces)}; fit one for these modules or set modules to match.")
+        with self._lock:
+            self._calibration = calibration
+
+    def tare(self) -> ArrayTareResult:
+        """Baselines of every module from the last window, all or none: ``TareError``
+        naming the first module that is not at rest."""
+        with self._lock:
+            results = []
+            for module, window in zip(self.modules, self._tares, strict=True):
+                try:
+                    results.append(window.evaluate())
+                except TareError as exc:
+                    raise TareError(f"Module {module.face} (channel {module.channel}): "
+                                    f"{exc}") from None
+            self._baselines = tuple(r.baseline_v for r in results)
+            self._contact.reset()
+            return ArrayTareResult(self._baselines, max(r.spread_v for r in results),
+                                   results[0].samples, self.faces)
+
+    @property
+    def conversion(self) -> AdcConversion:
+        return self._conversion
+
+    def set_conversion(self, conversion: AdcConversion) -> None:
+        """As ``SignalChain.set_conversion``: a change forgets filters and tare windows."""
+        with self._lock:
+            if conversion == self._conversion:
+                return
+            self._conversion = conversion
+            self._volts_per_count = conversion.volts_per_count
+            self._forget()
+
+    def reconfigure(self, config: ChainConfig) -> None:
+        """As ``SignalChain.reconfigure``: filter, tare and contact settings while samples
+        flow (baselines and calibration stay); a changed part restarts in every module."""
+        changed = changed_parts(self.config, config)
+        self.config = config
+        filters = [self._new_filter() for _ in self.modules] if "filter" in changed else None
+        tares = [self._new_tare() for _ in self.modules] if "tare" in changed else None
+        contact = _Parts(config).contact if "contact" in changed else None
+        with self._lock:
+            if filters is not None:
+                self._filters = filters
+            if tares is not None:
+                self._tares = tares
+                self._auto_tare_every = max(1, tares[0].size // 10)
+            if contact is not None:
+                self._contact = contact
+
+    def reset(self) -> None:
+        """Forget filters, tare windows and contact state (after a reconnect); keep the
+        baselines."""
+        with self._lock:
+            self._forget()
+            self._contact.reset()
+
+    def _forget(self) -> None:
+        for f in self._filters:
+            f.reset()
+        for t in self._tares:
+            t.clear()
+
+    # -- per sample ------------------------------------------------------------------------
+
+    def process(self, sample: SampleLike) -> ArrayReading:
+        """Run one sample through every module; ``SensingError`` if it lacks a channel."""
+        counts, scale = sample.counts, self._volts_per_count
+        try:
+            volts = tuple([counts[c] * scale for c in self.channels])
+        except IndexError:
+            raise SensingError(
+                f"The sample has {len(counts)} channel(s) but the modules use channel "
+                f"{max(self.channels)}; wire fewer modules or raise CHANNELS in the "
+                "firmware.") from None
+        t_us = sample.device_time_us
+        with self._lock:
+            filtered = [f.update(v) for f, v in zip(self._filters, volts)]  # noqa: B905
+            for window, v in zip(self._tares, volts):  # noqa: B905 - one per module
+                window.add(v)
+            if self._baselines is None and self.config.auto_tare and self._tares[0].ready:
+                self._auto_tare_countdown -= 1
+                if self._auto_tare_countdown <= 0:
+                    self._auto_tare_countdown = self._auto_tare_every
+                    with contextlib.suppress(TareError):  # not all at rest yet: retry later
+                        self._baselines = tuple(w.evaluate().baseline_v for w in self._tares)
+            baselines = self._baselines
+            if baselines is None:
+                outputs = (NAN,) * len(volts)
+                reading = ArrayReading(volts[0], NAN, NAN, False, False, t_us,
+                                       sample.host_time_ns, NAN, NAN, volts, outputs)
+            else:
+                outputs = tuple([b - f for b, f in zip(baselines, filtered)])  # noqa: B905
+                cal = self._calibration
+                if cal is None:
+                    fx = fy = fz = NAN
+                    saturated = False
+                else:
+                    fx, fy, fz = cal.force(outputs)
+                    saturated = not cal.in_range(outputs)
+                contact = self._contact.update(math.sqrt(fx * fx + fy * fy + fz * fz),
+                                               t_us * 1e-6)
+                reading = ArrayReading(volts[0], outputs[0], fz, contact, saturated, t_us,
+                                       sample.host_time_ns, fx, fy, volts, outputs)
+        self.last = reading
+        return reading
+
+
+def build_chain(config: ChainConfig, modules: Sequence[Module],
+                calibration_file: str | None = None) -> SignalChain | ArrayChain:
+    """The chain for ``modules`` (() = one module on ``config.channel``), calibrated from
+    ``calibration_file`` (a curve for one module, an array calibration for several) or
+    waiting for one (None)."""
+    if modules:
+        array_cal = None if calibration_file is None else ArrayCalibration.from_file(
+            calibration_file)
+        return ArrayChain(config, modules, array_cal)
+    cal = None if calibration_file is None else Calibration.from_file(calibration_file)
+    return SignalChain(config, cal)

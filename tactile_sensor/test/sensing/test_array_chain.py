@@ -1,0 +1,206 @@
+"""Array chain: tare of all modules together, forces from the array calibration, contact on
+|F|, the modules string and every refusal."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tactile_sensor.hardware.adc_reader import Sample
+from tactile_sensor.sensing.array_calibration import ArrayCalibration
+from tactile_sensor.sensing.array_chain import ArrayChain, Module, parse_modules
+from tactile_sensor.sensing.chain import ChainConfig
+from tactile_sensor.sensing.conversion import AdcConversion
+from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
+
+ADC = AdcConversion()
+FACES = ("front", "back", "left", "right")
+MODULES = tuple(Module(c, f) for c, f in enumerate(FACES))
+
+
+def linear_calibration(faces=FACES, degree: int = 3) -> ArrayCalibration:
+    """Fx = 10 (right - left), Fy = 10 (front - back), Fz = 5 sum, fitted on a grid."""
+    rng = np.random.default_rng(0)
+    o = rng.uniform(-0.1, 0.5, size=(300, len(faces)))
+    col = {f: o[:, i] for i, f in enumerate(faces)}
+    fx = 10.0 * (col["right"] - col["left"])
+    fy = 10.0 * (col["front"] - col["back"])
+    fz = 5.0 * o.sum(axis=1)
+    return ArrayCalibration.fit(faces, o, np.stack([fx, fy, fz], axis=1), degree, "test:lin")
+
+
+CAL = linear_calibration()
+
+
+def samples(rows, start=0, channels=4):
+    for k, volts in enumerate(rows, start):
+        counts = tuple(ADC.counts(v) for v in volts) + (0,) * (channels - len(volts))
+        yield Sample(k & 0xFFFF, k * 1000, 0, counts, 1)
+
+
+def run(chain, rows, start=0, channels=4):
+    return [chain.process(s) for s in samples(rows, start, channels)]
+
+
+def quantised(v: float) -> float:
+    return ADC.volts(ADC.counts(v))
+
+
+@settings(max_examples=25, deadline=None)
+@given(rest=st.lists(st.floats(1.0, 4.0), min_size=4, max_size=4),
+       press=st.lists(st.floats(-0.1, 0.4), min_size=4, max_size=4))
+def test_outputs_after_tare_and_forces_are_the_calibration_of_the_outputs(rest, press):
+    chain = ArrayChain(ChainConfig(filter_name="moving_average"), MODULES, CAL)
+    before = run(chain, [rest] * 600)
+    assert math.isnan(before[0].force_n) and all(math.isnan(o) for o in before[0].outputs_v)
+    assert chain.tared
+    assert chain.baselines_v == pytest.approx([quantised(v) for v in rest], abs=1e-9)
+    pressed = run(chain, [[r - p for r, p in zip(rest, press, strict=True)]] * 20, start=600)
+    last = pressed[-1]
+    expected = [quantised(r) - quantised(r - p) for r, p in zip(rest, press, strict=True)]
+    assert last.outputs_v == pytest.approx(expected, abs=1e-9)
+    assert last.voltages_v == pytest.approx([quantised(r - p) for r, p in
+                                             zip(rest, press, strict=True)], abs=1e-12)
+    fx, fy, fz = CAL.force(last.outputs_v)
+    assert (last.force_x_n, last.force_y_n, last.force_n) == (fx, fy, fz)
+    assert (last.voltage_v, last.output_v) == (last.voltages_v[0], last.outputs_v[0])
+    assert last.saturated == (not CAL.in_range(last.outputs_v))
+
+
+def test_forces_are_nan_until_calibrated_and_saturated_beyond_the_fit():
+    chain = ArrayChain(ChainConfig(), MODULES)
+    run(chain, [[2.0] * 4] * 600)
+    assert chain.tared and chain.calibration_source == "none"
+    assert math.isnan(chain.last.force_n) and math.isnan(chain.last.force_x_n)
+    assert not math.isnan(chain.last.output_v)
+    chain.set_calibration(CAL)
+    assert run(chain, [[2.0] * 4] * 50, start=600)[-1].force_n == pytest.approx(0, abs=0.02)
+    far = run(chain, [[1.0, 2.0, 2.0, 2.0]] * 50, start=650)[-1]  # front output 1 V
+    assert far.saturated and far.outputs_v[0] == pytest.approx(1.0, abs=0.01)
+
+
+def test_contact_is_decided_on_the_force_magnitude():
+    chain = ArrayChain(ChainConfig(filter_name="none", contact_on_n=1.0, contact_off_n=0.5,
+                                   contact_debounce_s=0.0), MODULES, CAL)
+    run(chain, [[2.0] * 4] * 600)
+    # pure shear toward +x: right bulges out (+0.1 V output), left draws in: Fz stays 0
+    shear = run(chain, [[2.0, 2.0, 2.1, 1.9]] * 5, start=600)[-1]
+    assert shear.force_x_n == pytest.approx(2.0, abs=0.05)
+    assert abs(shear.force_n) < 0.05 and shear.contact
+    released = run(chain, [[2.0] * 4] * 5, start=605)[-1]
+    assert not released.contact
+
+
+@settings(max_examples=12, deadline=None)
+@given(moving=st.integers(0, 3), auto=st.booleans())
+def test_tare_is_refused_when_one_module_moves_and_names_it(moving, auto):
+    chain = ArrayChain(ChainConfig(auto_tare=auto), MODULES, CAL)
+    ramp = 2.0 - 0.0005 * np.arange(600)
+    rows = [[float(ramp[k]) if i == moving else 2.0 for i in range(4)] for k in range(600)]
+    run(chain, rows)
+    assert not chain.tared  # auto-tare never took the moving module
+    with pytest.raises(TareError, match=f"Module {FACES[moving]} \\(channel {moving}\\): "
+                                        "Tare refused: the signal is not at rest"):
+        chain.tare()
+    assert chain.baselines_v is None  # all or none
+    run(chain, [[2.0] * 4] * 600, start=600)
+    result = chain.tare()
+    assert result.baselines_v == pytest.approx([quantised(2.0)] * 4)
+    assert result.samples == 500
+
+
+def test_tare_needs_a_full_window():
+    chain = ArrayChain(ChainConfig(auto_tare=False), MODULES, CAL)
+    run(chain, [[2.0] * 4] * 10)
+    with pytest.raises(TareError, match=r"Module front \(channel 0\): Tare needs 0.5 s"):
+        chain.tare()
+
+
+def test_channels_follow_the_modules_and_a_short_sample_is_refused():
+    modules = (Module(5, "left"), Module(2, "right"))
+    chain = ArrayChain(ChainConfig(filter_name="none"), modules)
+    chain.process(next(samples([[0, 0, 1.0, 0, 0, 3.0]], channels=6)))
+    assert chain.last.voltages_v == pytest.approx([quantised(3.0), quantised(1.0)])
+    with pytest.raises(SensingError, match="has 4 channel\\(s\\) but the modules use "
+                                           "channel 5"):
+        chain.process(next(samples([[2.0] * 4])))
+
+
+def test_a_calibration_for_other_faces_is_refused_with_both_named():
+    chain = ArrayChain(ChainConfig(), MODULES)
+    other = linear_calibration(("front", "back", "right", "left"))
+    with pytest.raises(CalibrationError, match="is for faces front, back, right, left but the "
+                                               "driver's modules are front, back, left, right"):
+        chain.set_calibration(other)
+    with pytest.raises(CalibrationError, match="modules are front, back"):
+        ArrayChain(ChainConfig(), MODULES[:2], CAL)
+    assert chain.calibration is None
+
+
+def test_reconfigure_keeps_baselines_and_refuses_the_adc_settings():
+    chain = ArrayChain(ChainConfig(filter_name="moving_average"), MODULES, CAL)
+    run(chain, [[2.0] * 4] * 600)
+    baselines = chain.baselines_v
+    chain.reconfigure(ChainConfig(filter_name="none", contact_on_n=2.0, contact_off_n=1.0))
+    assert chain.baselines_v == baselines and chain.calibration is CAL
+    step = run(chain, [[1.9, 2.0, 2.0, 2.0]], start=600)[0]
+    assert step.outputs_v[0] == pytest.approx(0.1, abs=2e-3)  # no filter: at once
+    with pytest.raises(SensingError, match="rate_hz cannot change"):
+        chain.reconfigure(ChainConfig(rate_hz=500.0))
+    chain.reconfigure(ChainConfig(tare_window_s=0.1, auto_tare=False))
+    with pytest.raises(TareError, match="only 0"):
+        chain.tare()
+
+
+def test_reset_and_a_new_conversion_forget_filters_and_windows_but_keep_baselines():
+    chain = ArrayChain(ChainConfig(auto_tare=False), MODULES, CAL)
+    run(chain, [[2.0] * 4] * 600)
+    chain.tare()
+    chain.reset()
+    assert chain.tared
+    with pytest.raises(TareError, match="only 0"):
+        chain.tare()
+    run(chain, [[2.0] * 4] * 600)
+    chain.set_conversion(AdcConversion(10, 5.0))
+    assert chain.conversion.bits == 10
+    with pytest.raises(TareError, match="only 0"):
+        chain.tare()
+
+
+def test_parse_modules():
+    assert parse_modules("") == () and parse_modules("  ") == ()
+    assert parse_modules("0:front, 1:back,2 : left,3:right") == MODULES
+    assert parse_modules("7:left,0:right") == (Module(7, "left"), Module(0, "right"))
+
+
+@pytest.mark.parametrize(("text", "sentence"), [
+    ("0:front,1", "Module '1' in modules is not CHANNEL:FACE; write it like "
+                  "'0:front,1:back,2:left,3:right'."),
+    ("0:front,x:back", "Module 'x:back' in modules has channel 'x', which is not a whole "
+                       "number 0..7."),
+    ("0:front,8:back", "Module '8:back' in modules has channel 8; ADC channels are 0..7."),
+    ("0:front,-1:back", "Module '-1:back' in modules has channel -1; ADC channels are 0..7."),
+    ("0:front,1:top", "Module '1:top' in modules has face 'top'; faces are front, back, "
+                      "left, right."),
+    ("0:front,0:back", "Channel 0 appears twice in modules (front and back); give each "
+                       "module its own channel."),
+    ("0:front,1:front", "Face front appears twice in modules (channels 0 and 1); a face "
+                        "carries one module."),
+    ("2:front", "modules names one module (2:front); leave modules empty and set channel "
+                "for a single module, or name two or more."),
+    ("0:front,,1:back", "Module '' in modules is not CHANNEL:FACE"),
+])
+def test_a_bad_modules_string_gets_one_sentence(text, sentence):
+    with pytest.raises(SensingError) as info:
+        parse_modules(text)
+    assert str(info.value).startswith(sentence)
+    assert str(info.value).endswith(".") and str(info.value).count(". ") == 0
+
+
+def test_an_array_chain_needs_two_modules():
+    with pytest.raises(SensingError, match="two or more modules"):
+        ArrayChain(ChainConfig(), MODULES[:1])
