@@ -129,7 +129,8 @@ def test_protocols_only_set_parameters_of_the_mock_rig():
     table = yaml.safe_load((config_dir() / "protocols.yaml").read_text())
     bench = CONFIGURATIONS["bench"].nodes[0]
     declared = node_parameter_names(bench.module, bench.node_class)
-    for name, params in table["bench"].items():
-        assert set(params) <= declared, (name, set(params) - declared)
+    for section in ("bench", "array"):
+        for name, params in table[section].items():
+            assert set(params) <= declared, (section, name, set(params) - declared)
     for name, params in table["gripper"].items():
         assert all(key.startswith("protocol.") for key in params or {}), name

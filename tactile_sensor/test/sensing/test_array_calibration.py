@@ -65,6 +65,46 @@ def test_file_round_trip_keeps_every_force(degree, seed, tmp_path_factory):
     assert json.loads(path.read_text())["fit"]["held_out_rmse_n"]["x"] == 0.1
 
 
+def collinear(n: int = 120, seed: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Like the FEM grid: both pair sums follow one indentation and differ only slightly,
+    while Fz has a part no cubic holds; a plain fit buys that part with huge cancelling
+    coefficients on the sums' tiny difference."""
+    rng = np.random.default_rng(seed)
+    d = rng.uniform(0.0, 1.0, n)
+    sx, sy = rng.uniform(-0.3, 0.3, (2, n)) * d
+    base = 0.25 * d + 0.02 * d**2
+    e = 0.002 * d**2
+    o = np.stack([base + sy + e, base - sy + e, base - sx - e, base + sx - e], axis=1)
+    return o, np.stack([6 * sx, 6 * sy, 7 * d + 3 * d**5], axis=1)
+
+
+def noise_rmse(cal: ArrayCalibration, outputs: np.ndarray, forces: np.ndarray,
+               sigma: float = 0.013) -> np.ndarray:
+    rng = np.random.default_rng(9)
+    noisy = np.concatenate([outputs + rng.normal(0, sigma, outputs.shape) for _ in range(20)])
+    return np.sqrt(np.mean((cal.forces(noisy) - np.tile(forces, (20, 1))) ** 2, axis=0))
+
+
+def test_a_fit_that_sees_output_noise_does_not_amplify_it():
+    outputs, forces = collinear()
+    plain = ArrayCalibration.fit(FACES, outputs, forces, 3, "")
+    robust = ArrayCalibration.fit(FACES, outputs, forces, 3, "", noise_v=0.005)
+    assert noise_rmse(plain, outputs, forces)[2] > 100.0  # kN: the failure being guarded
+    assert noise_rmse(robust, outputs, forces)[2] < 0.5  # N
+    # and it still fits the noise-free points closely, with the same inputs giving the same
+    # calibration (fixed seed)
+    assert np.sqrt(np.mean((robust.forces(outputs) - forces) ** 2)) < 0.05
+    again = ArrayCalibration.fit(FACES, outputs, forces, 3, "", noise_v=0.005)
+    np.testing.assert_array_equal(again.coefficients, robust.coefficients)
+
+
+@pytest.mark.parametrize("noise_v", [-0.001, float("nan"), 2.0])
+def test_a_bad_fit_noise_is_refused(noise_v):
+    outputs, forces = synthetic()
+    with pytest.raises(CalibrationError, match="output noise must be in"):
+        ArrayCalibration.fit(FACES, outputs, forces, 2, "", noise_v=noise_v)
+
+
 def test_in_range_flags_outputs_beyond_the_fit():
     outputs, forces = synthetic()
     cal = ArrayCalibration.fit(FACES, outputs, forces, 2, "")
