@@ -41,8 +41,8 @@ FILE_FORMAT = "tactile_sensor/array_calibration"
 FILE_VERSION = 1
 FACES = ("front", "back", "left", "right")
 AXES = ("force_x_n", "force_y_n", "force_z_n")
-_PAIRS = (("right", "left"), ("front", "back"))
-NOISE_COPIES = 30  # noisy copies of each point when the fit is given an output noise   # (positive, negative) face along x, y
+_PAIRS = (("right", "left"), ("front", "back"))   # (positive, negative) face along x, y
+NOISE_COPIES = 30  # noisy copies of each point when the fit is given an output noise
 
 
 def symmetric_features(faces: Sequence[str]) -> tuple[np.ndarray, list[tuple[int, int]]]:
