@@ -1,0 +1,55 @@
+"""``ros2 launch tactile_sensor array.launch.py`` for real: four modules on one mock ADC,
+the model latching the array calibration, the driver publishing force.x/y/z, poked with
+the real ``ros2`` command line, and a clean SIGINT.
+
+The protocol waits for ``/bench/start`` (``config:=`` sets ``protocol.start_delay: -1``);
+the shear run itself, recorded and analysed, is test/nodes/test_array_bringup.py.
+"""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+pytestmark = [pytest.mark.slow, pytest.mark.flaky(reruns=1, reruns_delay=1)]
+
+FAULTS = ("Traceback", "never retrieved", "context is invalid")
+
+
+def quiet(output: str) -> list[str]:
+    return [line for line in output.splitlines() if "[ERROR]" in line or "[WARN" in line]
+
+
+def test_array_launch_streams_three_axis_force_from_four_modules(
+        spawn, ros2, lifecycle_states, own_processes, tmp_path):
+    extra = tmp_path / "extra.yaml"
+    extra.write_text("bench:\n  ros__parameters:\n    protocol.start_delay: -1.0\n")
+    launch = spawn("ros2", "launch", "tactile_sensor", "array.launch.py", "protocol:=shear",
+                   f"config:={extra}", f"adc_port:={tmp_path / 'adc'}")
+    assert launch.wait_for_output("[driver]: array calibration from", 240), launch.output()
+    states = lifecycle_states({"/driver", "/model"})
+    assert states == {"/driver": "active", "/model": "active"}, (states, launch.output())
+
+    reading = ros2("topic", "echo", "--once", "--no-daemon", "/driver/reading",
+                   "tactile_sensor_interfaces/msg/TactileReading", timeout_s=60)
+    assert reading.returncode == 0, reading
+    assert re.search(r"faces:\s*\n- front\s*\n- back\s*\n- left\s*\n- right", reading.stdout), \
+        reading.stdout
+    outputs = re.search(r"outputs:\s*\n((?:- .*\n){4})", reading.stdout)
+    assert outputs is not None, reading.stdout
+    wrench = ros2("topic", "echo", "--once", "--no-daemon", "/driver/wrench",
+                  "geometry_msgs/msg/WrenchStamped",
+                  timeout_s=60)
+    assert wrench.returncode == 0 and "frame_id: tactile_sensor" in wrench.stdout, wrench
+    tare = ros2("service", "call", "/driver/tare", "std_srvs/srv/Trigger")
+    assert "success=True" in tare.stdout, tare
+
+    before_stop = launch.output()
+    assert quiet(before_stop) == [], quiet(before_stop)
+    code, seconds = launch.interrupt(group=False)
+    output = launch.output()
+    assert code == 0 and seconds < 5.0, (code, seconds, output[-3000:])
+    for fault in FAULTS:
+        assert fault not in output, output
+    assert own_processes() == []
