@@ -139,9 +139,11 @@ def main() -> int:
             time.sleep(args.seconds)
             cpu1 = {name: cpu_seconds(procs[0].pid) for name, procs in runs.items()}
             t1 = time.monotonic()
+            with lock:
+                end_counts = dict(counts)
             time.sleep(1.5)  # one more diagnostics period
             with lock:
-                end_counts, end_lost = dict(counts), {k: dict(v) for k, v in lost.items()}
+                end_lost = {k: dict(v) for k, v in lost.items()}
             executor.shutdown()
             node.destroy_node()
     finally:
