@@ -7,7 +7,7 @@ supervisor does; ``--group`` sends it to the process group, as Ctrl-C in a termi
 and times the exit. Each run also counts the faults a user must never see (Traceback,
 "never retrieved", "context is invalid") and ERROR/WARN lines logged before the SIGINT.
 
-    python benchmarks/bench_shutdown.py [--runs 10] [--settle 2] [--group] [bench gripper]
+    python benchmarks/bench_shutdown.py [--runs 10] [--settle 2] [--group] [array bench gripper]
 
 Run with ``scripts/env.sh`` sourced (``ros2`` on PATH, built by ``make setup``). ROS domain:
 $ROS_DOMAIN_ID (default 215, outside the test suite's block of ids); discovery stays
@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 FAULTS = ("Traceback", "never retrieved", "context is invalid")
-LIFECYCLE_NODES = {"bench": 2, "gripper": 3}
+LIFECYCLE_NODES = {"array": 2, "bench": 2, "gripper": 3}
 READY_TIMEOUT_S = 180.0
 EXIT_TIMEOUT_S = 30.0
 
@@ -46,7 +46,8 @@ def one_run(name: str, folder: Path, settle_s: float, group: bool) -> tuple[floa
         while True:
             text = log_path.read_text(errors="replace")
             if (text.count("configured, activating") >= LIFECYCLE_NODES[name]
-                    and "[driver]: calibration from" in text):
+                    and ("[driver]: calibration from" in text
+                         or "[driver]: array calibration from" in text)):
                 break
             if time.monotonic() > deadline or proc.poll() is not None:
                 raise RuntimeError(f"{name} did not come up; see {log_path}")
