@@ -32,6 +32,13 @@ def ros_domain(monkeypatch: pytest.MonkeyPatch) -> int:
     return domain
 
 
+def _default_sigint() -> None:
+    """Children start with Ctrl-C at its default, as from a terminal. A test run started as a
+    background job of a non-interactive shell inherits SIGINT ignored, and ``ros2 launch``
+    then ignores the SIGINT a test sends it (measured: every SIGINT test timed out at 5 s)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 class Spawned:
     """A child process whose output goes to a log file shown when a test fails."""
 
@@ -41,7 +48,7 @@ class Spawned:
         self._log_file = log.open("wb")
         self.proc = subprocess.Popen(
             argv, stdout=self._log_file, stderr=subprocess.STDOUT, env=env,
-            start_new_session=True,
+            start_new_session=True, preexec_fn=_default_sigint,
         )
 
     def output(self) -> str:
