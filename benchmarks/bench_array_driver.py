@@ -34,6 +34,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor_interfaces.msg import TactileReading
 
@@ -117,7 +118,7 @@ def main() -> int:
                         lost[name] = {k: int(values.get(k, "0")) for k in LOST_KEYS}
 
     try:
-        with rclpy.init():
+        with ros_session():
             node = rclpy.create_node("bench_array_driver_listener")
             for name in runs:
                 node.create_subscription(TactileReading, f"/{name}/reading", counter(name),

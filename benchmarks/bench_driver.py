@@ -30,6 +30,7 @@ import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.msg import TactileReading
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -90,7 +91,7 @@ def main() -> int:
                 record(*item)
 
     try:
-        with rclpy.init():
+        with ros_session():
             node = rclpy.create_node("bench_driver_listener")
             subscription = node.create_subscription(TactileReading, "/driver/reading",
                                                     on_reading, 1000, raw=True)

@@ -40,6 +40,8 @@ import threading
 import time
 from pathlib import Path
 
+from tactile_sensor.nodes.ros_session import ros_session
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tactile_sensor"))
 
@@ -219,7 +221,7 @@ def client_main(args: argparse.Namespace) -> int:
             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         gripper = Reader(node)
         try:
-            with rclpy.init():
+            with ros_session():
                 return measure(args, gripper, emulator, emu, rclpy, WrenchStamped,
                                ActionClient, MultiThreadedExecutor, JointState, Grasp,
                                Release)

@@ -36,6 +36,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from tactile_sensor.nodes.ros_session import ros_session
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tactile_sensor"))
 
@@ -223,7 +225,7 @@ def main() -> int:
             launch = spawn(["ros2", "launch", "tactile_sensor", "gripper.launch.py",
                             "use_mock_hardware:=false", f"adc_port:={adc}",
                             f"servo_port:={servo}"], tmp / "launch.log", env)
-            with rclpy.init():
+            with ros_session():
                 rec = Recorder(rclpy)
                 try:
                     if not rec.action.wait_for_server(timeout_sec=120):

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import rclpy
 
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.srv import PredictOutput
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,7 +47,7 @@ def main() -> int:
     indentations = np.linspace(0.0, curve.max_indentation_m, 1000).tolist()
     times: list[float] = []
     try:
-        with rclpy.init():
+        with ros_session():
             node = rclpy.create_node("bench_model_client")
             client = node.create_client(PredictOutput, "/model/predict")
             if not client.wait_for_service(timeout_sec=30):

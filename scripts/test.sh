@@ -16,6 +16,6 @@ export TACTILE_TEST_DOMAIN_BASE="$base" ROS_DOMAIN_ID="$base"
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export MPLBACKEND=Agg
 export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
-echo "[test] pytest (ROS_DOMAIN_ID base $base, localhost discovery)" >&2
+echo "[test] pytest on ROS 2 $DISTRO (ROS_DOMAIN_ID base $base, localhost discovery)" >&2
 # A rerun attempt's failure is printed too, so a flaky test shows why it failed.
 exec python -m pytest --rerun-show-tracebacks "$@"

@@ -7,6 +7,7 @@ never answer another. Child processes inherit the environment of ``make test`` (
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import shutil
 import signal
@@ -128,13 +129,50 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     setattr(item, f"rep_{report.when}", report)
 
 
+def ros2_tools_missing() -> str | None:
+    """Why ``ros2 launch`` and the ``ros2`` CLI cannot run here (None: they can). The PyPI
+    wheels carry neither; a sourced ROS 2 installation has both."""
+    missing = [what for what, present in (
+        ("the ros2 command", shutil.which("ros2")),
+        ("the launch package", importlib.util.find_spec("launch")),
+        ("launch_ros", importlib.util.find_spec("launch_ros")),
+    ) if not present]
+    if not missing:
+        return None
+    return (f"needs {', '.join(missing)}, which the PyPI-wheels path lacks: source a ROS 2 "
+            "installation to run it (README: Distributions)")
+
+
+def _needs_ros2_tools(item: pytest.Item) -> bool:
+    return (item.get_closest_marker("ros2_tools") is not None
+            or item.path.name.startswith("test_ros2_")
+            or bool({"ros2", "lifecycle_states"} & set(getattr(item, "fixturenames", ()))))
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Multi-process ROS tests share two cores with every other process of the run, so a
+    """Tests of ``ros2 launch`` and the ``ros2`` CLI are skipped where those are missing
+    (the summary counts them in one line).
+
+    Multi-process ROS tests share two cores with every other process of the run, so a
     timing bound can be missed by scheduling alone: they get one rerun (pytest-rerunfailures;
     a rerun is reported in the summary, so a test that fails twice still fails the run)."""
+    missing = ros2_tools_missing()
     for item in items:
         if "/test/nodes/" in str(item.path):
             item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
+        if missing and _needs_ros2_tools(item):
+            item.add_marker(pytest.mark.skip(reason=f"ros2 launch/CLI test: {missing}"))
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """One line per reason for the tests that did not run, with their count."""
+    reasons: dict[str, int] = {}
+    for report in terminalreporter.stats.get("skipped", []):
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report)
+        reason = reason.removeprefix("Skipped: ")
+        reasons[reason] = reasons.get(reason, 0) + 1
+    for reason, count in sorted(reasons.items()):
+        terminalreporter.write_line(f"not run: {count} test(s): {reason}")
 
 
 #: Lines that must never appear in a node's output, shutdown included.
@@ -176,8 +214,7 @@ def ros2(ros_domain: int, tmp_path: Path) -> Callable[..., subprocess.CompletedP
     (the ros2 CLI's discovery window, not the node): such a call is repeated, up to 4
     times."""
     if shutil.which("ros2") is None:
-        pytest.fail("the ros2 command line is missing: run 'make setup' (it builds launch and "
-                    "ros2cli from ../shared/ros2-src) and source scripts/env.sh")
+        pytest.fail("the ros2 command line is missing: source a ROS 2 installation")
     log = tmp_path / "ros2-cli.log"
 
     def run(*args: str, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:

@@ -6,8 +6,8 @@ the mock rig's gauge) then publish on a dead context ("publisher's context is in
 and the last log lines cannot reach /rosout. Here a signal only asks for a stop: the
 node's ``finish`` (join its threads, close its bag, the lifecycle shutdown transition) runs
 while the context is valid, and the context is shut down last, by the caller's
-``with rclpy.init(...)``. A second Ctrl-C changes nothing (``ros2 launch`` forwards one
-on top of the terminal's).
+``with ros_session(...)`` (nodes/ros_session.py). A second Ctrl-C changes nothing
+(``ros2 launch`` forwards one on top of the terminal's).
 """
 
 from __future__ import annotations

@@ -20,7 +20,6 @@ import threading
 import time
 from typing import Any
 
-from control_msgs.action import GripperCommand, ParallelGripperCommand
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import WrenchStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -121,9 +120,21 @@ SPECS = [
 ACTIONS: dict[str, tuple[Any, Any]] = {
     "grasp": (Grasp, accept_grasp),
     "release": (Release, accept_release),
-    "gripper_cmd": (GripperCommand, accept_gripper_command),
-    "parallel_gripper_cmd": (ParallelGripperCommand, accept_parallel_gripper_command),
 }
+#: Why the control_msgs actions are not served (None: they are). A ROS 2 without
+#: control_msgs still grasps through ~/grasp and ~/release.
+CONTROL_MSGS_MISSING: str | None = None
+try:
+    from control_msgs.action import GripperCommand, ParallelGripperCommand
+except ImportError:
+    CONTROL_MSGS_MISSING = (
+        "control_msgs is not installed, so ~/gripper_cmd and ~/parallel_gripper_cmd are not "
+        "served (~/grasp and ~/release are): install ros-<distro>-control-msgs, or run "
+        "'make setup', which builds it on the PyPI-wheels path.")
+else:
+    ACTIONS["gripper_cmd"] = (GripperCommand, accept_gripper_command)
+    ACTIONS["parallel_gripper_cmd"] = (ParallelGripperCommand,
+                                       accept_parallel_gripper_command)
 
 
 class GripperNode(Node):
@@ -204,6 +215,8 @@ class GripperNode(Node):
             self.create_service(Trigger, "~/reboot", self._on_reboot,
                                 callback_group=self._group),
         ]
+        if CONTROL_MSGS_MISSING is not None:
+            self.get_logger().warning(CONTROL_MSGS_MISSING)
         self.get_logger().info(
             f"configured: XM430 id {values['servo_id']} on {values['port']} at "
             f"{values['baud_rate']} bit/s (firmware {client.firmware_version})")

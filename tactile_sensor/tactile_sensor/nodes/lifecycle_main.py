@@ -12,13 +12,13 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import Node, TransitionCallbackReturn
 
 from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
+from tactile_sensor.nodes.ros_session import ros_session
 
 
 def declare_autostart(node: Node) -> bool:
@@ -49,7 +49,7 @@ def finalize(node: Node) -> None:
 
 def run_lifecycle_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
     try:
-        with rclpy.init(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
+        with ros_session(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
             node = factory()
             if declare_autostart(node):
                 autostart(node)

@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import rclpy
 from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -43,6 +42,7 @@ from tactile_sensor.nodes.parameters import (
     read_parameters,
 )
 from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.prediction import load_or_compute_curve
 from tactile_sensor.physics.viscoelastic import RateDependentForce
@@ -375,7 +375,7 @@ class MockHardwareNode(Node):
 def main(args: list[str] | None = None) -> int:
     sys.setswitchinterval(5e-4)  # several device threads must each answer within ~1 ms
     try:
-        with rclpy.init(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
+        with ros_session(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
             try:
                 node = MockHardwareNode()
             except MockHardwareError as exc:

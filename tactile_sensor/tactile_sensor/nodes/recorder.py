@@ -21,9 +21,9 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from rclpy.exceptions import InvalidHandle, InvalidTopicNameException
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import (
     DurabilityPolicy,
@@ -31,7 +31,7 @@ from rclpy.qos import (
     QoSProfile,
     ReliabilityPolicy,
 )
-from rclpy.subscription import MessageInfo, RCLError, Subscription
+from rclpy.subscription import Subscription
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
@@ -41,12 +41,17 @@ from tactile_sensor.nodes.parameters import (
     declare_parameters,
     read_parameters,
 )
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.recording import STORAGES, BagRecorder, RecordingError
 
 QUEUE_DEPTH = 10_000  # messages the middleware may hold per topic while the executor is busy
 DISCOVERY_PERIOD_S = 0.2
 PROGRESS_PERIOD_S = 10.0
 TAKE_BATCH = 256  # messages taken per callback beyond the one the executor delivered
+
+#: What rclpy hands a raw subscription's callback beside the CDR bytes, a dict on every
+#: rclpy (Kilted names it rclpy.subscription.MessageInfo; Jazzy has no such name).
+MessageInfo = dict[str, Any]
 
 
 def _check_topics(value: list[Any]) -> str | None:
@@ -286,7 +291,7 @@ class RecorderNode(Node):
             return
         try:
             taken = self._take_waiting(bag)
-        except (InvalidHandle, RCLError) as exc:
+        except (InvalidHandle, _rclpy.RCLError) as exc:
             taken = 0
             self.get_logger().warning(f"Could not take the last queued messages: {exc}")
         self._bag = None
@@ -309,7 +314,7 @@ class RecorderNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Record until Ctrl-C; a bad parameter or path prints one sentence and exits 1."""
     try:
-        with rclpy.init(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
+        with ros_session(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
             try:
                 node = RecorderNode()
             except (ParameterError, RecordingError) as exc:

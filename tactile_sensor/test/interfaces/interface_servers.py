@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import time
 
-import rclpy
 from rclpy.action import ActionServer
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.action import Grasp
 from tactile_sensor_interfaces.srv import PredictOutput
 
@@ -46,7 +46,7 @@ class InterfaceServers(Node):
 
 def main() -> None:
     try:
-        with rclpy.init():
+        with ros_session():
             executor = MultiThreadedExecutor()
             node = InterfaceServers()
             executor.add_node(node)

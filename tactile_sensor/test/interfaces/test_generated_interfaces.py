@@ -8,6 +8,7 @@ import pytest
 import rclpy
 from rclpy.action import ActionClient
 
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.action import Grasp, Release
 from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
 from tactile_sensor_interfaces.srv import PredictOutput
@@ -32,7 +33,7 @@ def test_message_fields_exist():
 
 
 def test_grasp_action_across_processes(servers):
-    with rclpy.init():
+    with ros_session():
         node = rclpy.create_node("grasp_client")
         client = ActionClient(node, Grasp, "grasp")
         assert client.wait_for_server(timeout_sec=20.0)
@@ -53,7 +54,7 @@ def test_grasp_action_across_processes(servers):
 
 
 def test_predict_service_across_processes(servers):
-    with rclpy.init():
+    with ros_session():
         node = rclpy.create_node("predict_client")
         client = node.create_client(PredictOutput, "predict")
         assert client.wait_for_service(timeout_sec=20.0)

@@ -25,6 +25,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
 from tactile_sensor.nodes import array_calibration_msg
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import TactileReading
@@ -114,7 +115,7 @@ class Listener:
 
 @pytest.fixture
 def ros(ros_domain):
-    with rclpy.init():
+    with ros_session():
         listener = Listener()
         yield listener
         listener.close()

@@ -20,6 +20,7 @@ from geometry_msgs.msg import WrenchStamped
 from std_srvs.srv import Trigger
 
 from tactile_sensor.hardware.adc_frame import crc16, encode_frame
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sim import firmware_host
 from tactile_sensor.sim.firmware_host import PICO, UNO, HostFirmware
@@ -108,7 +109,7 @@ def _stamp(msg) -> float:
 
 @pytest.fixture
 def ros(ros_domain):
-    with rclpy.init():
+    with ros_session():
         listener = Listener()
         yield listener
         listener.close()

@@ -1,9 +1,11 @@
 """control_msgs GripperCommand and ParallelGripperCommand, and the goal policy they share with
 Grasp and Release, from clients in other processes (as MoveIt's would be): this test process
-and the ``ros2 action`` CLI, against ``ros2 launch tactile_sensor gripper.launch.py`` on mock
-devices (emulated XM430 and photoreflector sharing one gripper world with the 20 mm rod).
+(and the ``ros2 action`` CLI where a sourced ROS 2 has it), against the gripper configuration
+(``tactile-sensor bringup gripper --no-mock``, which runs on every distribution, wheels
+included) on mock devices (emulated XM430 and photoreflector sharing one gripper world with
+the 20 mm rod). ``ros2 launch gripper.launch.py`` itself: test_ros2_launch_gripper.py.
 
-Each test starts the launch once and runs a group of checks against it.
+Each test starts the configuration once and runs a group of checks against it.
 """
 
 from __future__ import annotations
@@ -23,11 +25,14 @@ from action_msgs.msg import GoalStatus
 from control_msgs.action import GripperCommand, ParallelGripperCommand
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
 from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from tactile_sensor.configurations import config_dir
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.action import Grasp, Release
 
 CONFIG = config_dir()
@@ -37,11 +42,11 @@ JOINT = "finger_opening"
 
 
 class Launch:
-    """The gripper launch file against mock devices on this test's pseudo-terminals.
+    """The gripper configuration against mock devices on this test's pseudo-terminals.
 
     The mock rig runs first, on its own, as real hardware would be plugged in before the
-    launch (with ``use_mock_hardware:=true`` the gripper may try the servo's port before the
-    mock has created it, and its configure fails)."""
+    bringup (the gripper may otherwise try the servo's port before the mock has created it,
+    and its configure fails)."""
 
     def __init__(self, spawn, tmp_path: Path) -> None:
         self.control = tmp_path / "xm430.ctl"
@@ -61,9 +66,9 @@ class Launch:
                           "--params-file", str(overrides),
                           module="tactile_sensor.nodes.mock_hardware")
         assert self.mock.wait_for_output("mock gripper ready", 120), self.mock.output()
-        self.process = spawn("ros2", "launch", "tactile_sensor", "gripper.launch.py",
-                             "use_mock_hardware:=false", f"adc_port:={adc}",
-                             f"servo_port:={servo}", f"config:={overrides}")
+        self.process = spawn("bringup", "gripper", "--no-mock", "--protocol", "idle",
+                             "--port", f"adc_port={adc}", "--port", f"servo_port={servo}",
+                             "--config", str(overrides), module="tactile_sensor.cli")
 
     def inject(self, command: str) -> None:
         with self.control.open("w") as fifo:
@@ -139,7 +144,7 @@ def _wait(future, timeout_s: float):
 @pytest.fixture
 def gripper(spawn, ros_domain, tmp_path):
     launch = Launch(spawn, tmp_path)
-    with rclpy.init():
+    with ros_session():
         client = Client()
         for action in client.actions.values():
             assert action.wait_for_server(timeout_sec=120), launch.output()
@@ -203,7 +208,10 @@ def test_both_control_msgs_interfaces_grip_the_rod_by_tactile_force_and_open(gri
     assert result.reached_goal and not result.stalled
     assert result.state.position[0] == pytest.approx(0.03, abs=0.0005)
 
-    # the real ros2 CLI as the external client (what a user types first)
+
+@pytest.mark.ros2_tools
+def test_the_ros2_action_cli_sends_a_gripper_command(gripper):
+    """The real ros2 CLI as the external client (what a user types first)."""
     cli = _ros2("action", "send_goal", "/gripper/gripper_cmd",
                 "control_msgs/action/GripperCommand",
                 "{command: {position: 0.05, max_effort: 0.0}}")
@@ -337,17 +345,21 @@ def test_an_overload_mid_move_aborts_with_the_decoded_bits_and_torque_off(grippe
 
 def test_an_inactive_gripper_rejects_goals_naming_the_fix(spawn, ros_domain, tmp_path):
     """Configured but not active (the launch files activate at once, so this runs the node
-    alone on an emulated servo, configured with the real ``ros2 lifecycle``)."""
+    alone on an emulated servo, configured through its lifecycle service, as
+    ``ros2 lifecycle set /gripper configure`` does)."""
     servo = tmp_path / "xm430"
     emulator = spawn("mock", "xm430", "--link", str(servo), "--baud", "1000000", "--no-world",
                      module="tactile_sensor.cli")
     _until(servo.exists, 30, emulator.output())
     gripper = spawn("--ros-args", "-r", "__node:=gripper", "-p", f"port:={servo}",
                     module="tactile_sensor.nodes.gripper")
-    _until(lambda: "successful" in _ros2("lifecycle", "set", "--no-daemon", "--spin-time",
-                                         "2", "/gripper", "configure"), 60, gripper.output())
-    with rclpy.init():
+    with ros_session():
         client = Client()
+        change_state = client.node.create_client(ChangeState, "/gripper/change_state")
+        assert change_state.wait_for_service(timeout_sec=60), gripper.output()
+        request = ChangeState.Request()
+        request.transition.id = Transition.TRANSITION_CONFIGURE
+        assert _wait(change_state.call_async(request), 60).success, gripper.output()
         assert client.actions["gripper_cmd"].wait_for_server(timeout_sec=20)
         client.send("gripper_cmd", command(0.05, 0.0), accepted=False)
         client.close()

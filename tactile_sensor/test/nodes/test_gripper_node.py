@@ -18,6 +18,7 @@ from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 
 from tactile_sensor.configurations import config_dir
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import load_or_compute_curve
 from tactile_sensor.sensing.calibration import Calibration
@@ -135,7 +136,7 @@ def _wait(future, timeout_s: float):
 @pytest.fixture
 def rig(spawn, ros_domain, tmp_path, calibration_file):
     rig = Rig(spawn, tmp_path, calibration_file)
-    with rclpy.init():
+    with ros_session():
         client = Client()
         # the driver tares while the fingers are open and still
         deadline = time.monotonic() + 20

@@ -19,6 +19,7 @@ from std_srvs.srv import Trigger
 
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.hardware.adc_reader import AdcStreamReader
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.viscoelastic import RateDependentForce
 from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin
@@ -117,7 +118,7 @@ def test_array_bench_streams_four_channels_and_three_axes(spawn, ros_domain, tmp
     assert bench.wait_for_output("mock bench ready", 300), bench.output()
     assert "4 channels: front, back, left, right" in bench.output()
     samples: list = []
-    with rclpy.init(), AdcStreamReader(str(adc), samples.append, channels=4):
+    with ros_session(), AdcStreamReader(str(adc), samples.append, channels=4):
         listener = Listener()
         try:
             listener.start_protocol()
@@ -169,7 +170,7 @@ def test_single_module_bench_keeps_its_signal_and_adds_the_lateral_axes(spawn, r
     bench, adc = start_bench(spawn, tmp_path, **{"protocol.rest": 0.2})
     assert bench.wait_for_output("mock bench ready", 300), bench.output()
     samples: list = []
-    with rclpy.init(), AdcStreamReader(str(adc), samples.append):
+    with ros_session(), AdcStreamReader(str(adc), samples.append):
         listener = Listener()
         try:
             listener.start_protocol()

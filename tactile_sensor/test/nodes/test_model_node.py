@@ -13,6 +13,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.nodes import array_calibration_msg
+from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.array_grid import load_or_compute_grid
 from tactile_sensor.physics.array_report import fit_grid
 from tactile_sensor.physics.params import PhysicsParams
@@ -47,7 +48,7 @@ def test_predict_and_latched_calibration(spawn, ros_domain, curve):
     model = start_model(spawn)
     assert model.wait_for_output("prediction ready", 120), model.output()
     time.sleep(1.0)  # the late subscriber below starts well after the publication
-    with rclpy.init():
+    with ros_session():
         node = rclpy.create_node("model_client")
         received: list[CalibrationCurve] = []
         node.create_subscription(CalibrationCurve, "/calibration_curve", received.append,
@@ -82,7 +83,7 @@ def test_not_ready_while_computing_and_bad_physics_parameter(spawn, ros_domain, 
     # A fresh cache and a sweep of several seconds: the node answers "not ready" meanwhile.
     model = start_model(spawn, "-p", f"cache_dir:={tmp_path}", "-p", "steps:=10",
                         "-p", "mesh_nx:=6", "-p", "mesh_ny:=6", "-p", "mesh_nz:=22")
-    with rclpy.init():
+    with ros_session():
         node = rclpy.create_node("model_client")
         client = node.create_client(PredictOutput, "/model/predict")
         assert client.wait_for_service(timeout_sec=20)
@@ -104,7 +105,7 @@ def test_an_array_latches_the_calibration_fitted_on_its_grid(spawn, ros_domain):
     expected, _ = fit_grid(load_or_compute_grid(params), degree=3)
     model = start_model(spawn, "-p", f"modules:={','.join(faces)}")
     assert model.wait_for_output("array calibration ready", 600), model.output()
-    with rclpy.init():
+    with ros_session():
         node = rclpy.create_node("array_client")
         received: list[ArrayCalibrationMsg] = []
         node.create_subscription(ArrayCalibrationMsg, "/array_calibration", received.append,
@@ -127,7 +128,7 @@ def test_an_array_latches_the_calibration_fitted_on_its_grid(spawn, ros_domain):
 def test_a_single_module_model_latches_no_array_calibration(spawn, ros_domain):
     model = start_model(spawn)
     assert model.wait_for_output("prediction ready", 120), model.output()
-    with rclpy.init():
+    with ros_session():
         node = rclpy.create_node("array_client")
         time.sleep(1.0)
         names = dict(node.get_topic_names_and_types())
