@@ -12,7 +12,7 @@
    dynamic range, as the paper computes it). The one-euro filter is nonlinear: its lag
    on the noisy signal differs from the noise-free figure.
 
-Run from the repository root with the venv: ``.venv/bin/python benchmarks/bench_adc.py``.
+Run from the repository root after ``. scripts/env.sh``: ``python benchmarks/bench_adc.py``.
 """
 
 from __future__ import annotations

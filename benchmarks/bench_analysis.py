@@ -1,6 +1,6 @@
 """Analysis time for a 100-cycle 1 kHz recording against rosbags' own read + deserialize.
 
-Usage: .venv/bin/python benchmarks/bench_analysis.py [--cycles 100] [--rate 1000]
+Usage: python benchmarks/bench_analysis.py [--cycles 100] [--rate 1000]
        [--storage sqlite3 mcap] [--keep DIR]
 Goal: full analysis (read, decode, metrics, calibration fit, figures, report) within
 1.5x of the baseline, which reads the same three topics with rosbags and runs

@@ -8,7 +8,7 @@
    what the old fixed setting (12 bit, 5 V) made of the Uno's codes.
 2. Size: ``firmware/build-avr.sh`` (``make firmware``) when avr-g++ is installed.
 
-Run from the repository root with the venv: ``.venv/bin/python benchmarks/bench_firmware.py
+Run from the repository root after ``. scripts/env.sh``: ``python benchmarks/bench_firmware.py
 [--plot errors.png]``.
 """
 

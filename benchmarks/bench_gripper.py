@@ -8,7 +8,7 @@
    is the world's finger-A skin force seen through a 9-point moving average at 1 kHz plus a
    transport delay (ADC frame + driver + topic), as the driver would publish it.
 
-Run: .venv/bin/python benchmarks/bench_gripper.py [--quick]
+Run: python benchmarks/bench_gripper.py [--quick]
 """
 
 from __future__ import annotations

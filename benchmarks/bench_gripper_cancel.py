@@ -19,7 +19,7 @@ Stages (all on CLOCK_MONOTONIC, shared by the processes; ROS stamps converted):
 4. -> first ``~/joint_states`` sample showing the rest opening (±0.05 mm), by its header stamp
    (the time the servo was read) and by the time it reached the client.
 
-Run: .venv/bin/python benchmarks/bench_gripper_cancel.py [--trials 20] [--force-rate 250]
+Run: python benchmarks/bench_gripper_cancel.py [--trials 20] [--force-rate 250]
 (needs the built workspace: ``. scripts/env.sh``; ROS_DOMAIN_ID defaults to 121).
 A/B switches for the node: BENCH_SWITCH_INTERVAL=0.005 (Python's default GIL switch
 interval), BENCH_READ_FIRST=1 (the stop reads the servo first: two transactions, as before).

@@ -6,7 +6,7 @@ Two figures:
    rising rates (reliable, deep queues, as the driver publishes); for each rate the
    messages sent, found in the bag, and the rate actually achieved by the publisher.
 
-Run from /work/main with the venv active and install/setup.bash sourced
+Run from /work/main with the venv active and scripts/env.sh sourced
 (``make bench`` does both). Uses ROS domain 97 (override with ROS_DOMAIN_ID).
 """
 
@@ -141,7 +141,7 @@ def main() -> int:
         try:
             import rclpy  # noqa: F401
         except ImportError:
-            print("node: skipped (source install/setup.bash for rclpy)")
+            print("node: skipped (. scripts/env.sh for rclpy)")
             return 0
         bench_node(folder)
     return 0

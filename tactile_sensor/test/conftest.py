@@ -2,7 +2,7 @@
 
 Each test gets its own ROS domain (localhost only), so lingering processes of one test can
 never answer another. Child processes inherit the environment of ``make test`` (venv and
-``install/setup.bash``) plus the source tree on PYTHONPATH.
+``scripts/env.sh``) plus the source tree on PYTHONPATH.
 """
 
 from __future__ import annotations
@@ -134,13 +134,23 @@ def ros2_tools_missing() -> str | None:
     wheels carry neither; a sourced ROS 2 installation has both."""
     missing = [what for what, present in (
         ("the ros2 command", shutil.which("ros2")),
-        ("the launch package", importlib.util.find_spec("launch")),
-        ("launch_ros", importlib.util.find_spec("launch_ros")),
+        ("the launch package", _importable("launch", "LaunchDescription")),
+        ("launch_ros", _importable("launch_ros", "actions")),
     ) if not present]
     if not missing:
         return None
     return (f"needs {', '.join(missing)}, which the PyPI-wheels path lacks: source a ROS 2 "
             "installation to run it (README: Distributions)")
+
+
+def _importable(module: str, attribute: str) -> bool:
+    """The real package, not a namespace package made of a folder of ours of the same name
+    (tactile_sensor/launch/ is on sys.path in tests)."""
+    try:
+        return importlib.util.find_spec(f"{module}.{attribute}") is not None or hasattr(
+            importlib.import_module(module), attribute)
+    except ImportError:
+        return False
 
 
 def _needs_ros2_tools(item: pytest.Item) -> bool:

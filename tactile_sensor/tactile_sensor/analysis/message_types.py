@@ -39,7 +39,9 @@ def interface_msg_dirs() -> list[Path]:
             dirs.append(Path(prefix) / "share" / INTERFACES_PACKAGE / "msg")
     root = Path(__file__).resolve().parents[3]  # analysis -> pkg -> ament pkg -> workspace
     dirs.append(root / INTERFACES_PACKAGE / "msg")
-    dirs.append(root / "install" / INTERFACES_PACKAGE / "share" / INTERFACES_PACKAGE / "msg")
+    # built workspaces, one per distribution (install/jazzy, install/kilted, ...)
+    dirs.extend(sorted((root / "install").glob(
+        f"*/{INTERFACES_PACKAGE}/share/{INTERFACES_PACKAGE}/msg")))
     return [d for d in dirs if d.is_dir()]
 
 

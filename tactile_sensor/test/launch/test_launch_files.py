@@ -26,7 +26,7 @@ def installed_prefix() -> Path:
         if (Path(prefix) / "share" / "tactile_sensor" / "package.xml").exists():
             return Path(prefix)
     pytest.fail("tactile_sensor is not installed: run 'make setup' (colcon build) and "
-                "source install/setup.bash")
+                ". scripts/env.sh")
 
 
 def node_parameter_names(module: str, node_class: str) -> set[str]:

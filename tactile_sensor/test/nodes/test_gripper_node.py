@@ -4,6 +4,7 @@ sharing one gripper world) -> driver -> gripper node -> this test's action clien
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from pathlib import Path
@@ -14,7 +15,7 @@ import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
-from rclpy.action import ActionClient
+from rclpy.action import ActionClient, get_action_names_and_types
 from sensor_msgs.msg import JointState
 
 from tactile_sensor.configurations import config_dir
@@ -261,3 +262,43 @@ def test_an_unreachable_servo_fails_configure_with_one_sentence(spawn, ros_domai
     assert gripper.wait_for_output("configure transition failed", 30), gripper.output()
     line = next(line for line in gripper.output().splitlines() if "configure failed" in line)
     assert "no_such_port" in line and "Traceback" not in gripper.output()
+
+
+def test_without_control_msgs_the_gripper_starts_and_says_which_actions_are_missing(
+        spawn, ros_domain, tmp_path):
+    """A ROS 2 with no control_msgs (hidden here by a package that refuses to import): the
+    node comes up active with ~/grasp and ~/release and one warning naming the fix."""
+    hidden = tmp_path / "hide" / "control_msgs"
+    hidden.mkdir(parents=True)
+    (hidden / "__init__.py").write_text("raise ImportError('control_msgs hidden by the test')\n")
+    servo = tmp_path / "xm430"
+    emulator = spawn("mock", "xm430", "--link", str(servo), "--baud", "1000000", "--no-world",
+                     module="tactile_sensor.cli")
+    assert _wait_path(servo, 30), emulator.output()
+    shim = (f"import sys; sys.path.insert(0, {str(hidden.parent)!r}); "
+            "from tactile_sensor.nodes.gripper import main; sys.exit(main())")
+    gripper = spawn(sys.executable, "-c", shim, "--ros-args", "-r", "__node:=gripper",
+                    "-p", f"port:={servo}", "-p", "autostart:=true")
+    assert gripper.wait_for_output("active", 60), gripper.output()
+    output = gripper.output()
+    warnings = [line for line in output.splitlines() if "[WARN]" in line]
+    assert len(warnings) == 1 and "control_msgs is not installed" in warnings[0], output
+    assert "ros-<distro>-control-msgs" in warnings[0] and "Traceback" not in output
+    with ros_session():
+        node = rclpy.create_node("probe")
+        try:
+            grasp = ActionClient(node, Grasp, "/gripper/grasp")
+            assert grasp.wait_for_server(timeout_sec=30)
+            names = {name for name, _ in get_action_names_and_types(node)}
+            assert "/gripper/grasp" in names and "/gripper/gripper_cmd" not in names
+        finally:
+            node.destroy_node()
+
+
+def _wait_path(path: Path, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not path.exists():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True

@@ -127,7 +127,7 @@ def test_the_installed_file_expands_with_its_installed_config():
             break
     else:
         pytest.fail("urdf/gripper.urdf.xacro is not installed: run 'make setup' and source "
-                    "install/setup.bash")
+                    "scripts/env.sh")
     robot = URDF.from_xml_string(xacro.process_file(str(installed)).toxml())  # $(find ...)
     assert {j.name for j in robot.joints} == set(JOINTS)
     assert [j.limit.upper for j in robot.joints if j.name == JOINT_NAME] == [
