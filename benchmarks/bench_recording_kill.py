@@ -80,8 +80,6 @@ class Publisher:
 def one_kill(pub: Publisher, folder: Path, env: dict[str, str], run: int,
              rng: random.Random) -> tuple[int, int, float]:
     bag = folder / f"bag{run}"
-    # A killed recorder's subscription stays matched until its lease ends: wait for one more.
-    before = pub.pub.get_subscription_count()
     log = (folder / f"recorder{run}.log").open("wb")
     recorder = subprocess.Popen(
         [sys.executable, "-m", "tactile_sensor.nodes.recorder", "--ros-args",
@@ -89,7 +87,11 @@ def one_kill(pub: Publisher, folder: Path, env: dict[str, str], run: int,
         env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         deadline = time.monotonic() + 30
-        while pub.pub.get_subscription_count() <= before:
+        # A killed recorder's subscription stays matched until its lease ends, so wait for
+        # the new one's own word; "published" counts from its first recorded message.
+        log_path = folder / f"recorder{run}.log"
+        while ("Recording /bench/kill" not in log_path.read_text(errors="replace")
+               or pub.pub.get_subscription_count() == 0):
             if time.monotonic() > deadline or recorder.poll() is not None:
                 raise SystemExit(f"recorder did not subscribe; see {log.name}")
             time.sleep(0.02)

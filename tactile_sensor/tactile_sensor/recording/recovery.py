@@ -133,10 +133,11 @@ def read_mcap(file: Path) -> FileContent:
                     content.complete = True
                 else:
                     _collect([record], schemas, channels, content)
-        except EndOfFile:
-            content.problem = "cut off"
         except _CUT as err:
-            content.problem = f"damaged: {str(err) or type(err).__name__}"
+            # A record running past the end is a cut; anything else is damage.
+            at_end = isinstance(err, EndOfFile) or stream.tell() >= file.stat().st_size
+            content.problem = ("cut off" if at_end
+                               else f"damaged: {str(err) or type(err).__name__}")
     return content
 
 
