@@ -289,6 +289,8 @@ class RecorderNode(Node):
         return taken
 
     def _report_progress(self) -> None:
+        if self._bag is None:
+            return  # stopped, or failed (said once, with what was kept)
         counts = self.counts
         total = sum(counts.values())
         if total != self._last_total:
