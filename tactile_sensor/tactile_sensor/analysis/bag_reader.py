@@ -140,8 +140,8 @@ def _read_recovered(path: Path, specs: Sequence[TopicSpec], progress: Progress |
         except RecordingError as err:
             raise BagError(f"cannot read the bag {path}: {err}") from None
         if recovery.message_count == 0:
-            raise BagError(f"the bag {path} holds no whole chunk of messages "
-                           f"({recovery.summary()}); record again.") from None
+            raise BagError(f"cannot read the bag {path}: it holds no whole chunk of "
+                           f"messages ({recovery.summary()}); record again.") from None
         line = recovery.summary()
         if notify is not None:
             notify(line)
