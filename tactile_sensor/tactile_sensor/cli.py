@@ -15,6 +15,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "model": ("tactile_sensor.physics.cli", "finite-element prediction of the module (sweep)"),
     "analyze": ("tactile_sensor.analysis.cli", "characterise a rosbag2 recording"),
     "bringup": ("tactile_sensor.nodes.bringup", "run the bench or gripper configuration"),
+    "bag": ("tactile_sensor.recording.cli", "recover a bag a killed recorder left (recover)"),
 }
 
 

@@ -8,6 +8,7 @@ Every low-level failure (missing path, truncated file, corrupt database) becomes
 from __future__ import annotations
 
 import struct
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +28,7 @@ _READ_ERRORS = (ReaderError, apsw.Error, OSError, struct.error, EOFError, ValueE
                 KeyError, IndexError)
 
 Progress = Callable[[float], None]
+Notify = Callable[[str], None]  # gets the one line saying what a recovery found
 
 
 @dataclass(frozen=True)
@@ -107,14 +109,49 @@ def open_reader(path: Path) -> Reader:
 
 
 def read_recording(path: Path | str, specs: Sequence[TopicSpec],
-                   progress: Progress | None = None) -> Recording:
-    """Read the specified topics; progress(fraction of selected messages read)."""
+                   progress: Progress | None = None,
+                   notify: Notify | None = None) -> Recording:
+    """Read the specified topics; progress(fraction of selected messages read).
+
+    A bag a killed recorder left (no metadata.yaml, MCAP files cut off, an interrupted
+    sqlite3 transaction) is recovered into a temporary bag first, and ``notify`` gets the
+    one line saying how many messages came from which files."""
     path = Path(path)
-    reader = open_reader(path)
     try:
-        return _read(reader, path, specs, progress)
-    finally:
-        reader.close()
+        reader = open_reader(path)
+        try:
+            return _read(reader, path, specs, progress)
+        finally:
+            reader.close()
+    except BagError:
+        if not path.exists():
+            raise
+    return _read_recovered(path, specs, progress, notify)
+
+
+def _read_recovered(path: Path, specs: Sequence[TopicSpec], progress: Progress | None,
+                    notify: Notify | None) -> Recording:
+    from tactile_sensor.recording import RecordingError
+    from tactile_sensor.recording.recovery import recover
+
+    with tempfile.TemporaryDirectory(prefix="tactile-analyze-") as tmp:
+        try:
+            recovery = recover(path, Path(tmp) / "recovered")
+        except RecordingError as err:
+            raise BagError(f"cannot read the bag {path}: {err}") from None
+        if recovery.message_count == 0:
+            raise BagError(f"cannot read the bag {path}: it holds no whole chunk of "
+                           f"messages ({recovery.summary()}); record again.") from None
+        line = recovery.summary()
+        if notify is not None:
+            notify(line)
+        reader = open_reader(recovery.out)
+        try:
+            recording = _read(reader, path, specs, progress)
+        finally:
+            reader.close()
+    recording.notes.insert(0, f"{line} (the bag was not closed by its recorder)")
+    return recording
 
 
 def _read(reader: Reader, path: Path, specs: Sequence[TopicSpec],

@@ -11,7 +11,7 @@ import numpy as np
 from . import array as arr
 from . import metrics as m
 from .alignment import Aligned, align
-from .bag_reader import Progress, Recording, TopicSpec, read_recording
+from .bag_reader import Notify, Progress, Recording, TopicSpec, read_recording
 from .calibration_fit import Calibration, fit_calibration
 from .errors import SegmentError, TopicError
 from .prediction import Prediction
@@ -98,9 +98,9 @@ def _err_dict(e: m.EstimationError | None) -> dict[str, Any] | None:
             "samples": e.samples}
 
 
-def analyse_bag(bag: str, options: Options, progress: Progress | None = None
-                ) -> Characterisation:
-    recording = read_recording(bag, options.topics.specs(), progress)
+def analyse_bag(bag: str, options: Options, progress: Progress | None = None,
+                notify: Notify | None = None) -> Characterisation:
+    recording = read_recording(bag, options.topics.specs(), progress, notify)
     return characterise(recording, options)
 
 
@@ -278,11 +278,12 @@ def unavailable_metrics(recording: Recording, note: str) -> dict[str, Any]:
     }
 
 
-def analyse(bag: str, options: Options, progress: Progress | None = None) -> Analysis:
+def analyse(bag: str, options: Options, progress: Progress | None = None,
+            notify: Notify | None = None) -> Analysis:
     """Single-module characterisation as always; on an array recording (detected from the
     data, ``array.detect``) the array's metrics too, and the paper's metrics where the
     recording has presses to give them."""
-    recording = read_recording(bag, options.topics.specs(), progress)
+    recording = read_recording(bag, options.topics.specs(), progress, notify)
     reason = arr.detect(recording)
     if reason is None:
         single = characterise(recording, options)

@@ -104,7 +104,8 @@ def run(args: argparse.Namespace) -> int:
                       noise_window=args.noise_window, calibration=calibration,
                       fit_calibration=args.fit_calibration, prediction=prediction,
                       prediction_note=note)
-    result = analyse(args.bag, options, _Progress(verbose))
+    result = analyse(args.bag, options, _Progress(verbose),
+                     lambda line: print(f"tactile-sensor analyze: {line}", file=sys.stderr))
     from .report import write_report
 
     figures = {}

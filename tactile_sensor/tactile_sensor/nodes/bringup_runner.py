@@ -134,9 +134,7 @@ class BringupRunner:
 
             spinner = threading.Thread(target=spin, name="executor", daemon=True)
             spinner.start()
-            if not self._lifecycle_up():
-                return 1
-            code = run_protocol(self, duration)
+            code = run_protocol(self, duration) if self._lifecycle_up() else 1
         finally:
             signal.signal(signal.SIGINT, previous)
             say(f"shutting down ({self._stop_reason or 'protocol finished'})")
@@ -147,8 +145,18 @@ class BringupRunner:
             executor.shutdown(timeout_sec=2.0)
             self._destroy_nodes()  # after the executor stopped waiting on them
             rclpy.try_shutdown()
-            if self.record is not None:
-                say(f"bag written to {self.record}")
+            code = self._report_recording(code)
+        return code
+
+    def _report_recording(self, code: int) -> int:
+        """Last line: where the bag is, or what a failed recording kept (and exit 1)."""
+        if self.record is None:
+            return code
+        failure = getattr(self.nodes.get("recorder"), "failure", None)
+        if failure:
+            say(failure)
+            return code or 1
+        say(f"bag written to {self.record}")
         return code
 
     def wait(self, seconds: float) -> bool:

@@ -43,6 +43,7 @@ from tactile_sensor.nodes.parameters import (
 )
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.recording import STORAGES, BagRecorder, RecordingError
+from tactile_sensor.recording.rosbag2_writer import WriterOptions
 
 QUEUE_DEPTH = 10_000  # messages the middleware may hold per topic while the executor is busy
 DISCOVERY_PERIOD_S = 0.2
@@ -87,6 +88,11 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               "recorder_<YYYYmmdd_HHMMSS> in the working directory."),
     ParamSpec("topics", [], "Topics to record (string list).", check=_check_topics),
     ParamSpec("storage", "mcap", "rosbag2 storage plugin.", choices=tuple(STORAGES)),
+    ParamSpec("max_bag_duration", 0.0, "Start a new storage file (<bag>_1.mcap, ...) once a "
+              "file spans this many seconds of messages [s]; 0 = never (rosbag2's "
+              "--max-bag-duration).", minimum=0.0),
+    ParamSpec("max_bag_size", 0, "Start a new storage file once a file reaches this size "
+              "[bytes]; 0 = never (rosbag2's --max-bag-size).", minimum=0),
     ParamSpec("topic_types", [], "Optional '/topic=pkg/msg/Type' entries: subscribe to these "
               "at once (reliable, volatile) instead of waiting for a publisher to appear.",
               check=_check_topic_types),
@@ -154,7 +160,11 @@ class RecorderNode(Node):
         topic_types = [(self._resolve("topic_types", t), m) for t, m in topic_types]
         path = params["path"] or time.strftime("recorder_%Y%m%d_%H%M%S")
         self._bag = BagRecorder(
-            Path(path), params["storage"], custom_data={"recorder": "tactile_sensor.recorder"})
+            Path(path), params["storage"], custom_data={"recorder": "tactile_sensor.recorder"},
+            options=WriterOptions(max_bag_duration_s=params["max_bag_duration"],
+                                  max_bag_size_bytes=params["max_bag_size"]))
+        #: One line saying what a failed recording kept, None while recording works.
+        self.failure: str | None = None
         self._bag.open()
         self.path = self._bag.path
         self._last_total = 0
@@ -257,6 +267,13 @@ class RecorderNode(Node):
             self.get_logger().error(str(exc))
             with contextlib.suppress(RecordingError):
                 bag.close()  # keep whatever part of the bag the storage still accepts
+            self._record_failure(bag)
+
+    def _record_failure(self, bag: BagRecorder) -> None:
+        after = bag.failed_after_s
+        when = f" at {after:.1f} s" if after is not None else ""
+        self.failure = (f"recording failed{when}: {bag.kept:,} messages kept in {bag.path} "
+                        "(read them with 'tactile-sensor bag recover')")
 
     def _take(self, bag: BagRecorder, topic: str, sub: Subscription[Any], limit: int) -> int:
         """Write up to ``limit`` messages the middleware holds for ``sub``; returns how many."""
@@ -272,6 +289,8 @@ class RecorderNode(Node):
         return taken
 
     def _report_progress(self) -> None:
+        if self._bag is None:
+            return  # stopped, or failed (said once, with what was kept)
         counts = self.counts
         total = sum(counts.values())
         if total != self._last_total:
@@ -299,6 +318,7 @@ class RecorderNode(Node):
             bag.close()
         except RecordingError as exc:
             self.get_logger().error(str(exc))
+            self._record_failure(bag)
             return
         counts = bag.counts
         detail = ", ".join(f"{t}: {n}" for t, n in sorted(counts.items()))

@@ -1,39 +1,44 @@
-"""A rosbag2 writer that never blocks its caller, built on ``rosbags``.
+"""A rosbag2 writer that never blocks its caller and survives being killed.
 
-PyPI has no rosbag2, so bags are written with ``rosbags.rosbag2.Writer``. ROS callbacks
-hand serialized CDR to :meth:`BagRecorder.write`, which only enqueues it; a writer thread
-does the disk I/O, so an executor is never stalled by a slow disk. Every connection
-carries its full message definition and RIHS01 type hash, so ``ros2 bag info``,
-Foxglove and PlotJuggler read the bags without our interface packages installed.
+PyPI has no rosbag2, so bags are written by :mod:`.rosbag2_writer` (the ``mcap`` library's
+chunked writer, or sqlite3), with type definitions and hashes from ``rosbags``. ROS
+callbacks hand serialized CDR to :meth:`BagRecorder.write`, which only enqueues it; a
+writer thread does the disk I/O, so an executor is never stalled by a slow disk, and
+makes the bag durable every 0.5 s even when no message arrives. Every connection carries
+its full message definition and RIHS01 type hash, so ``ros2 bag info``, Foxglove and
+PlotJuggler read the bags without our interface packages installed.
 """
 
 from __future__ import annotations
 
 import os
 import queue
+import sqlite3
 import threading
+import time
 from collections.abc import Mapping
 from pathlib import Path
 from types import TracebackType
 from typing import NamedTuple
 
 from rosbags.interfaces import Connection, Qos
-from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.rosbag2.metadata import ReaderError, parse_qos
 from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from .errors import RecordingError
+from .rosbag2_writer import SUFFIXES, Rosbag2Writer, WriterOptions
 
-STORAGES: dict[str, StoragePlugin] = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}
+STORAGES: tuple[str, ...] = tuple(SUFFIXES)
 """Storage names accepted by :class:`BagRecorder`, as ``ros2 bag record -s`` spells them."""
 
 OWN_INTERFACES = "tactile_sensor_interfaces"
 # Source-tree fallback when the workspace is not sourced: <repo>/tactile_sensor_interfaces.
 _SOURCE_INTERFACES = Path(__file__).resolve().parents[3] / OWN_INTERFACES
-# Metadata version 8 is what Jazzy writes; Jazzy and every newer rosbag2 read it.
-BAG_VERSION = 8
 _BATCH = 1024  # messages written per lock acquisition by the writer thread
+
+
+_TICK = object()  # the writer thread's own wake-up: time to make the bag durable
 
 
 class _Message(NamedTuple):
@@ -99,8 +104,9 @@ class BagRecorder:
     """A rosbag2 folder being recorded; use as a context manager, or ``open()``/``close()``.
 
     ``write`` may be called from any thread and returns at once; ``close`` writes what is
-    still queued and then the metadata, so a bag closed normally holds every message given.
-    The rosbags ``Writer`` lives entirely in the writer thread (sqlite3 connections must
+    still queued and then the metadata, so a bag closed normally holds every message given,
+    and a killed process leaves all but the last ``flush_period_s`` or so on disk.
+    The storage writer lives entirely in the writer thread (sqlite3 connections must
     stay in the thread that made them), fed through one FIFO queue, so topics are always
     added before their first message is written.
     """
@@ -112,6 +118,7 @@ class BagRecorder:
         *,
         typestore: Typestore | None = None,
         custom_data: Mapping[str, str] | None = None,
+        options: WriterOptions | None = None,
     ) -> None:
         self.path = Path(path)
         if storage not in STORAGES:
@@ -123,12 +130,17 @@ class BagRecorder:
                 f"Bag folder {self.path} exists already; choose a new path or remove it.")
         self._typestore = typestore if typestore is not None else default_typestore()
         self._custom_data = dict(custom_data or {})
+        self._options = options or WriterOptions()
+        self._durable = 0  # messages on disk in whole chunks, set by the writer thread
+        self._started_s = 0.0
+        self._failed_after_s: float | None = None
         self._msgtypes: dict[str, str] = {}
         self._counts: dict[str, int] = {}  # keys added by the caller, values by the thread
         self._queue: queue.SimpleQueue[_Message | _AddTopic | None] = queue.SimpleQueue()
         self._accept = threading.Lock()  # orders write()/add_topic() against close()
         self._thread: threading.Thread | None = None
         self._failure: BaseException | None = None
+        self._files: list[str] = []
         self._open = False
         self._closed = False
 
@@ -138,17 +150,16 @@ class BagRecorder:
         """Create the bag folder and start the writer thread."""
         if self._thread is not None or self._closed:
             raise RecordingError(f"Bag {self.path} was opened already; create a new recorder.")
-        writer = Writer(self.path, version=BAG_VERSION, storage_plugin=STORAGES[self.storage])
-        for key, value in self._custom_data.items():
-            writer.set_custom_data(key, value)
+        writer = Rosbag2Writer(self.path, self.storage, self._options, self._custom_data)
         opened = threading.Event()
+        self._started_s = time.monotonic()
         self._thread = threading.Thread(
             target=self._run, args=(writer, opened), name=f"bag-writer:{self.path.name}",
             daemon=True)
         self._thread.start()
         opened.wait()
         failure = self._failure
-        if isinstance(failure, WriterError):
+        if isinstance(failure, FileExistsError):
             self._closed = True
             raise RecordingError(
                 f"Bag folder {self.path} exists already; choose a new path or remove it.")
@@ -236,6 +247,21 @@ class BagRecorder:
         return dict(self._counts)
 
     @property
+    def kept(self) -> int:
+        """Messages on disk in whole chunks: what a crash at this moment would keep."""
+        return self._durable
+
+    @property
+    def failed_after_s(self) -> float | None:
+        """Seconds from open() to a storage failure, None while storage works."""
+        return self._failed_after_s
+
+    @property
+    def files(self) -> list[str]:
+        """The bag's storage files so far (``<bag>_0.mcap``, ...)."""
+        return list(self._files)
+
+    @property
     def pending(self) -> int:
         """Messages queued but not yet written."""
         return self._queue.qsize()
@@ -281,25 +307,38 @@ class BagRecorder:
     def _raise_failure(self) -> None:
         if self._failure is not None:
             raise RecordingError(
-                f"Writing bag {self.path} failed ({self._failure}); free disk space or choose "
-                "another folder and record again.")
+                f"Writing bag {self.path} failed ({self._failure}); {self._durable} messages "
+                "up to the failure are kept (read them with 'tactile-sensor bag recover'); "
+                "free disk space or choose another folder and record again.")
 
-    def _run(self, writer: Writer, opened: threading.Event) -> None:
-        """Writer thread: open, then batch queued items into storage until the close marker."""
+    def _fail(self, writer: Rosbag2Writer, exc: BaseException) -> None:
+        self._failure = exc
+        self._failed_after_s = time.monotonic() - self._started_s
+        writer.abort()
+
+    def _run(self, writer: Rosbag2Writer, opened: threading.Event) -> None:
+        """Writer thread: open, then batch queued items into storage until the close marker,
+        making the bag durable every ``flush_period_s`` even while no message comes."""
         try:
             writer.open()
-        except (OSError, WriterError) as exc:
+        except OSError as exc:
             self._failure = exc
             return
         finally:
             opened.set()
+        self._files = writer.files
         connections: dict[str, Connection] = {}
         counts = self._counts
+        period = self._options.flush_period_s
+        deadline = time.monotonic() + period
         stop = False
         while not stop:
-            item = self._queue.get()
+            try:
+                item = self._queue.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                item = _TICK
             batch: list[_Message | _AddTopic] = []
-            while item is not None:
+            while item is not None and item is not _TICK:
                 batch.append(item)
                 if len(batch) >= _BATCH:
                     break
@@ -318,11 +357,19 @@ class BagRecorder:
                     else:
                         add = entry
                         connections[add.topic] = writer.add_connection(
-                            add.topic, add.msgtype, msgdef=add.msgdef, rihs01=add.digest,
-                            offered_qos_profiles=add.profiles)
-            except (OSError, WriterError) as exc:
-                self._failure = exc
+                            add.topic, add.msgtype, add.msgdef, add.digest, add.profiles)
+                now = time.monotonic()
+                if now >= deadline:
+                    writer.tick(now)
+                    deadline = now + period
+                self._durable = writer.durable_count
+                self._files = writer.files
+            except (OSError, sqlite3.Error) as exc:
+                self._fail(writer, exc)
+        if self._failure is not None:
+            return
         try:
             writer.close()
-        except (OSError, WriterError) as exc:
-            self._failure = self._failure or exc
+            self._durable = writer.durable_count
+        except (OSError, sqlite3.Error) as exc:
+            self._fail(writer, exc)

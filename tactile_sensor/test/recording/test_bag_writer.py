@@ -125,7 +125,7 @@ def test_message_definitions_and_hashes_are_embedded(tmp_path):
 def test_mcap_is_readable_by_the_mcap_library_as_ros2(tmp_path):
     """What Foxglove and PlotJuggler need: ros2 profile, ros2msg schemas, cdr channels."""
     record_sample(tmp_path / "bag")
-    with (tmp_path / "bag" / "bag.mcap").open("rb") as stream:
+    with (tmp_path / "bag" / "bag_0.mcap").open("rb") as stream:
         reader = make_reader(stream)
         assert reader.get_header().profile == "ros2"
         summary = reader.get_summary()
@@ -152,8 +152,8 @@ def test_metadata_yaml_is_complete(tmp_path):
     assert info["message_count"] == 56
     assert info["starting_time"]["nanoseconds_since_epoch"] == 1_000_000_000
     assert info["duration"]["nanoseconds"] == 2_000_000_000 + 49_000_000 - 1_000_000_000
-    assert [f["path"] for f in info["files"]] == info["relative_file_paths"] == ["bag.mcap"]
-    assert (tmp_path / "bag" / "bag.mcap").is_file()
+    assert [f["path"] for f in info["files"]] == info["relative_file_paths"] == ["bag_0.mcap"]
+    assert (tmp_path / "bag" / "bag_0.mcap").is_file()
     topics = {t["topic_metadata"]["name"]: t for t in info["topics_with_message_count"]}
     assert topics["/driver/wrench"]["message_count"] == 50
     for topic in topics.values():
@@ -303,12 +303,12 @@ def test_negative_timestamp_is_refused(tmp_path):
 
 def test_storage_failure_is_reported_with_the_fix(tmp_path, monkeypatch):
     """A full disk surfaces as RecordingError on the next write or on close, never silently."""
-    from rosbags.rosbag2.storage_mcap import McapWriter
+    from tactile_sensor.recording.storage_files import McapFile
 
     def disk_full(self, connection, timestamp, data):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(McapWriter, "write", disk_full)
+    monkeypatch.setattr(McapFile, "write", disk_full)
     bag = BagRecorder(tmp_path / "bag").open()
     bag.add_topic("/w", WRENCH)
     bag.write("/w", 1, wrench_cdr(0))
