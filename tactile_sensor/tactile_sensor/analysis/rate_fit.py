@@ -54,7 +54,7 @@ class TermCount:
     terms: int
     held_out_rmse_n: dict[str, float]  # speed key -> RMSE of that speed when held out
     static_rmse_n: dict[str, float]  # the same folds with a static curve fitted on the rest
-    resolved: bool  # every fold's times lie inside the bounds (not on them)
+    pinned_folds: int  # folds whose fit put a time on a bound (one speed alone may)
 
     @property
     def mean_rmse_n(self) -> float:
@@ -132,19 +132,31 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     counts: dict[int, TermCount] = {}
     for n in ([terms] if terms is not None else range(1, MAX_RATE_TERMS + 1)):
         counts[n] = _cross_validate(record, grid, speeds, n, (lo, hi), knots)
-    usable = {n: c for n, c in counts.items() if c.resolved}
-    if not usable:
+    # fewest terms within the tolerance of the best held-out error first, then the rest
+    # by error; the first whose fit on all speeds puts no time on a bound wins
+    best = min(c.mean_rmse_n for c in counts.values())
+    near = sorted(n for n, c in counts.items() if c.mean_rmse_n <= best * (1 + SELECT_TOLERANCE))
+    order = near + sorted((n for n in counts if n not in near), key=lambda n:
+                          counts[n].mean_rmse_n)
+    for n in order:
+        cal, pinned = _fit(grid, speeds, n, (lo, hi), knots, source)
+        if not pinned:
+            break
+    else:
         raise RateFitError(
             f"every fitted relaxation time sits on the edge of what this recording resolves "
             f"({lo:.3g}..{hi:.3g} s), so the rate terms are not determined; record the "
-            "`speeds` protocol with holds (e.g. hold=2) or pass other --rate-tau bounds.")
-    best = min(c.mean_rmse_n for c in usable.values())
-    chosen = min(n for n, c in usable.items() if c.mean_rmse_n <= best * (1 + SELECT_TOLERANCE))
-    cal, pinned = _fit(grid, speeds, chosen, (lo, hi), knots, source)
+            "`speeds` protocol with holds (e.g. --protocol speeds:hold=2).")
     notes = []
-    if pinned:
-        notes.append(f"a fitted relaxation time sits on a bound ({lo:.3g} or {hi:.3g} s) "
-                     "in the fit on all speeds; treat that term with care.")
+    kept = [t for t in cal.terms if t.g >= NEGLIGIBLE_G] or [max(cal.terms, key=lambda t: t.g)]
+    if len(kept) < len(cal.terms):
+        notes.append(f"{len(cal.terms) - len(kept)} rate term(s) with g < {NEGLIGIBLE_G:g} "
+                     "were dropped (they change the force by less than 0.1 %).")
+        cal = RateCalibration(cal.static, kept)
+    if counts[n].pinned_folds:
+        notes.append(f"{counts[n].pinned_folds} of {len(speeds)} leave-one-speed-out fits put "
+                     "a relaxation time on a bound (their training speeds alone do not "
+                     "resolve it); their held-out errors are pessimistic.")
     in_press = record.mask()
     force = rate_force_history(cal, record.t_s, record.output_v)
     rmse = float(np.sqrt(np.mean((force[in_press] - record.force_n[in_press]) ** 2)))
@@ -182,11 +194,11 @@ def _cross_validate(record: RateRecord, grid: RateRecord, speeds: list[float], n
                     tau_bounds: tuple[float, float], knots: int) -> TermCount:
     held: dict[str, float] = {}
     static: dict[str, float] = {}
-    resolved = True
+    pinned_folds = 0
     for out in speeds:
         train = [s for s in speeds if s != out]
         cal, pinned = _fit(grid, train, n, tau_bounds, knots, "fold")
-        resolved &= not pinned
+        pinned_folds += int(pinned)
         test = record.mask([out])
         force = rate_force_history(cal, record.t_s, record.output_v)
         held[speed_label(out)] = _rmse(force[test], record.force_n[test])
@@ -194,7 +206,7 @@ def _cross_validate(record: RateRecord, grid: RateRecord, speeds: list[float], n
         static[speed_label(out)] = _rmse(
             static_force(curve.output_v, curve.force_n, record.output_v[test]),
             record.force_n[test])
-    return TermCount(n, held, static, resolved)
+    return TermCount(n, held, static, pinned_folds)
 
 
 def _static_competitor(record: RateRecord, speeds: list[float]) -> Any:
