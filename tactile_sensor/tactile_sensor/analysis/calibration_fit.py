@@ -3,7 +3,8 @@
 Fit: outputs are binned, the mean force per bin is made non-decreasing by weighted
 isotonic regression, and a PCHIP through those points (monotone by construction) is
 sampled at evenly spaced outputs. Files are read and written through the driver's own
-``sensing.calibration.Calibration``, so the two can never disagree about the format.
+``sensing.calibration.Calibration`` (and ``sensing.rate_calibration`` for a calibration
+with rate terms, fitted by ``rate_fit``), so the two can never disagree about the format.
 """
 
 from __future__ import annotations
@@ -19,24 +20,35 @@ from scipy.optimize import isotonic_regression
 
 from tactile_sensor.sensing.calibration import Calibration as SensingCalibration
 from tactile_sensor.sensing.errors import CalibrationError
+from tactile_sensor.sensing.rate_calibration import RateCalibration, load_file
 
 from .errors import CalibrationFileError, SegmentError
+from .rate_history import rate_force_history
 
 MIN_BIN_SAMPLES = 5
 
 
 @dataclass(frozen=True)
 class Calibration:
-    """Monotone table: output_v strictly increasing, force_n non-decreasing."""
+    """Monotone table: output_v strictly increasing, force_n non-decreasing; with ``rate``
+    the table is that calibration's static (relaxed) curve."""
 
     output_v: np.ndarray
     force_n: np.ndarray
     source: str
     fit: dict[str, Any] = field(default_factory=dict)
+    rate: RateCalibration | None = None
 
     def force(self, output_v: np.ndarray) -> np.ndarray:
-        """Linear interpolation, clamped to the end forces beyond the table (as the driver)."""
+        """The static curve: linear interpolation, clamped to the end forces beyond the
+        table (as the driver)."""
         return np.interp(output_v, self.output_v, self.force_n)
+
+    def force_history(self, t_s: np.ndarray, output_v: np.ndarray) -> np.ndarray:
+        """The driver's force along a whole record: with rate terms when it has them."""
+        if self.rate is None:
+            return self.force(output_v)
+        return rate_force_history(self.rate, t_s, output_v)
 
 
 
@@ -75,7 +87,11 @@ def fit_calibration(output_v: np.ndarray, force_n: np.ndarray, source: str,
 
 
 def save_calibration(cal: Calibration, path: Path) -> None:
-    """Write the file the driver loads (format and validation: sensing/calibration.py)."""
+    """Write the file the driver loads (format and validation: sensing/calibration.py,
+    version 2 with rate terms: sensing/rate_calibration.py)."""
+    if cal.rate is not None:
+        cal.rate.to_file(path, fit=cal.fit)
+        return
     table = SensingCalibration.from_curve(cal.output_v.tolist(), cal.force_n.tolist(),
                                           cal.source)
     table.to_file(path, fit=cal.fit)
@@ -84,10 +100,12 @@ def save_calibration(cal: Calibration, path: Path) -> None:
 def load_calibration(path: Path | str) -> Calibration:
     """Read a calibration exactly as the driver does; CalibrationFileError names the fault."""
     try:
-        table = SensingCalibration.from_file(path)
+        loaded = load_file(path)
     except CalibrationError as err:
         raise CalibrationFileError(str(err)) from None
+    rate = loaded if isinstance(loaded, RateCalibration) else None
+    table = loaded.static if isinstance(loaded, RateCalibration) else loaded
     data = json.loads(Path(path).read_text(encoding="utf-8"))
     fit = data.get("fit") if isinstance(data.get("fit"), dict) else {}
     return Calibration(np.asarray(table.output_v), np.asarray(table.force_n),
-                       str(data.get("source") or table.source), fit)
+                       str(data.get("source") or table.source), fit, rate)

@@ -13,8 +13,11 @@ from . import metrics as m
 from .alignment import Aligned, align
 from .bag_reader import Notify, Progress, Recording, TopicSpec, read_recording
 from .calibration_fit import Calibration, fit_calibration
-from .errors import SegmentError, TopicError
+from .errors import RateFitError, SegmentError, TopicError
 from .prediction import Prediction
+from .rate_evaluation import phase_table, table_dict
+from .rate_fit import RateFit, fit_rate_calibration
+from .rate_record import record_from_segmentation
 from .segmentation import GAP_SHARE, Segmentation, segment
 
 SCHEMA = "tactile_sensor/analysis-metrics"
@@ -82,6 +85,7 @@ class Characterisation:
     fitted: Calibration | None
     evaluated: Calibration | None
     lags_s: dict[str, float | None]
+    rate_fit: RateFit | None = None
 
 
 def _num(x: float | None, digits: int = 6) -> float | None:
@@ -174,26 +178,60 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
     rep = m.repeatability(peaks[:, 0])
 
     fitted = None
-    if options.fit_calibration:
+    static_ref = None  # today's static curve: the reference speed's ramps
+    if options.fit_calibration or (options.calibration is not None
+                                   and options.calibration.rate is not None):
         idx = np.concatenate([m.ramp_indices(ref_cycles, "load"),
                               m.ramp_indices(ref_cycles, "unload")])
-        fitted = fit_calibration(sig.output_v[idx], sig.force_n[idx],
-                                 source=f"tactile-sensor analyze {recording.path}")
-        fitted.fit.update({"speed_mm_s": float(ref_key), "cycles": len(ref_cycles),
-                           "output_baseline_v": sig.output_baseline_v,
-                           "force_baseline_n": sig.force_baseline_n})
+        static_ref = fit_calibration(sig.output_v[idx], sig.force_n[idx],
+                                     source=f"tactile-sensor analyze {recording.path}")
+        static_ref.fit.update({"speed_mm_s": float(ref_key), "cycles": len(ref_cycles),
+                               "output_baseline_v": sig.output_baseline_v,
+                               "force_baseline_n": sig.force_baseline_n})
+    rate_fit = None
+    record = record_from_segmentation(sig.t_s, sig.output_v, sig.force_n, seg)
+    if options.fit_calibration:
+        fitted = static_ref
+        if len(seg.speed_groups) >= 2:
+            try:
+                rate_fit = fit_rate_calibration(
+                    record, source=f"tactile-sensor analyze {recording.path}")
+            except RateFitError as err:
+                notes.append(f"no rate terms fitted: {err} The static curve at "
+                             f"{ref_key} mm/s was written instead.")
+        if rate_fit is not None and static_ref is not None:
+            rate_cal = rate_fit.calibration
+            notes.extend(rate_fit.notes)
+            fitted = Calibration(np.asarray(rate_cal.static.output_v),
+                                 np.asarray(rate_cal.static.force_n), rate_cal.source,
+                                 {**rate_fit.metadata(),
+                                  "output_baseline_v": sig.output_baseline_v,
+                                  "force_baseline_n": sig.force_baseline_n},
+                                 rate_cal)
     evaluated = options.calibration or fitted
     cal_metrics = None
     if evaluated is not None:
+        history = evaluated.force_history(sig.t_s, sig.output_v)
         per_speed = {}
         for key, members in seg.speed_groups.items():
             group = [cycles[i] for i in members]
             idx = np.concatenate([m.ramp_indices(group, "load"),
                                   m.ramp_indices(group, "unload")])
             per_speed[key] = _err_dict(m.estimation_error(
-                evaluated.force(sig.output_v[idx]), sig.force_n[idx], full_scale_n))
+                history[idx], sig.force_n[idx], full_scale_n))
         cal_metrics = {"source": evaluated.source,
-                       "in_sample": options.calibration is None, "by_speed": per_speed}
+                       "in_sample": options.calibration is None, "by_speed": per_speed,
+                       "rate_terms": ([{"g": t.g, "tau_s": t.tau_s}
+                                       for t in evaluated.rate.terms]
+                                      if evaluated.rate is not None else None)}
+        if evaluated.rate is not None and static_ref is not None:
+            cal_metrics["by_speed_phase"] = table_dict(
+                phase_table(record, static_ref, evaluated.rate))
+            cal_metrics["static_reference"] = (
+                f"a static curve fitted on this recording's {ref_key} mm/s ramps")
+        if rate_fit is not None:
+            cal_metrics["held_out_rmse_n"] = rate_fit.folds.held_out_rmse_n
+            cal_metrics["static_held_out_rmse_n"] = rate_fit.folds.static_rmse_n
 
     pred_cmp = None
     pred_metrics = None
@@ -238,7 +276,7 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
         "notes": notes,
     }
     return Characterisation(metrics, recording, aligned, seg, sig, hyst, rep, pred_cmp, fitted,
-                            evaluated, lags)
+                            evaluated, lags, rate_fit)
 
 
 @dataclass(frozen=True)

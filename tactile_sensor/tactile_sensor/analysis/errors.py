@@ -28,3 +28,7 @@ class CalibrationFileError(AnalysisError):
 
 class PredictionFileError(AnalysisError):
     """A model prediction file is unreadable or lacks indentation_m/output_v arrays."""
+
+
+class RateFitError(AnalysisError):
+    """The recording cannot give rate terms: one speed only, or times it cannot resolve."""

@@ -47,6 +47,15 @@ def rows(ch: _HasMetrics) -> list[tuple[str, str, str]]:
                 out.append((f"Force error at {key} mm/s ({tag})",
                             f"RMSE {_fmt(e['rmse_pct_fs'])} % FS, max {_fmt(e['max_pct_fs'])} % FS",
                             "not reported"))
+        for key in sorted(cal.get("by_speed_phase") or {}, key=float):
+            for phase, e in cal["by_speed_phase"][key].items():
+                out.append((f"Force RMSE at {key} mm/s, {phase}",
+                            f"static {_fmt(e['static_rmse_n'], 'N')}, rate-aware "
+                            f"{_fmt(e['rate_rmse_n'], 'N')}", "not reported"))
+        for key in sorted(cal.get("held_out_rmse_n") or {}, key=float):
+            out.append((f"Force RMSE at {key} mm/s held out of the rate fit",
+                        f"rate-aware {_fmt(cal['held_out_rmse_n'][key], 'N')}, static "
+                        f"{_fmt(cal['static_held_out_rmse_n'][key], 'N')}", "not reported"))
     pred = mt.get("prediction")
     out.append(("Model vs measured output (RMSE)",
                 _fmt(pred["rmse_v"], "V") if pred else "n/a", "\"agreed well\""))

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from tactile_sensor.sensing.prony import PronySeries
+
 from .errors import PhysicsError
 
 if TYPE_CHECKING:
@@ -27,7 +29,8 @@ if TYPE_CHECKING:
 
 
 class RateDependentForce:
-    """Streaming (``step``) and batch (``force_history``) forms of the same Prony series."""
+    """Streaming (``step``) and batch (``force_history``) forms of the same Prony series;
+    the recursion is ``sensing.prony``'s, which the driver's rate-aware calibration runs."""
 
     def __init__(self, g: Sequence[float], tau_s: Sequence[float]) -> None:
         g_arr, tau_arr = np.asarray(g, dtype=float), np.asarray(tau_s, dtype=float)
@@ -37,32 +40,21 @@ class RateDependentForce:
                 and np.all(g_arr >= 0) and np.all(tau_arr > 0)):
             raise PhysicsError("Prony moduli must be >= 0 and relaxation times > 0 s.")
         self.g, self.tau = g_arr, tau_arr
-        self.reset()
+        self._series = PronySeries(g_arr.tolist(), tau_arr.tolist())
 
     @classmethod
     def from_params(cls, params: PhysicsParams) -> RateDependentForce:
         return cls(params.prony_g, params.prony_tau)
 
     def reset(self) -> None:
-        self._h = np.zeros_like(self.g)
-        self._last: float | None = None
+        self._series.reset()
 
     def step(self, elastic_force_n: float, dt: float) -> float:
-        """Advance by ``dt`` [s] to a relaxed force ``elastic_force_n``; returns the force."""
+        """Advance by ``dt`` [s] to a relaxed force ``elastic_force_n``; returns the force
+        (exact for a force changing linearly over the step)."""
         if not (math.isfinite(dt) and dt >= 0):
             raise PhysicsError(f"Time step {dt!r} s must be finite and >= 0.")
-        if self._last is None:
-            self._last = elastic_force_n
-            return elastic_force_n
-        change = elastic_force_n - self._last
-        self._last = elastic_force_n
-        if dt == 0:
-            self._h += self.g * change
-        else:
-            decay = np.exp(-dt / self.tau)
-            # exact for a force changing linearly over the step
-            self._h = decay * self._h + self.g * change * (1.0 - decay) * self.tau / dt
-        return float(elastic_force_n + self._h.sum())
+        return float(elastic_force_n + self._series.step(elastic_force_n, dt))
 
     def force_history(self, t: npt.ArrayLike, elastic_force_n: npt.ArrayLike) -> np.ndarray:
         """The force along a whole record (``t`` increasing), from rest."""
@@ -72,12 +64,12 @@ class RateDependentForce:
             raise PhysicsError("force_history needs equal-length 1-D time and force arrays.")
         if times.size and np.any(np.diff(times) < 0):
             raise PhysicsError("force_history needs increasing times.")
-        saved = (self._h.copy(), self._last)  # a streaming user's state survives the batch
+        saved = self._series.state  # a streaming user's state survives the batch
         self.reset()
         out = np.empty_like(forces)
         previous = times[0] if times.size else 0.0
         for k, (now, force) in enumerate(zip(times.tolist(), forces.tolist(), strict=True)):
             out[k] = self.step(force, now - previous)
             previous = now
-        self._h, self._last = saved
+        self._series.restore(saved)
         return out

@@ -22,7 +22,6 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration
-from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import (
     ChainConfig,
     SampleLike,
@@ -33,6 +32,7 @@ from tactile_sensor.sensing.chain import (
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
 from tactile_sensor.sensing.filters import Filter, make_filter
+from tactile_sensor.sensing.rate_calibration import load_file
 from tactile_sensor.sensing.tare import TareWindow
 
 NAN = float("nan")
@@ -294,11 +294,11 @@ class ArrayChain:
 def build_chain(config: ChainConfig, modules: Sequence[Module],
                 calibration_file: str | None = None) -> SignalChain | ArrayChain:
     """The chain for ``modules`` (() = one module on ``config.channel``), calibrated from
-    ``calibration_file`` (a curve for one module, an array calibration for several) or
-    waiting for one (None)."""
+    ``calibration_file`` (a curve for one module, with rate terms when the file has them;
+    an array calibration for several) or waiting for one (None)."""
     if modules:
         array_cal = None if calibration_file is None else ArrayCalibration.from_file(
             calibration_file)
         return ArrayChain(config, modules, array_cal)
-    cal = None if calibration_file is None else Calibration.from_file(calibration_file)
+    cal = None if calibration_file is None else load_file(calibration_file)
     return SignalChain(config, cal)

@@ -20,7 +20,8 @@ from typing import Any, Protocol
 from tactile_sensor.sensing.errors import CalibrationError
 
 FILE_FORMAT = "tactile_sensor/calibration"
-FILE_VERSION = 1
+FILE_VERSION = 2  # the newest version this reader takes: 2 adds ``rate_terms``
+STATIC_FILE_VERSION = 1  # a curve without rate terms is written as 1: older readers take it
 
 
 class CurveLike(Protocol):
@@ -105,9 +106,10 @@ class Calibration:
         if data.get("format") != FILE_FORMAT:
             raise CalibrationError(f"{source}: 'format' must be \"{FILE_FORMAT}\"; this is not "
                                    "a calibration file.")
-        if data.get("version") != FILE_VERSION:
-            raise CalibrationError(f"{source}: calibration file version {data.get('version')!r}"
-                                   f" is not supported (expected {FILE_VERSION}); refit it.")
+        check_version(data, source)
+        if data.get("rate_terms"):
+            raise CalibrationError(f"{source}: holds rate terms, which a static curve would "
+                                   "drop; load it with sensing.rate_calibration.load_file.")
         missing = [k for k in ("output_v", "force_n") if not isinstance(data.get(k), list)]
         if missing:
             raise CalibrationError(f"{source}: missing array(s) {', '.join(missing)}.")
@@ -127,7 +129,7 @@ class Calibration:
         return cal
 
     def to_dict(self, fit: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        out: dict[str, Any] = {"format": FILE_FORMAT, "version": FILE_VERSION,
+        out: dict[str, Any] = {"format": FILE_FORMAT, "version": STATIC_FILE_VERSION,
                                "output_v": list(self._out), "force_n": list(self._force),
                                "source": self.source}
         if fit is not None:
@@ -140,6 +142,20 @@ class Calibration:
     def __repr__(self) -> str:
         return (f"Calibration({len(self._out)} points, output 0..{self._out[-1]:.3f} V, "
                 f"source={self.source!r})")
+
+
+def check_version(data: Mapping[str, Any], source: str) -> int:
+    """The file's version if this reader takes it (1 or 2), else one sentence: a newer file
+    needs a newer tactile_sensor, refitting would not help."""
+    version = data.get("version")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise CalibrationError(f"{source}: calibration file version {version!r} is not a "
+                               f"version (1..{FILE_VERSION}); refit it.")
+    if version > FILE_VERSION:
+        raise CalibrationError(f"{source}: calibration file version {version} is newer than "
+                               f"this tactile_sensor reads (up to {FILE_VERSION}); update "
+                               "tactile_sensor.")
+    return version
 
 
 def read_json_file(path: Path, label: str, write_hint: str, rewrite_hint: str) -> Any:

@@ -6,6 +6,10 @@ the output, and it lets the filter run from the first sample on, so a tare never
 its state. Feed every sample to ``process`` (even when publishing fewer): the filter's
 behaviour is defined per sample.
 
+A ``RateCalibration`` (static curve plus relaxing rate terms, ``sensing.rate_calibration``)
+makes the force depend on the output's history: its terms run on the device's sample
+times and start from rest at every tare, baseline change, reset and calibration change.
+
 Threading: ``process`` runs in one thread (the reader's); ``tare``, ``set_calibration``
 and the properties may be called from another (a service callback). A lock guards the
 shared state.
@@ -25,6 +29,7 @@ from tactile_sensor.sensing.contact import ContactDetector
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.errors import SensingError, TareError
 from tactile_sensor.sensing.filters import DEFAULT_FILTER, make_filter
+from tactile_sensor.sensing.rate_calibration import RateCalibration, RateForceEstimator
 from tactile_sensor.sensing.tare import TareResult, TareWindow
 
 NAN = float("nan")
@@ -45,7 +50,8 @@ class SampleLike(Protocol):
 
 class Reading(NamedTuple):
     """One processed sample. ``output_v``/``force_n`` are NaN until the first tare,
-    ``force_n`` is NaN while no calibration is set.
+    ``force_n`` is NaN while no calibration is set (with a rate-aware calibration it
+    includes the rate terms).
     """
 
     voltage_v: float  # photoreflector voltage after the ADC, unfiltered
@@ -126,7 +132,7 @@ class SignalChain:
     """Stateful per-sample processing for one sensor channel."""
 
     def __init__(self, config: ChainConfig | None = None,
-                 calibration: Calibration | None = None) -> None:
+                 calibration: Calibration | RateCalibration | None = None) -> None:
         self.config = config or ChainConfig()
         self.config.validate()
         parts = _Parts(self.config)
@@ -136,6 +142,7 @@ class SignalChain:
         self._tare = parts.tare
         self._contact = parts.contact
         self._calibration = calibration
+        self._static, self._estimator = _force_parts(calibration)
         self._baseline_v: float | None = None
         # A refused auto-tare is retried every tenth of a window, not on every sample.
         self._auto_tare_every = max(1, self._tare.size // 10)
@@ -159,7 +166,7 @@ class SignalChain:
         return self.config.channel
 
     @property
-    def calibration(self) -> Calibration | None:
+    def calibration(self) -> Calibration | RateCalibration | None:
         return self._calibration
 
     @property
@@ -168,9 +175,15 @@ class SignalChain:
         cal = self._calibration
         return cal.source if cal is not None else "none"
 
-    def set_calibration(self, calibration: Calibration | None) -> None:
+    @property
+    def rate_aware(self) -> bool:
+        """Whether forces include rate terms (a ``RateCalibration`` is set)."""
+        return self._estimator is not None
+
+    def set_calibration(self, calibration: Calibration | RateCalibration | None) -> None:
         with self._lock:
             self._calibration = calibration
+            self._static, self._estimator = _force_parts(calibration)
 
     def tare(self) -> TareResult:
         """Set the baseline from the last ``tare_window_s`` at rest, or raise ``TareError``."""
@@ -178,6 +191,7 @@ class SignalChain:
             result = self._tare.evaluate()
             self._baseline_v = result.baseline_v
             self._contact.reset()
+            self._restart_rate_terms()
             return result
 
     def set_baseline(self, baseline_v: float) -> None:
@@ -186,6 +200,7 @@ class SignalChain:
             raise TareError(f"A baseline must be a finite voltage, got {baseline_v!r}.")
         with self._lock:
             self._baseline_v = float(baseline_v)
+            self._restart_rate_terms()
 
     @property
     def conversion(self) -> AdcConversion:
@@ -201,6 +216,7 @@ class SignalChain:
             self._volts_per_count = conversion.volts_per_count
             self._filter.reset()
             self._tare.clear()
+            self._restart_rate_terms()
 
     def reconfigure(self, config: ChainConfig) -> None:
         """Take new filter, tare and contact settings while samples flow; baseline and
@@ -219,11 +235,19 @@ class SignalChain:
             self.config = config
 
     def reset(self) -> None:
-        """Forget filter, tare window and contact state (after a reconnect), keep baseline."""
+        """Forget filter, tare window, contact state and rate terms' history (after a
+        reconnect), keep baseline."""
         with self._lock:
             self._filter.reset()
             self._tare.clear()
             self._contact.reset()
+            self._restart_rate_terms()
+
+    def _restart_rate_terms(self) -> None:
+        """Rate terms start from rest: the outputs they integrated belong to another
+        baseline (tare), conversion or connection. Call with the lock held."""
+        if self._estimator is not None:
+            self._estimator.reset()
 
     # -- per sample ------------------------------------------------------------------------
 
@@ -247,15 +271,29 @@ class SignalChain:
                     self._auto_tare_countdown = self._auto_tare_every
                     with contextlib.suppress(TareError):  # not at rest yet: retry later
                         self._baseline_v = tare.evaluate().baseline_v
+                        self._restart_rate_terms()
             baseline = self._baseline_v
             if baseline is None:
                 reading = Reading(volts, NAN, NAN, False, False, t_us, sample.host_time_ns)
             else:
                 output = baseline - filtered
-                cal = self._calibration
-                force, saturated = cal.evaluate(output) if cal is not None else (NAN, False)
+                estimator = self._estimator
+                if estimator is not None:
+                    force, saturated = estimator.update(output, t_us * 1e-6)
+                elif self._static is not None:
+                    force, saturated = self._static.evaluate(output)
+                else:
+                    force, saturated = NAN, False
                 contact = self._contact.update(force, t_us * 1e-6)
                 reading = Reading(volts, output, force, contact, saturated, t_us,
                                   sample.host_time_ns)
         self.last = reading
         return reading
+
+
+def _force_parts(calibration: Calibration | RateCalibration | None
+                 ) -> tuple[Calibration | None, RateForceEstimator | None]:
+    """(static curve, None) or (None, a fresh estimator): what ``process`` evaluates."""
+    if isinstance(calibration, RateCalibration):
+        return None, calibration.estimator()
+    return calibration, None

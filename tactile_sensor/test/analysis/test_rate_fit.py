@@ -1,0 +1,177 @@
+"""Fitting the rate-aware calibration from synthetic recordings with a known truth.
+
+The truth: a static curve F_s = 7 N (d / 3 mm)^1.3, a module output 0.5 V (d / 3 mm)^0.9
+that follows the indentation, and physics' own RateDependentForce (the mock's defaults
+g = 0.05, 0.04 and tau = 0.1, 1.5 s) making the gauge force; small noise on both.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tactile_sensor.analysis.calibration_fit import fit_calibration
+from tactile_sensor.analysis.errors import RateFitError
+from tactile_sensor.analysis.rate_evaluation import phase_table, table_dict
+from tactile_sensor.analysis.rate_fit import fit_rate_calibration, resolvable_tau_range
+from tactile_sensor.analysis.rate_history import rate_force_history
+from tactile_sensor.analysis.rate_record import (
+    HOLD,
+    LOADING,
+    OUTSIDE,
+    UNLOADING,
+    RateRecord,
+)
+from tactile_sensor.physics.viscoelastic import RateDependentForce
+from tactile_sensor.sensing.rate_calibration import RateCalibration
+from tactile_sensor.sim.profiles import LoadProfile
+
+TRUE_G = (0.05, 0.04)
+TRUE_TAU_S = (0.1, 1.5)
+SPEEDS_M_S = (0.3e-3, 1e-3, 10e-3)  # 0.3 not 0.1 mm/s: a third of the samples, same physics
+
+
+def synthetic(speeds_m_s=SPEEDS_M_S, hold_s=2.0, g=TRUE_G, tau_s=TRUE_TAU_S,
+              rate_hz=1000.0, seed=0) -> RateRecord:
+    profile = LoadProfile(depth_m=3e-3, speeds_m_s=speeds_m_s, cycles=1, hold_s=hold_s,
+                          rest_s=1.0)
+    t = np.arange(0.0, profile.duration_s, 1.0 / rate_hz)
+    x = profile.indentation(t) / 3e-3
+    rng = np.random.default_rng(seed)
+    output = 0.5 * x ** 0.9 + rng.normal(0.0, 1e-3, t.size)
+    force = RateDependentForce(g, tau_s).force_history(t, 7.0 * x ** 1.3)
+    force += rng.normal(0.0, 0.01, t.size)
+    knots_t, _ = profile.knots()
+    speed = np.full(t.size, np.nan)
+    phase = np.full(t.size, OUTSIDE, dtype=np.int8)
+    for i, s in enumerate(profile.speeds_m_s):
+        start, top, hold_end, bottom = knots_t[1 + 4 * i:5 + 4 * i]
+        speed[(t >= start) & (t < bottom)] = s * 1e3
+        phase[(t >= start) & (t < top)] = LOADING
+        phase[(t >= top) & (t < hold_end)] = HOLD
+        phase[(t >= hold_end) & (t < bottom)] = UNLOADING
+    return RateRecord(t, output, force, speed, phase)
+
+
+@pytest.fixture(scope="module")
+def record() -> RateRecord:
+    return synthetic()
+
+
+@pytest.fixture(scope="module")
+def two_term_fit(record):
+    return fit_rate_calibration(record, "synthetic", terms=2)
+
+
+def test_recovers_the_true_terms(two_term_fit):
+    """Within 25 % on g and 30 % on tau: the output noise and a 16-knot curve for a power
+    law leave that much room for the fast term (0.1 s is 20 periods of the fit grid)."""
+    cal = two_term_fit.calibration
+    assert cal.g == pytest.approx(TRUE_G, rel=0.25)
+    assert cal.tau_s == pytest.approx(TRUE_TAU_S, rel=0.3)
+    assert cal.instant_gain == pytest.approx(1 + sum(TRUE_G), rel=0.03)
+    # the static curve is the relaxed one, not a speed's
+    for out in (0.1, 0.3, 0.45):
+        truth = 7.0 * (out / 0.5) ** (1.3 / 0.9)
+        assert cal.static.force(out) == pytest.approx(truth, abs=0.06)
+    assert two_term_fit.in_sample_rmse_n < 0.03  # noise is 0.01 N
+
+
+def test_every_held_out_speed_is_predicted_far_better_than_by_a_static_curve(two_term_fit):
+    folds = two_term_fit.folds
+    assert set(folds.held_out_rmse_n) == {"0.3", "1.0", "10.0"}
+    for key, rmse in folds.held_out_rmse_n.items():
+        assert rmse <= 0.5 * folds.static_rmse_n[key], key
+
+
+@pytest.mark.parametrize("held_out", [1e-3, 10e-3])
+def test_held_out_speed_halves_the_static_error_in_every_phase(record, held_out):
+    """Fit on the other speeds, rate-aware against a static curve fitted on the same
+    speeds' ramps (today's calibration), scored on the held-out speed per phase."""
+    train = [s * 1e3 for s in SPEEDS_M_S if s != held_out]
+    keep = ~np.isin(record.speed_mm_s, [held_out * 1e3])
+    train_record = RateRecord(record.t_s, record.output_v, record.force_n,
+                              np.where(keep, record.speed_mm_s, np.nan),
+                              np.where(keep, record.phase, OUTSIDE).astype(np.int8))
+    assert train_record.speeds() == train
+    fit = fit_rate_calibration(train_record, "train", terms=2)
+    ramps = record.mask(train) & np.isin(record.phase, (LOADING, UNLOADING))
+    static = fit_calibration(record.output_v[ramps], record.force_n[ramps], "static")
+    rows = [r for r in phase_table(record, static, fit.calibration)
+            if r.speed_mm_s == held_out * 1e3]
+    assert {r.phase for r in rows} == {"loading", "hold", "unloading"}
+    for r in rows:
+        assert r.rate_rmse_n <= 0.5 * r.static_rmse_n, r
+
+
+def test_number_of_terms_is_chosen_by_held_out_error():
+    """A one-term truth gives one term: more do not cut the held-out error by 5 %."""
+    rec = synthetic(speeds_m_s=(1e-3, 10e-3), hold_s=1.0, g=(0.08,), tau_s=(0.5,))
+    fit = fit_rate_calibration(rec, "one-term")
+    assert set(fit.counts) == {1, 2, 3}
+    assert fit.terms == 1
+    assert fit.calibration.g == pytest.approx((0.08,), rel=0.15)
+    assert fit.calibration.tau_s == pytest.approx((0.5,), rel=0.2)
+    meta = fit.metadata()
+    assert meta["terms"] == 1 and set(meta["held_out_rmse_n"]) == {"1", "2", "3"}
+
+
+def test_phase_table_reports_every_speed_and_phase(record, two_term_fit):
+    static = two_term_fit.calibration.static
+    table = table_dict(phase_table(record, static, two_term_fit.calibration))
+    assert set(table) == {"0.3", "1.0", "10.0"}
+    fast = table["10.0"]
+    assert set(fast) == {"loading", "hold", "unloading"}
+    # the relaxed curve alone misses the fast press's rate force most while loading
+    assert fast["loading"]["static_rmse_n"] > 3 * fast["loading"]["rate_rmse_n"]
+
+
+def test_batch_history_equals_the_drivers_estimator(two_term_fit, record):
+    cal: RateCalibration = two_term_fit.calibration
+    part = slice(0, 3000)
+    est = cal.estimator()
+    stream = [est.update(float(o), float(t))[0]
+              for o, t in zip(record.output_v[part], record.t_s[part], strict=True)]
+    batch = rate_force_history(cal, record.t_s[part], record.output_v[part])
+    assert np.allclose(stream, batch, rtol=1e-9, atol=1e-9)
+
+
+# -- errors a user can cause ----------------------------------------------------------------
+
+def test_one_speed_cannot_give_rate_terms():
+    rec = synthetic(speeds_m_s=(1e-3,))
+    with pytest.raises(RateFitError, match="cannot be fitted from one speed; record the "
+                                           "`speeds` protocol"):
+        fit_rate_calibration(rec, "x")
+
+
+@pytest.mark.parametrize("bounds", [(0.001, 1.0), (0.1, 500.0), (2.0, 1.0)])
+def test_requested_times_outside_what_the_recording_resolves(record, bounds):
+    lo, hi = resolvable_tau_range(record, 200.0)
+    assert lo == pytest.approx(0.025) and hi == pytest.approx(22.0, rel=0.01)
+    with pytest.raises(RateFitError, match="outside what this recording resolves"):
+        fit_rate_calibration(record, "x", tau_bounds_s=bounds)
+
+
+def test_times_pinned_to_a_bound_are_refused(record):
+    """Bounds that exclude the truth force every fit onto a bound: not resolved."""
+    with pytest.raises(RateFitError, match="sits on the edge of what this recording"):
+        fit_rate_calibration(record, "x", terms=1, tau_bounds_s=(5.0, 20.0))
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"terms": 4}, "1 to 3, got 4"),
+    ({"terms": 0}, "1 to 3, got 0"),
+    ({"knots": 1}, "2 to 200 knots"),
+])
+def test_bad_options_are_refused(record, kwargs, match):
+    with pytest.raises(RateFitError, match=match):
+        fit_rate_calibration(record, "x", **kwargs)
+
+
+def test_a_record_with_mismatched_arrays_is_refused():
+    from tactile_sensor.analysis.errors import SegmentError
+
+    t = np.arange(5.0)
+    with pytest.raises(SegmentError, match="differ in length"):
+        RateRecord(t, t, t[:4], t, t.astype(np.int8))
