@@ -313,6 +313,36 @@ def test_a_raising_callback_stops_the_reader_visibly(tmp_path):
         threading.excepthook = hook
 
 
+class SlowSerialThread(AdcStreamReader):
+    """The serial thread descheduled in the middle of its work (a busy machine)."""
+
+    def _ingest(self, data: bytes) -> None:
+        time.sleep(0.05)
+        super()._ingest(data)
+
+
+def test_a_reader_stopped_by_a_callback_stays_stopped(tmp_path):
+    # Found beside a busy loop: the serial thread, inside _ingest when the dispatcher
+    # stopped the reader, set CONNECTED again and the consumer's error was lost.
+    path = tmp_path / "adc"
+
+    def broken(sample):
+        raise ZeroDivisionError("consumer bug")
+
+    hook, threading.excepthook = threading.excepthook, lambda args: None
+    try:
+        with MockAdcDevice(path, code_ramp, noise=QUIET), \
+                SlowSerialThread(str(path), broken, lambda s, r: None) as reader:
+            assert wait_until(lambda: reader.state is ConnectionState.STOPPED)
+            serial_thread = reader._thread
+            assert serial_thread is not None
+            serial_thread.join(PATIENCE_S)  # it has finished what it was doing
+            assert reader.state is ConnectionState.STOPPED
+            assert "consumer bug" in reader.reason
+    finally:
+        threading.excepthook = hook
+
+
 class StalledConsumer(Recorder):
     """A consumer starved of CPU: its first sample blocks until ``release`` is set (or
     for at most twice the tests' patience, so a failed test leaves no thread behind)."""
