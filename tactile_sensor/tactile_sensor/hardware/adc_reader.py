@@ -451,6 +451,10 @@ class AdcStreamReader:
         if state is self._state and reason == self._reason:
             return
         with self._lock:
+            if self._stop.is_set():
+                # stopping: stop() or the dispatcher's error has the last word (the serial
+                # thread, still inside _ingest, turned a STOPPED back into CONNECTED)
+                return
             self._state, self._reason = state, reason
         if self._on_state is not None:
             self._backlog.put((_StateChange(state, reason),))

@@ -33,6 +33,8 @@ DEPTH_M = 0.003
 PROFILE = "ramp:depth=0.003,speed=0.001,cycles=1,hold=0.5,rest=2"
 REST_V = 3.0
 SPAN_V = 0.5  # module output at full scale: the paper's 0.07 V/N x 7 N
+# Upper bound of a wait on a condition a busy machine may be slow to reach.
+PATIENCE_S = 60.0
 
 
 def skin_table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -90,9 +92,9 @@ class Listener:
 
     def call_tare(self) -> Trigger.Response:
         client = self.node.create_client(Trigger, "/driver/tare")
-        assert client.wait_for_service(timeout_sec=10.0)
+        assert client.wait_for_service(timeout_sec=PATIENCE_S)
         future = client.call_async(Trigger.Request())
-        deadline = time.monotonic() + 10.0
+        deadline = time.monotonic() + PATIENCE_S
         while not future.done() and time.monotonic() < deadline:
             time.sleep(0.01)
         return future.result()
@@ -174,13 +176,16 @@ def test_tare_succeeds_at_rest_and_is_refused_while_pressing(spawn, ros, files):
     driver = start_driver(spawn, files["link"], files["calibration"],
                           "-p", "auto_tare:=false")
     assert driver.wait_for_output("active", 30), driver.output()
-    start_mock(spawn, files, "ramp:depth=0.003,speed=0.001,cycles=1,hold=0,rest=3")
-    assert ros.wait_for(lambda: len(ros.readings) > 800, 15)
+    # The tare at rest must fall into the mock's first rest (device time): 10 s of it, of
+    # which the test needs ~1 s when idle (3 s were missed beside a busy loop: 'not at
+    # rest, moved 77 mV'). The mock has no command to start the press on cue.
+    start_mock(spawn, files, "ramp:depth=0.003,speed=0.001,cycles=1,hold=0,rest=10")
+    assert ros.wait_for(lambda: len(ros.readings) > 800, PATIENCE_S)
     assert all(m.output != m.output for _, m in ros.readings[:50])  # NaN before any tare
     at_rest = ros.call_tare()
     assert at_rest.success, at_rest.message
     assert "baseline" in at_rest.message
-    assert ros.wait_for(lambda: ros.readings[-1][1].output > 0.1, 10)  # pressing now
+    assert ros.wait_for(lambda: ros.readings[-1][1].output > 0.1, PATIENCE_S)  # pressing now
     pressing = ros.call_tare()
     assert not pressing.success
     assert "rest" in pressing.message.lower(), pressing.message
@@ -195,24 +200,29 @@ def test_garbage_is_rejected_and_unplug_is_survived(spawn, ros, files):
     for _ in range(10):
         control.write_text("garbage 10000\n")
         time.sleep(0.05)
-    time.sleep(1.0)
+    # the garbage reached the driver (was: sleep 1 s and hope), then 1 s of readings after
+    crc_seen = ros.wait_for(lambda: any(
+        int(_value(s, "crc_errors")) + int(_value(s, "bytes_discarded")) > 0
+        for _, s in ros.diagnostics), PATIENCE_S)
+    assert crc_seen
+    seen = len(ros.readings)
+    assert ros.wait_for(lambda: len(ros.readings) > seen + 250, PATIENCE_S)
     # No bad frame accepted: every reading after the garbage is a plausible voltage.
     voltages = np.array([m.voltage for _, m in ros.readings])
     assert voltages.min() > REST_V - SPAN_V - 0.3 and voltages.max() < REST_V + 0.3
-    crc_seen = ros.wait_for(lambda: any(
-        int(_value(s, "crc_errors")) + int(_value(s, "bytes_discarded")) > 0
-        for _, s in ros.diagnostics), 3)
-    assert crc_seen
 
     control.write_text("unplug 1.5\n")
     unplugged_at = time.monotonic()
     assert ros.wait_for(lambda: any(s.level == DiagnosticStatus.ERROR and t >= unplugged_at
-                                    for t, s in ros.diagnostics), 2.0)
-    error_at = next(t for t, s in ros.diagnostics
-                    if s.level == DiagnosticStatus.ERROR and t >= unplugged_at)
-    assert error_at - unplugged_at < 0.5
+                                    for t, s in ros.diagnostics), PATIENCE_S)
+    error = next(s for t, s in ros.diagnostics
+                 if s.level == DiagnosticStatus.ERROR and t >= unplugged_at)
+    # reported from the failed read / missing port (both say "unplugged"), not from the
+    # 1 s silence timeout: how fast is a benchmark's business, not a bound a busy machine
+    # can break (was: < 0.5 s by the time the test process received it)
+    assert "unplugged" in error.message, error.message
     back = len(ros.readings)
-    assert ros.wait_for(lambda: len(ros.readings) > back + 100, 1.5 + 2.0)
+    assert ros.wait_for(lambda: len(ros.readings) > back + 100, PATIENCE_S)
     assert driver.proc.poll() is None  # no restart
 
 
@@ -330,9 +340,11 @@ def test_a_version_1_device_works_with_one_warning(spawn, ros, files):
                "--protocol", "1", "--loop")
     assert ros.wait_for(lambda: len(ros.wrenches) > 500, 15), driver.output()
     files["control"].write_text("unplug 0.5\n")  # a reconnection: the same device again
-    time.sleep(0.6)
+    # reconnected (was: sleep 0.6 s, which a busy machine can end before the unplug)
+    assert ros.wait_for(lambda: driver.output().count("ADC connected: receiving frames")
+                        >= 2, PATIENCE_S), driver.output()
     count = len(ros.wrenches)
-    assert ros.wait_for(lambda: len(ros.wrenches) > count + 500, 15)
+    assert ros.wait_for(lambda: len(ros.wrenches) > count + 500, PATIENCE_S)
     log = driver.output()
     assert log.count("does not state its resolution: using the configured 12 bit and 5 V") == 1
     assert "[WARN]" in log.split("does not state its resolution")[0].rsplit("\n", 1)[-1]
