@@ -54,6 +54,7 @@ from tactile_sensor.sensing.chain import ChainConfig, Reading, SignalChain
 from tactile_sensor.sensing.device_clock import DeviceClock
 from tactile_sensor.sensing.errors import SensingError, TareError
 from tactile_sensor.sensing.filters import FILTERS
+from tactile_sensor.sensing.rate_calibration import describe_model
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
 
@@ -231,6 +232,7 @@ class DriverNode(Node):
         self.get_logger().info(
             f"configured: {values['port']} at {values['baud_rate']} bit/s, filter "
             f"{values['filter_type']}, calibration from {values['calibration_source']}"
+            + (f" ({describe_model(chain.calibration)})" if chain.calibration else "")
             + (f", modules {values['modules']}" if modules else ""))
         return TransitionCallbackReturn.SUCCESS
 
@@ -473,6 +475,7 @@ class DriverNode(Node):
             "sequence_gaps": stats.sequence_gaps, "crc_errors": stats.crc_errors,
             "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
             "calibration_source": chain.calibration_source,
+            "calibration_model": describe_model(chain.calibration),
             "baseline_v": "none" if chain.baseline_v is None else f"{chain.baseline_v:.4f}",
             "device": stats.device_info.summary() if stats.device_info else "not stated yet",
             "adc_settings": adc.source.value if adc else "not decided yet",

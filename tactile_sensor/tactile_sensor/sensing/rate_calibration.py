@@ -122,8 +122,19 @@ class RateCalibration:
         Path(path).write_text(json.dumps(self.to_dict(fit), indent=1) + "\n", encoding="utf-8")
 
     def __repr__(self) -> str:
+        return f"RateCalibration({self.static!r}, {self.describe()})"
+
+    def describe(self) -> str:
+        """The model in one phrase, for logs and diagnostics."""
         terms = ", ".join(f"g={t.g:.4g} tau={t.tau_s:.4g} s" for t in self.terms)
-        return f"RateCalibration({self.static!r}, {terms})"
+        return f"rate-aware ({len(self.terms)} term(s): {terms})"
+
+
+def describe_model(calibration: object) -> str:
+    """Which force model a chain runs: 'rate-aware (...)', 'static' or 'none'."""
+    if isinstance(calibration, RateCalibration):
+        return calibration.describe()
+    return "none" if calibration is None else "static"
 
 
 class RateForceEstimator:

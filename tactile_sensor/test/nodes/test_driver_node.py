@@ -22,6 +22,7 @@ from std_srvs.srv import Trigger
 from tactile_sensor.hardware.adc_frame import crc16, encode_frame
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.sensing.calibration import Calibration
+from tactile_sensor.sensing.rate_calibration import RateCalibration, RateTerm
 from tactile_sensor.sim import firmware_host
 from tactile_sensor.sim.firmware_host import PICO, UNO, HostFirmware
 from tactile_sensor.sim.profiles import parse_profile
@@ -170,6 +171,51 @@ def test_force_tracks_a_3mm_press_and_contact_has_hysteresis(spawn, ros, files):
     on_force, off_force = changes[0][0], changes[1][0]
     assert on_force >= 1.0 - 0.3 and off_force <= 0.5 + 0.3
     assert on_force > off_force
+
+
+def test_a_rate_aware_file_runs_its_model_on_every_sample(spawn, ros, files, tmp_path):
+    """calibration_source: file with rate terms: the published force is the rate-aware one
+    (the pure estimator replayed over the published outputs and stamps gives it back), above
+    the static curve while loading, and the diagnostics name the model."""
+    static = Calibration.from_file(files["calibration"])
+    rate = RateCalibration(static, [RateTerm(g=0.4, tau_s=0.5)])
+    rate_file = tmp_path / "rate_calibration.json"
+    rate.to_file(rate_file)
+    driver = start_driver(spawn, files["link"], rate_file)
+    assert driver.wait_for_output("active", PATIENCE_S), driver.output()
+    assert "rate-aware (1 term(s): g=0.4 tau=0.5 s)" in driver.output()
+    # A 5 s rest first: the driver tares and this test hears tared readings before the press,
+    # so the replay below starts where the driver's terms were at rest too.
+    start_mock(spawn, files, "ramp:depth=0.003,speed=0.003,cycles=1,hold=1,rest=5")
+    assert ros.wait_for(lambda: any(m.output == m.output for _, m in ros.readings), PATIENCE_S)
+    assert ros.wait_for(lambda: any(m.force > 5.0 for _, m in ros.readings[-50:]), PATIENCE_S)
+    assert ros.wait_for(lambda: all(m.force < 0.5 for _, m in ros.readings[-50:]), PATIENCE_S)
+    assert ros.wait_for(lambda: any(
+        _value(s, "calibration_model").startswith("rate-aware") for _, s in ros.diagnostics),
+        PATIENCE_S)
+    readings = [m for _, m in ros.readings if m.output == m.output]  # tared
+    assert readings[0].force < 0.2  # heard from the rest on, not from inside the press
+    stamps = np.array([_stamp(m) for m in readings])
+    output = np.array([m.output for m in readings])
+    force = np.array([m.force for m in readings])
+    assert np.all(np.diff(stamps) > 0)  # every sample, in order (none lost between them)
+    estimator = rate.estimator()
+    replayed = np.array([estimator.update(v, t)[0] for v, t in zip(output, stamps,
+                                                                     strict=True)])
+    # The terms restart at the tare, at rest (no force, nothing to relax), just before the
+    # first tared reading: compare from 1 s in, where any start-up difference has decayed.
+    settled = stamps > stamps[0] + 1.0
+    # (stamps travel as integer nanoseconds; the driver steps on its own float seconds)
+    assert np.allclose(force[settled], replayed[settled], atol=1e-3), \
+        float(np.max(np.abs(force - replayed)[settled]))
+    # Loading: from 1 N on the rise to the peak (7 N/s for 1 s). The term then carries
+    # g * rate * tau * (1 - exp(-t / tau)), up to 1.4 N; the static curve carries none.
+    static_force = np.array([static.evaluate(v)[0] for v in output])
+    peak = int(np.argmax(static_force))
+    rise = int(np.argmax(static_force > 1.0))
+    assert peak - rise > 300, (rise, peak)
+    excess = force[rise:peak] - static_force[rise:peak]
+    assert np.median(excess) > 0.5, np.median(excess)
 
 
 def test_tare_succeeds_at_rest_and_is_refused_while_pressing(spawn, ros, files):
