@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test lint firmware demo demo-gripper bench clean
+.PHONY: help setup build test lint firmware demo demo-gripper demo-rate bench clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -29,6 +29,9 @@ demo: setup  ## bench compression protocol on mock hardware, recorded and analys
 
 demo-gripper: setup  ## grasp the rod, hold, release on mock hardware
 	@bash scripts/demo.sh gripper
+
+demo-rate: setup  ## fit force across speeds on 'speeds', check it on unseen speeds with holds
+	@bash scripts/demo.sh rate
 
 bench: setup  ## every benchmark in benchmarks/, printing its figures
 	@. scripts/env.sh && for b in benchmarks/bench_*.py; do echo "== $$b"; python "$$b" || exit 1; done

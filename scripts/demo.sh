@@ -3,6 +3,7 @@
 # analyse the recording against the paper's figures.
 #   scripts/demo.sh bench [PROTOCOL]   (default compression)
 #   scripts/demo.sh gripper
+#   scripts/demo.sh rate [SPEEDS_PROTOCOL]   (default speeds:cycles=1)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -28,6 +29,30 @@ case "$configuration" in
     ls -1 "$run"/analysis/*.png
     echo "== report: $run/analysis/report.md, metrics: $run/analysis/metrics.json"
     ;;
+  rate)
+    # Calibration across indentation speeds: fit the rate-aware model on 'speeds', then run
+    # speeds it never saw (rate_check) with the fitted file in the driver, and compare.
+    speeds="${2:-speeds:cycles=1}"
+    echo "== bench '$speeds' on mock hardware -> $run/speeds"
+    tactile-sensor bringup bench --protocol "$speeds" --record "$run/speeds" \
+      --port "adc_port=/tmp/tactile_sensor/demo_adc_$$"
+    echo "== fitting the static curve and the rate terms -> $run/fit/calibration.json"
+    tactile-sensor analyze "$run/speeds" --out "$run/fit" --fit-calibration
+    cat > "$run/driver.yaml" <<YAML
+/**/driver:
+  ros__parameters:
+    calibration_source: file
+    calibration_file: $ROOT/$run/fit/calibration.json
+YAML
+    echo "== bench 'rate_check' (0.3, 3, 20 mm/s with holds) with the fitted file -> $run/check"
+    tactile-sensor bringup bench --protocol rate_check --record "$run/check" \
+      --config "$run/driver.yaml" --port "adc_port=/tmp/tactile_sensor/demo_adc_$$"
+    echo "== static against rate-aware on the held-out speeds"
+    tactile-sensor analyze "$run/check" --out "$run/check-analysis" \
+      --calibration "$run/fit/calibration.json"
+    sed -n '/[Rr]ate/,$p' "$run/check-analysis/report.md"
+    echo "== report: $run/check-analysis/report.md"
+    ;;
   gripper)
     echo "== gripper grasp/hold/release on mock hardware -> $run/bag"
     tactile-sensor bringup gripper --protocol grasp --record "$run/bag" \
@@ -35,7 +60,8 @@ case "$configuration" in
       --port "servo_port=/tmp/tactile_sensor/demo_xm430_$$"
     ;;
   *)
-    echo "usage: scripts/demo.sh bench [compression|repeatability|speeds] | gripper" >&2
+    echo "usage: scripts/demo.sh bench [compression|repeatability|speeds] | gripper |" \
+      "rate [SPEEDS_PROTOCOL]" >&2
     exit 2
     ;;
 esac
