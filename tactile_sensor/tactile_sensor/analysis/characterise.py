@@ -86,6 +86,8 @@ class Characterisation:
     evaluated: Calibration | None
     lags_s: dict[str, float | None]
     rate_fit: RateFit | None = None
+    #: The static curve the rate-aware one is compared with (by_speed_phase), if any.
+    static_reference: Calibration | None = None
 
 
 def _num(x: float | None, digits: int = 6) -> float | None:
@@ -275,8 +277,10 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
         "paper": PAPER,
         "notes": notes,
     }
+    compared = (static_ref if cal_metrics is not None and "by_speed_phase" in cal_metrics
+                else None)
     return Characterisation(metrics, recording, aligned, seg, sig, hyst, rep, pred_cmp, fitted,
-                            evaluated, lags, rate_fit)
+                            evaluated, lags, rate_fit, compared)
 
 
 @dataclass(frozen=True)

@@ -158,6 +158,30 @@ def speeds(ch: Characterisation, path: Path) -> Path:
     return _save(fig, path, top=0.8)
 
 
+def force_estimates(ch: Characterisation, path: Path) -> Path:
+    """Calibration across speeds: the gauge, the static estimate and the rate-aware one
+    against time, one panel per speed (its first press, hold included)."""
+    sig, seg = ch.signals, ch.segmentation
+    assert ch.evaluated is not None and ch.evaluated.rate is not None
+    assert ch.static_reference is not None
+    static_n = ch.static_reference.force_history(sig.t_s, sig.output_v)
+    rate_n = ch.evaluated.force_history(sig.t_s, sig.output_v)
+    keys = sorted(seg.speed_groups, key=float)
+    fig, axes = plt.subplots(1, len(keys), figsize=(4 * len(keys), 3.5), squeeze=False)
+    for ax, key in zip(axes[0], keys, strict=True):
+        a, b = seg.cycles[seg.speed_groups[key][0]].window
+        pad = (b - a) // 10
+        idx = _thin(np.arange(max(0, a - pad), min(sig.t_s.size, b + pad)))
+        t = sig.t_s[idx] - sig.t_s[a]
+        ax.plot(t, sig.force_n[idx], lw=1.2, color="tab:gray", label="gauge")
+        ax.plot(t, static_n[idx], lw=0.8, color="tab:blue", label="static curve")
+        ax.plot(t, rate_n[idx], lw=0.8, color="tab:red", label="rate-aware")
+        ax.set(xlabel="time [s]", ylabel="force [N]", title=f"{key} mm/s")
+    axes[0][0].legend(loc="upper right", fontsize=8)
+    fig.suptitle("Force at each indentation speed: gauge, static and rate-aware estimates")
+    return _save(fig, path, top=0.8)
+
+
 def all_figures(ch: Characterisation, out_dir: Path) -> dict[str, Path]:
     """Write every figure; returns name -> file."""
     makers = {
@@ -168,6 +192,8 @@ def all_figures(ch: Characterisation, out_dir: Path) -> dict[str, Path]:
         "first_last_cycles": first_last_cycles,
         "speeds": speeds,
     }
+    if ch.static_reference is not None and ch.evaluated is not None and ch.evaluated.rate:
+        makers["force_estimates"] = force_estimates
     return {name: make(ch, out_dir / f"{name}.png") for name, make in makers.items()}
 
 

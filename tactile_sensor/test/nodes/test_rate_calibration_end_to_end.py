@@ -58,3 +58,6 @@ def test_record_fit_record_with_the_fitted_file_and_analyse(spawn, ros_domain, t
                 (speed, phase)
     report = (out / "report.md").read_text()
     assert "Force RMSE at 20.0 mm/s, hold" in report
+    # the figure: gauge, static and rate-aware force against time at each speed
+    assert (out / "force_estimates.png").stat().st_size > 1000
+    assert "(force_estimates.png)" in report
