@@ -71,9 +71,12 @@ class Spawned:
         if self.proc.poll() is None:
             os.killpg(self.proc.pid, sig)
 
-    def interrupt(self, *, group: bool, timeout_s: float = 5.0) -> tuple[int | None, float]:
+    def interrupt(self, *, group: bool, timeout_s: float = 60.0) -> tuple[int | None, float]:
         """SIGINT to the process (``group=False``, as a supervisor sends it) or to its whole
-        process group (as Ctrl-C in a terminal); (exit status or None, seconds to exit)."""
+        process group (as Ctrl-C in a terminal); (exit status or None, seconds to exit).
+        The wait ends as soon as the process exits: the generous bound is for a busy
+        machine, where a clean shutdown can take longer than on an idle one (a prompt one is
+        judged by what it did, e.g. that ``ros2 launch`` escalated to no SIGTERM)."""
         start = time.monotonic()
         if self.proc.poll() is None:
             if group:

@@ -49,7 +49,10 @@ def test_array_launch_streams_three_axis_force_from_four_modules(
     assert quiet(before_stop) == [], quiet(before_stop)
     code, seconds = launch.interrupt(group=False)
     output = launch.output()
-    assert code == 0 and seconds < 5.0, (code, seconds, output[-3000:])
+    # prompt means no node needed ros2 launch's escalation to SIGTERM (after 5 s); the
+    # time itself is left to a busy machine
+    assert code == 0, (code, seconds, output[-3000:])
+    assert "failed to terminate" not in launch.output(), (code, seconds, output[-3000:])
     for fault in FAULTS:
         assert fault not in output, output
     assert own_processes() == []

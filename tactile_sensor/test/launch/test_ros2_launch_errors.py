@@ -26,7 +26,10 @@ def test_a_missing_adc_port_gives_one_error_line_and_the_driver_keeps_retrying(
     assert "[driver]: ADC disconnected: /dev/does-not-exist does not exist (device " \
            "unplugged?); retrying every 0.2 s" in errors[0]
     code, seconds = launch.interrupt(group=False)
-    assert code == 0 and seconds < 5.0, (code, seconds, launch.output()[-2000:])
+    # prompt means no node needed ros2 launch's escalation to SIGTERM (after 5 s); the
+    # time itself is left to a busy machine
+    assert code == 0, (code, seconds, launch.output()[-2000:])
+    assert "failed to terminate" not in launch.output(), (code, seconds, launch.output()[-2000:])
     for fault in FAULTS:
         assert fault not in launch.output()
     assert own_processes() == []

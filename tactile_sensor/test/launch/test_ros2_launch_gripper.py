@@ -92,7 +92,10 @@ def test_gripper_launch_with_the_readme_grasp_and_runtime_commands(
 
     code, seconds = launch.interrupt(group=True)  # Ctrl-C in a terminal
     output = launch.output()
-    assert code == 0 and seconds < 5.0, (code, seconds, output[-3000:])
+    # prompt means no node needed ros2 launch's escalation to SIGTERM (after 5 s); the
+    # time itself is left to a busy machine
+    assert code == 0, (code, seconds, output[-3000:])
+    assert "failed to terminate" not in launch.output(), (code, seconds, output[-3000:])
     for fault in FAULTS:
         assert fault not in output, output
     closed = re.findall(r"\[recorder\]: Closed \S+ with (\d+) messages", output)

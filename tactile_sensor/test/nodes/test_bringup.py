@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from rosbags.highlevel import AnyReader
 
 from tactile_sensor.physics.params import PhysicsParams
@@ -26,6 +27,42 @@ def read_bag(path: Path) -> dict[str, tuple[np.ndarray, list]]:
     return {topic: (np.array(s), m) for topic, (s, m) in out.items()}
 
 
+def diagnostics(msgs: list, name: str) -> list[dict[str, str]]:
+    """The values of every status called ``name`` in /diagnostics, in order."""
+    return [{kv.key: kv.value for kv in status.values}
+            for msg in msgs for status in msg.status if status.name == name]
+
+
+def check_adc_readings(data: dict[str, tuple[np.ndarray, list]], output: str) -> None:
+    """1 kHz from the ADC and no reading lost between the device and the bag.
+
+    Not a rate over the readings' header stamps: those are the device's sample times mapped
+    onto the host clock (sensing/device_clock.py), with an offset that starts at the first
+    frames' delay and only ever decreases (bar a 200 ppm leak) as frames arrive sooner. On
+    a busy machine the first frames wait longest, so the early stamps are squeezed together
+    and such a rate comes out high (1837 Hz measured beside a busy loop) with no reading
+    extra. The mapping can only shorten the stamps' span, never lengthen it, so a lower
+    bound on that rate and the 'no step beyond one sample' check stay valid."""
+    stamps, readings = data["/driver/reading"]
+    reports = diagnostics(data["/diagnostics"][1], "/driver: tactile ADC")
+    assert reports, "no diagnostics of the driver's ADC in the bag"
+    final = reports[-1]  # the report of the stopping driver, taken at the bag's close
+    assert final["connection"] == "stopped", final
+    assert final["device"].endswith(", 1000 Hz"), final  # the device samples at 1 kHz
+    # the driver received every frame the device sent...
+    assert (final["frames_dropped"], final["frames_overflowed"],
+            final["sequence_gaps"]) == ("0", "0", "0"), final
+    assert "ADC frame(s) lost" not in output
+    # ...published at most one reading per frame...
+    assert len(readings) <= int(final["frames"]), (len(readings), final["frames"])
+    # ...and the bag holds every one of them: a lost reading is a step of two samples
+    # (the clock map moves stamps later by at most 200 ppm), and at least 900 per second
+    # of stamps (the span of the stamps is at most the device time they cover)
+    steps = np.diff(stamps)
+    assert steps.max() < 1.5e-3, steps.max()
+    assert (len(stamps) - 1) / (stamps[-1] - stamps[0]) > 900
+
+
 def bringup(spawn, tmp_path: Path, *args: str):
     return spawn("bringup", *args, module="tactile_sensor.cli")
 
@@ -40,15 +77,15 @@ def test_bench_compression_records_plausible_data(spawn, ros_domain, tmp_path):
     for topic in ("/driver/reading", "/driver/wrench", "/bench/stage/joint_states",
                   "/bench/gauge/wrench", "/diagnostics", "/calibration_curve"):
         assert topic in data, (topic, sorted(data))
-    # rates: 1 kHz from the ADC (driver) and from the gauge, over the protocol, and no
-    # reading lost anywhere between the device and the bag (no step beyond one sample)
-    for topic in ("/driver/reading", "/bench/gauge/wrench", "/bench/stage/joint_states"):
+    # the gauge and the stage stamp the world's time: 1 kHz over the protocol, and no
+    # message lost between them and the bag (no step beyond one sample)
+    for topic in ("/bench/gauge/wrench", "/bench/stage/joint_states"):
         stamps = data[topic][0]
         rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
         assert 900 < rate < 1100, (topic, rate)
         steps = np.diff(stamps)
         assert steps.max() < 1.5 * np.median(steps), (topic, steps.max())
-    assert "ADC frame(s) lost" not in run.output()
+    check_adc_readings(data, run.output())
     gauge_t, gauge = data["/bench/gauge/wrench"]
     gauge_f = np.array([m.wrench.force.z for m in gauge])
     _, stage = data["/bench/stage/joint_states"]
@@ -69,9 +106,16 @@ def test_bench_compression_records_plausible_data(spawn, ros_domain, tmp_path):
 
 def test_gripper_grasp_records_contact_near_target(spawn, ros_domain, tmp_path):
     bag = tmp_path / "gripper_bag"
+    # a busy machine stalls the force stream now and then for more than the configured
+    # 0.2 s (the grasp aborted "tactile_stale", measured beside a busy loop), and can keep
+    # the emulated servo from answering within 3 x 50 ms; both are tested elsewhere
+    # (test/control, test/hardware/test_xm430_client.py), this test is about the recording
+    overrides = tmp_path / "overrides.yaml"
+    overrides.write_text(yaml.safe_dump({"/**/gripper": {"ros__parameters": {
+        "tactile_timeout": 1.0, "packet_timeout": 0.5, "comm_retries": 4}}}))
     run = bringup(spawn, tmp_path, "gripper", "--protocol", "grasp", "--record", str(bag),
                   "--port", f"adc_port={tmp_path / 'adc'}",
-                  "--port", f"servo_port={tmp_path / 'xm430'}")
+                  "--port", f"servo_port={tmp_path / 'xm430'}", "--config", str(overrides))
     assert run.proc.wait(timeout=240) == 0, run.output()
     out = run.output()
     assert "grasp result: contact=True" in out

@@ -32,6 +32,18 @@ LSB_V = 5.0 / 4095
 PROTOCOL = {"protocol.name": "shear", "protocol.depth": 0.002, "protocol.speeds": [0.004],
             "protocol.shear": 0.004, "protocol.shear_directions": 4, "protocol.cycles": 1,
             "protocol.hold": 0.0, "protocol.rest": 0.5}
+# Upper bound of every wait on a condition: generous, because a wait ends as soon as its
+# condition holds and a busy machine may be slow to get there (never a fixed sleep).
+PATIENCE_S = 60.0
+
+
+def wait_until(predicate, timeout_s: float = PATIENCE_S) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return bool(predicate())
 
 
 def overrides(tmp_path: Path, node: str, **values: object) -> str:
@@ -74,20 +86,38 @@ class Listener:
         self.thread.start()
 
     def start_protocol(self) -> None:
-        assert self.start.wait_for_service(timeout_sec=20)
-        deadline = time.monotonic() + 20
-        while (not self.stage or not self.gauge) and time.monotonic() < deadline:
-            time.sleep(0.05)  # subscribed and hearing before the run starts
+        assert self.start.wait_for_service(timeout_sec=PATIENCE_S)
+        # subscribed and hearing before the run starts
+        assert wait_until(lambda: self.stage and self.gauge)
         future = self.start.call_async(Trigger.Request())
-        while not future.done():
-            assert time.monotonic() < deadline, "no answer from ~/start"
-            time.sleep(0.01)
+        assert wait_until(future.done), "no answer from ~/start"
         assert future.result().success
+
+    def streamed_past(self, end_s: float) -> bool:
+        """Stage and gauge both published a sample stamped ``end_s`` [s] or later."""
+        return bool(self.stage and self.gauge and self.stage[-1][0] >= end_s
+                    and self.gauge[-1][0] >= end_s)
+
+    def first_press_s(self) -> float | None:
+        """Stamp of the first stage sample that indents (0.5 s rest after the start)."""
+        return next((stamp for stamp, _, p in list(self.stage) if p[0] > 0), None)
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=1)
         self.thread.join(2)
         self.node.destroy_node()
+
+
+def adc_streamed_past(samples: list, after_press_s: float) -> bool:
+    """The ADC delivered a sample ``after_press_s`` [s] of device time after its first
+    sample that differs from the rest counts."""
+    snapshot = list(samples)
+    if not snapshot:
+        return False
+    rest = snapshot[0].counts
+    press = next((s for s in snapshot if list(s.counts) != list(rest)), None)
+    return press is not None and (
+        snapshot[-1].device_time_us - press.device_time_us >= after_press_s * 1e6)
 
 
 def _stamp(msg) -> float:
@@ -122,7 +152,13 @@ def test_array_bench_streams_four_channels_and_three_axes(spawn, ros_domain, tmp
         listener = Listener()
         try:
             listener.start_protocol()
-            time.sleep(world.duration_s + 1.0)
+            # the stage and gauge stamp protocol time: wait until they reached its end
+            assert wait_until(lambda: listener.first_press_s() is not None)
+            end_s = listener.first_press_s() - 0.5 + world.duration_s
+            assert wait_until(lambda: listener.streamed_past(end_s))
+            # and the ADC, on its own clock: until its samples span the protocol (noise
+            # off: every sample before the press has the rest counts)
+            assert wait_until(lambda: adc_streamed_past(samples, world.duration_s - 0.5))
         finally:
             listener.close()
     assert "protocol 'shear' started (10.0 s)" in bench.output()
@@ -174,7 +210,10 @@ def test_single_module_bench_keeps_its_signal_and_adds_the_lateral_axes(spawn, r
         listener = Listener()
         try:
             listener.start_protocol()
-            time.sleep(4.0)
+            # until the press is deep and the force high (the protocol reaches both)
+            assert wait_until(lambda: max(p[0] for _, _, p in list(listener.stage)) > 0.002
+                              and max(f[2] for _, f in list(listener.gauge)) > 3.0
+                              and samples)
         finally:
             listener.close()
     assert {len(s.counts) for s in samples} == {1}

@@ -24,6 +24,9 @@ from tactile_sensor_interfaces.srv import PredictOutput
 
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                      reliability=ReliabilityPolicy.RELIABLE)
+# Upper bound of every wait on a condition: generous, because a wait ends as soon as its
+# condition holds and a busy machine may be slow to get there (never a fixed sleep).
+PATIENCE_S = 60.0
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +40,14 @@ def start_model(spawn, *extra: str):
                  "-p", "autostart:=true", *extra, module="tactile_sensor.nodes.model")
 
 
-def call(node, client, request, timeout_s: float = 10.0):
+def spin_until(node, predicate, timeout_s: float = PATIENCE_S) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while not predicate() and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    return bool(predicate())
+
+
+def call(node, client, request, timeout_s: float = PATIENCE_S):
     future = client.call_async(request)
     rclpy.spin_until_future_complete(node, future, timeout_sec=timeout_s)
     assert future.done()
@@ -47,14 +57,21 @@ def call(node, client, request, timeout_s: float = 10.0):
 def test_predict_and_latched_calibration(spawn, ros_domain, curve):
     model = start_model(spawn)
     assert model.wait_for_output("prediction ready", 120), model.output()
-    time.sleep(1.0)  # the late subscriber below starts well after the publication
     with ros_session():
+        # Once a first subscriber has the curve, the model has published it: a subscriber
+        # created after that is late for certain (not merely 1 s after the log line).
+        early = rclpy.create_node("model_early_client")
+        first: list[CalibrationCurve] = []
+        early.create_subscription(CalibrationCurve, "/calibration_curve", first.append,
+                                  LATCHED)
+        assert spin_until(early, lambda: first), "no calibration published"
+        early.destroy_node()
         node = rclpy.create_node("model_client")
         received: list[CalibrationCurve] = []
         node.create_subscription(CalibrationCurve, "/calibration_curve", received.append,
                                  LATCHED)
         client = node.create_client(PredictOutput, "/model/predict")
-        assert client.wait_for_service(timeout_sec=20)
+        assert client.wait_for_service(timeout_sec=PATIENCE_S)
         d = np.linspace(0.0, float(curve.indentation_m[-1]), 7)
         response = call(node, client, PredictOutput.Request(indentation=d.tolist()))
         assert response.success, response.message
@@ -68,9 +85,7 @@ def test_predict_and_latched_calibration(spawn, ros_domain, curve):
         assert not outside.success
         assert "0.02" in outside.message
 
-        deadline = time.monotonic() + 10
-        while not received and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.1)
+        spin_until(node, lambda: received)
         node.destroy_node()
     assert received, "the late subscriber got no latched calibration"
     output, force = curve.calibration()
@@ -86,7 +101,7 @@ def test_not_ready_while_computing_and_bad_physics_parameter(spawn, ros_domain, 
     with ros_session():
         node = rclpy.create_node("model_client")
         client = node.create_client(PredictOutput, "/model/predict")
-        assert client.wait_for_service(timeout_sec=20)
+        assert client.wait_for_service(timeout_sec=PATIENCE_S)
         first = call(node, client, PredictOutput.Request(indentation=[0.001]))
         node.destroy_node()
     assert not first.success
@@ -110,9 +125,7 @@ def test_an_array_latches_the_calibration_fitted_on_its_grid(spawn, ros_domain):
         received: list[ArrayCalibrationMsg] = []
         node.create_subscription(ArrayCalibrationMsg, "/array_calibration", received.append,
                                  LATCHED)
-        deadline = time.monotonic() + 20
-        while not received and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.1)
+        spin_until(node, lambda: received)
         node.destroy_node()
     assert received, model.output()
     msg = received[0]
@@ -130,7 +143,13 @@ def test_a_single_module_model_latches_no_array_calibration(spawn, ros_domain):
     assert model.wait_for_output("prediction ready", 120), model.output()
     with ros_session():
         node = rclpy.create_node("array_client")
-        time.sleep(1.0)
+        # The model creates its publishers (the curve's, an array's if any) before its
+        # ~/predict service, and the middleware announces a participant's endpoints in
+        # order: once the service and the curve are seen, an array publisher would be too.
+        client = node.create_client(PredictOutput, "/model/predict")
+        assert client.wait_for_service(timeout_sec=PATIENCE_S)
+        assert spin_until(node, lambda: "/calibration_curve" in dict(
+            node.get_topic_names_and_types()))
         names = dict(node.get_topic_names_and_types())
         node.destroy_node()
     assert "/calibration_curve" in names and "/array_calibration" not in names

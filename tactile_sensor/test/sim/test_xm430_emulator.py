@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import dynamixel_easy_sdk.connector
 import numpy as np
 import pytest
 import serial
@@ -33,6 +36,50 @@ BAUD = 1_000_000
 PH = PacketHandler(2.0)
 ADDR_TORQUE, ADDR_LED, ADDR_HW_ERROR = 64, 65, 70
 ADDR_GOAL_CURRENT, ADDR_GOAL_POSITION, ADDR_PRESENT_POSITION = 102, 116, 132
+# Upper bound of every wait on a condition, and the SDK's packet timeout where an answer is
+# expected: generous, because a wait ends as soon as the answer (or the condition) is
+# there, and on a busy machine the emulator (a thread or a process) may answer late.
+PATIENCE_S = 30.0
+# How long a call that must get no answer listens. Silence cannot be faked by a busy
+# machine (it only makes answers later, never makes them appear); on an idle machine the
+# emulator answers within a millisecond, so a wrong answer would show up well inside it.
+SILENCE_S = 0.5
+
+
+class PatientPortHandler(PortHandler):
+    """The stock PortHandler (its spinning read loop included) with a packet timeout of
+    ``timeout_s`` plus the wire time, instead of the stock ~34 ms a busy scheduler exceeds."""
+
+    timeout_s = PATIENCE_S
+
+    def setPacketTimeout(self, packet_length: int) -> None:
+        self.packet_start_time = self.getCurrentTime()
+        self.packet_timeout = self.tx_time_per_byte * packet_length + self.timeout_s * 1000.0
+
+
+@contextlib.contextmanager
+def listening_for_silence(handler: PatientPortHandler) -> Iterator[None]:
+    """The calls inside expect no answer: they listen for SILENCE_S, not PATIENCE_S."""
+    handler.timeout_s = SILENCE_S
+    try:
+        yield
+    finally:
+        del handler.timeout_s  # back to the class's PATIENCE_S
+
+
+def wait_until(predicate: Callable[[], object], timeout_s: float = PATIENCE_S) -> bool:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return bool(predicate())
+
+
+def open_port(path: Path | str, baud: int = BAUD) -> PatientPortHandler:
+    handler = PatientPortHandler(str(path))
+    assert handler.openPort() and handler.setBaudRate(baud)
+    return handler
 
 
 def linear_skin() -> TabulatedSkin:
@@ -44,7 +91,7 @@ def linear_skin() -> TabulatedSkin:
 @pytest.fixture(autouse=True)
 def _share_the_gil_fairly():
     """The stock SDK spins on a zero-timeout read while it waits; with the emulator thread
-    in the same process, hand the GIL over often so replies meet the SDK's 34 ms timeout."""
+    in the same process, hand the GIL over often so the emulator answers promptly."""
     before = sys.getswitchinterval()
     sys.setswitchinterval(2e-4)
     yield
@@ -60,8 +107,7 @@ def emulator(tmp_path):
 
 @pytest.fixture
 def port(emulator):
-    handler = PortHandler(str(emulator.link.link_path))
-    assert handler.openPort() and handler.setBaudRate(BAUD)
+    handler = open_port(emulator.link.link_path)
     yield handler
     handler.closePort()
 
@@ -71,7 +117,9 @@ def test_ping_returns_model_1030(port):
 
 
 def test_other_ids_do_not_answer(port):
-    assert PH.ping(port, 2)[1] == COMM_RX_TIMEOUT
+    with listening_for_silence(port):
+        assert PH.ping(port, 2)[1] == COMM_RX_TIMEOUT
+    assert PH.ping(port, 1)[1] == COMM_SUCCESS  # while id 1 does
 
 
 def test_read_write_round_trip_and_signed_position(port, emulator):
@@ -109,7 +157,7 @@ def test_unknown_instruction_gets_instruction_error(port):
 def test_damaged_packet_gets_crc_error(emulator):
     frame = bytearray(build_instruction(1, Instruction.PING))
     frame[-1] ^= 0xFF
-    with serial.Serial(str(emulator.link.link_path), BAUD, timeout=0.5) as ser:
+    with serial.Serial(str(emulator.link.link_path), BAUD, timeout=PATIENCE_S) as ser:
         ser.write(bytes(frame))
         status = parse_one(ser.read(11))
     assert status.error == 3 and status.servo_id == 1
@@ -124,8 +172,8 @@ def test_sync_read_sync_write_bulk_read(port, emulator):
     writer = GroupSyncWrite(port, PH, ADDR_GOAL_POSITION, 4)
     writer.addParam(1, (2100).to_bytes(4, "little"))
     assert writer.txPacket() == COMM_SUCCESS
-    time.sleep(0.05)
-    assert emulator.item("Goal Position") == 2100
+    # a sync write gets no status packet: wait until the emulator has applied it
+    assert wait_until(lambda: emulator.item("Goal Position") == 2100)
     bulk = GroupBulkRead(port, PH)
     bulk.addParam(1, ADDR_GOAL_POSITION, 4)
     assert bulk.txRxPacket() == COMM_SUCCESS
@@ -133,15 +181,16 @@ def test_sync_read_sync_write_bulk_read(port, emulator):
 
 
 def test_motor_follows_profile_to_goal(port, emulator):
-    PH.write4ByteTxRx(port, 1, 112, 200)                      # Profile Velocity
+    # 20 x 0.229 rev/min: the 300 ticks (0.46 rad) take about 1 s, so the motion outlasts
+    # any scheduler delay between the goal and the reads that must see it moving
+    PH.write4ByteTxRx(port, 1, 112, 20)                       # Profile Velocity
     PH.write1ByteTxRx(port, 1, ADDR_TORQUE, 1)
     PH.write4ByteTxRx(port, 1, ADDR_GOAL_POSITION, 2048 + 300)  # closing, short of the rod
-    time.sleep(0.05)
-    assert PH.read1ByteTxRx(port, 1, 122)[0] == 1             # Moving
-    deadline = time.monotonic() + 3.0
-    while PH.read4ByteTxRx(port, 1, ADDR_PRESENT_POSITION)[0] != 2048 + 300:
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+    # Moving is updated on the emulator's next step, not with the write's status packet
+    assert wait_until(lambda: PH.read1ByteTxRx(port, 1, 122)[0] == 1)   # Moving
+    assert wait_until(
+        lambda: PH.read4ByteTxRx(port, 1, ADDR_PRESENT_POSITION)[0] == 2048 + 300)
+    assert wait_until(lambda: PH.read1ByteTxRx(port, 1, 122)[0] == 0)   # and stopped
 
 
 def test_hardware_error_sets_alert_shuts_down_and_reboot_clears(port, emulator):
@@ -151,9 +200,12 @@ def test_hardware_error_sets_alert_shuts_down_and_reboot_clears(port, emulator):
     assert (value, result, error) == (0x20, COMM_SUCCESS, 0x80)
     assert PH.read1ByteTxRx(port, 1, ADDR_TORQUE)[0] == 0      # shutdown: torque off
     assert PH.write1ByteTxRx(port, 1, ADDR_TORQUE, 1) == (COMM_SUCCESS, 0x81)
+    # a boot long enough that the ping below is surely sent while it lasts
+    emulator.reboot_s = 10 * SILENCE_S
     assert PH.reboot(port, 1) == (COMM_SUCCESS, 0x80)
-    assert PH.ping(port, 1)[1] == COMM_RX_TIMEOUT               # still booting
-    time.sleep(emulator.reboot_s + 0.02)
+    with listening_for_silence(port):
+        assert PH.ping(port, 1)[1] == COMM_RX_TIMEOUT           # still booting
+        assert wait_until(lambda: PH.ping(port, 1)[1] == COMM_SUCCESS)  # booted
     assert PH.read1ByteTxRx(port, 1, ADDR_HW_ERROR) == (0, COMM_SUCCESS, 0)
     assert PH.write1ByteTxRx(port, 1, ADDR_TORQUE, 1) == (COMM_SUCCESS, 0)
 
@@ -170,50 +222,63 @@ def test_input_voltage_error_is_live_and_keeps_torque(port, emulator):
 
 def test_no_response_and_slow_response(port, emulator):
     emulator.set_no_response(True)
-    assert PH.ping(port, 1)[1] == COMM_RX_TIMEOUT
+    with listening_for_silence(port):
+        assert PH.ping(port, 1)[1] == COMM_RX_TIMEOUT
     emulator.set_no_response(False)
-    emulator.set_extra_delay(0.1)      # beyond the SDK's ~34 ms packet timeout
-    assert PH.ping(port, 1)[1] == COMM_RX_TIMEOUT
+    # far beyond the client's packet timeout (SILENCE_S), so that no scheduler delay of
+    # the client can make it read the late reply in time
+    emulator.set_extra_delay(20 * SILENCE_S)
+    with listening_for_silence(port):
+        assert PH.ping(port, 1)[1] == COMM_RX_TIMEOUT
     emulator.clear_faults()
-    time.sleep(0.12)
+    # the late reply may still be pending: the SDK clears the port before each packet and
+    # a late ping reply would be the same as the one expected here
     assert PH.ping(port, 1)[1] == COMM_SUCCESS
 
 
 def test_status_return_level_one_answers_reads_only(port):
     assert PH.write1ByteTxRx(port, 1, 68, 1) == (COMM_SUCCESS, 0)
-    assert PH.write1ByteTxRx(port, 1, ADDR_LED, 1)[0] == COMM_RX_TIMEOUT
+    with listening_for_silence(port):
+        assert PH.write1ByteTxRx(port, 1, ADDR_LED, 1)[0] == COMM_RX_TIMEOUT
     assert PH.read1ByteTxRx(port, 1, ADDR_LED) == (1, COMM_SUCCESS, 0)
 
 
 def test_host_at_another_baud_rate_gets_no_reply(emulator):
-    handler = PortHandler(str(emulator.link.link_path))
-    handler.openPort()
-    handler.setBaudRate(57_600)
+    handler = open_port(emulator.link.link_path, 57_600)
     try:
-        assert PH.ping(handler, 1)[1] == COMM_RX_TIMEOUT
+        with listening_for_silence(handler):
+            assert PH.ping(handler, 1)[1] == COMM_RX_TIMEOUT
+        assert handler.setBaudRate(BAUD)
+        assert PH.ping(handler, 1)[1] == COMM_SUCCESS  # at its own baud rate it answers
     finally:
         handler.closePort()
 
 
 def test_wire_time_follows_the_baud_rate(tmp_path):
-    def ping_time(baud: int) -> float:
+    def transaction_times(baud: int) -> list[float]:
         with Xm430Emulator(tmp_path / f"x{baud}", baudrate=baud) as emu:
-            handler = PortHandler(str(emu.link.link_path))
-            handler.openPort()
-            handler.setBaudRate(baud)
+            handler = open_port(emu.link.link_path, baud)
             PH.write1ByteTxRx(handler, 1, 9, 0)            # Return Delay Time 0
             group = GroupSyncRead(handler, PH, 0, 147)      # a long reply
             group.addParam(1)
-            t0 = time.perf_counter()
-            for _ in range(5):
+            times = []
+            for _ in range(20):
+                t0 = time.perf_counter()
                 assert group.txRxPacket() == COMM_SUCCESS
+                times.append(time.perf_counter() - t0)
             handler.closePort()
-            return (time.perf_counter() - t0) / 5
-    # 172 wire bytes: 15 ms at 115200 bps, 0.4 ms at 4 Mbps
-    assert ping_time(115_200) > ping_time(4_000_000) + 0.01
+            return times
+    # 172 wire bytes: 15 ms at 115200 bps, 0.4 ms at 4 Mbps. Every transaction at 115200
+    # takes at least its wire time (a busy machine only adds to it); the fastest at 4 Mbps
+    # beats that by far (a scheduler would have to delay all 20 by over 14 ms to break it).
+    wire_115200 = 172 * 10 / 115_200
+    assert min(transaction_times(115_200)) >= wire_115200
+    assert min(transaction_times(4_000_000)) < wire_115200 - 0.01
 
 
-def test_easy_sdk_drives_the_emulator(emulator):
+def test_easy_sdk_drives_the_emulator(emulator, monkeypatch):
+    # the easy SDK's own PortHandler, with a packet timeout a busy machine cannot exceed
+    monkeypatch.setattr(dynamixel_easy_sdk.connector, "PortHandler", PatientPortHandler)
     connector = Connector(str(emulator.link.link_path), BAUD)
     try:
         motor = connector.createMotor(1)
@@ -224,14 +289,12 @@ def test_easy_sdk_drives_the_emulator(emulator):
         motor.enableTorque()
         motor.setGoalCurrent(200)
         motor.setGoalPosition(2200)                     # closing, short of the rod
-        time.sleep(0.5)
-        assert abs(motor.getPresentPosition() - 2200) <= 2
+        assert wait_until(lambda: abs(motor.getPresentPosition() - 2200) <= 2)
         executor = connector.createGroupExecutor()
         executor.addCmd(motor.stageSetGoalPosition(2250))
         executor.executeWrite()                         # sync write
-        time.sleep(0.3)
         executor.addCmd(motor.stageGetPresentPosition())
-        assert abs(executor.executeRead()[0] - 2250) <= 2   # sync read
+        assert wait_until(lambda: abs(executor.executeRead()[0] - 2250) <= 2)  # sync read
         motor.reboot()
         time.sleep(emulator.reboot_s + 0.02)
         assert motor.isTorqueOn() == 0
@@ -266,24 +329,17 @@ def test_cli_runs_takes_fifo_commands_and_cleans_up(tmp_path):
          "--baud", str(BAUD), "--no-world", "--control", str(control)],
         env=env, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 20
-        while not (link.exists() and control.exists()):
-            assert proc.poll() is None and time.monotonic() < deadline
-            time.sleep(0.05)
-        handler = PortHandler(str(link))
-        handler.openPort()
-        handler.setBaudRate(BAUD)
+        assert wait_until(lambda: (link.exists() and control.exists()) or proc.poll() is not None)
+        assert proc.poll() is None
+        handler = open_port(link)
         assert PH.ping(handler, 1)[1] == COMM_SUCCESS
         with open(control, "w") as fifo:
             fifo.write("fault overload\n")
-        deadline = time.monotonic() + 5
-        while PH.read1ByteTxRx(handler, 1, ADDR_HW_ERROR)[0] != 0x20:
-            assert time.monotonic() < deadline
-            time.sleep(0.05)
+        assert wait_until(lambda: PH.read1ByteTxRx(handler, 1, ADDR_HW_ERROR)[0] == 0x20)
         handler.closePort()
     finally:
         proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=10)
+        _, err = proc.communicate(timeout=PATIENCE_S)
     assert proc.returncode == 0, err
     assert "latched overload" in err
     assert not link.exists()
