@@ -162,23 +162,30 @@ def test_cli_streams_and_obeys_the_control_fifo(tmp_path):
     proc = _cli(["--link", str(link), "--skin-table", str(_skin_table(tmp_path)),
                  "--profile", "compression", "--control", str(control), "--duration", "30"])
     states, got = [], []
-    try:
-        deadline = time.monotonic() + 5.0
-        while not (link.exists() and control.exists()) and time.monotonic() < deadline:
+
+    def until(condition) -> bool:  # waits for the condition, bounded for a busy machine
+        deadline = time.monotonic() + 30.0
+        while not condition():
+            if time.monotonic() > deadline:
+                return False
             time.sleep(0.02)
+        return True
+
+    try:
+        assert until(lambda: link.exists() and control.exists())
         reader = AdcStreamReader(str(link), got.append, lambda s, r: states.append(s))
         with reader:
-            while len(got) < 100 and time.monotonic() < deadline:
-                time.sleep(0.02)
+            assert until(lambda: len(got) >= 100)
             with open(control, "w") as fifo:
                 fifo.write("drop 5\n")
-            time.sleep(0.3)
+            # the gap shows once a frame after the dropped ones arrived
+            assert until(lambda: reader.stats().dropped_frames >= 5)
             assert reader.stats().dropped_frames == 5
             with open(control, "w") as fifo:
                 fifo.write("unplug 0.3\n")
-            time.sleep(1.0)
-            assert ConnectionState.DISCONNECTED in states
-            assert reader.state is ConnectionState.CONNECTED
+            assert until(lambda: ConnectionState.DISCONNECTED in states)
+            assert until(lambda: reader.state is ConnectionState.CONNECTED
+                         and states[-1] is ConnectionState.CONNECTED)
         proc.terminate()  # SIGTERM: a clean stop, link and FIFO removed
         out, err = proc.communicate(timeout=10)
     finally:

@@ -52,7 +52,7 @@ class Stream:
             self.infos.append(info)
             self.changed.notify_all()
 
-    def wait(self, predicate, timeout_s: float = 3.0) -> bool:
+    def wait(self, predicate, timeout_s: float = 30.0) -> bool:
         with self.changed:
             return self.changed.wait_for(predicate, timeout_s)
 
@@ -67,10 +67,24 @@ class Stream:
 
 def settled_counts(device: HostFirmware, stream: Stream, volts: float,
                    channel: int | None = None) -> list[tuple[int, ...]]:
-    """Counts of ~50 frames sampled after the stimulus changed (a few ms to get there)."""
+    """Counts of ~50 frames sampled once the stimulus change reached the samples (the first
+    within 2 codes of the new voltage; a busy host may take a while to get there)."""
+    board = device.board
+    expected = min(round(volts / board.vref_v * (1 << board.adc_bits)),
+                   (1 << board.adc_bits) - 1)
+    column = channel or 0
+    begin = stream.count()
     device.set_voltage(volts, channel)
-    time.sleep(0.03)
-    start = stream.count()
+
+    def arrived() -> int | None:
+        for k, sample in enumerate(stream.samples[begin:]):
+            if abs(sample.counts[column] - expected) <= 2:
+                return begin + k
+        return None
+
+    assert stream.wait(lambda: arrived() is not None), (volts, expected)
+    start = arrived()
+    assert start is not None
     assert stream.wait(lambda: len(stream.samples) > start + 50)
     return [s.counts for s in stream.since(start)]
 
@@ -129,9 +143,8 @@ def force_after_a_step(exe: Path, link: Path, board: Board, rest_v: float,
         device.set_voltage(rest_v)
         assert stream.wait(lambda: chain.tared, 5.0)
         assert chain.baseline_v == pytest.approx(rest_v, abs=board.vref_v / (1 << board.adc_bits))
-        settled_counts(device, stream, pressed_v)
-        time.sleep(0.1)  # the savgol window (40 samples) is past the step
-        assert chain.last is not None
+        settled_counts(device, stream, pressed_v)  # 50 samples past the step: the savgol
+        assert chain.last is not None               # window (40 samples) is past it too
         return chain.last.force_n
 
 
