@@ -30,7 +30,7 @@ def run_grasp(tmp_path, rod_diameter_m):
     world = GripperWorld(TabulatedSkin(d, force, 2.0 - 0.07 * force, thickness_m=0.005),
                          rod_diameter_m=rod_diameter_m)
     with Xm430Emulator(tmp_path / "xm430", baudrate=1_000_000, world=world) as emu, \
-            Xm430Client(str(emu.link.link_path), 1_000_000, 1, timeout_s=0.2) as client:
+            Xm430Client(str(emu.link.link_path), 1_000_000, 1, timeout_s=5.0) as client:
         client.set_operating_mode(OperatingMode.CURRENT_BASED_POSITION)
         client.set_torque(True)
         controller = GraspController()
