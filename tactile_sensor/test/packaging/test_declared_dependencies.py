@@ -39,6 +39,7 @@ PROVIDER = {
     "dynamixel_easy_sdk": "python3-dynamixel-sdk-pip",
     "apsw": "python3-apsw-pip",
     "mcap": "python3-mcap-pip",
+    "ruamel": "python3-ruamel.yaml",
     "catkin_pkg": "python3-catkin-pkg",
     "pytest": "python3-pytest",
     "hypothesis": "python3-hypothesis",
