@@ -286,24 +286,30 @@ def compute_grid(params: PhysicsParams, progress: Progress | None = None,
                      paths=len(paths))
 
 
-def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
-                         progress: Progress | None = None, workers: int = 1) -> ArrayGrid:
-    """The cached grid for ``params`` (keyed by every parameter that shapes it)."""
+def grid_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:
     from .prediction import default_cache_dir
 
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = folder / f"array-grid-{params.grid_digest()}.json"
+    return folder / f"array-grid-{params.grid_digest()}.json"
+
+
+def cached_grid(params: PhysicsParams, cache_dir: Path | None = None) -> ArrayGrid | None:
+    """The cached grid for ``params``, or None (missing or damaged: recompute it)."""
+    path = grid_cache_path(params, cache_dir)
     if path.is_file():
         try:
             return ArrayGrid.from_dict(json.loads(path.read_text()))
         except (PhysicsError, ValueError, OSError):
             pass  # a damaged cache entry is recomputed and replaced
-    if progress is not None:
-        progress(0.0, f"computing the array calibration grid (cache miss: {path.name})")
-    grid = compute_grid(params, progress, workers)
+    return None
+
+
+def store_grid(params: PhysicsParams, grid: ArrayGrid, cache_dir: Path | None = None) -> None:
+    """Cache ``grid`` atomically; best effort (a read-only cache only costs time)."""
+    path = grid_cache_path(params, cache_dir)
     with contextlib.suppress(OSError):
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".array-grid-", suffix=".tmp")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".array-grid-", suffix=".tmp")
         try:
             with os.fdopen(fd, "w") as handle:
                 json.dump(grid.to_dict(), handle)
@@ -311,4 +317,17 @@ def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
         finally:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+
+
+def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
+                         progress: Progress | None = None, workers: int = 1) -> ArrayGrid:
+    """The cached grid for ``params`` (keyed by every parameter that shapes it)."""
+    grid = cached_grid(params, cache_dir)
+    if grid is not None:
+        return grid
+    if progress is not None:
+        progress(0.0, "computing the array calibration grid (cache miss: "
+                 f"{grid_cache_path(params, cache_dir).name})")
+    grid = compute_grid(params, progress, workers)
+    store_grid(params, grid, cache_dir)
     return grid
