@@ -291,7 +291,8 @@ def write_pareto_plot(rows: list[DesignRow], spec: StudySpec, path: Path) -> Non
         ax.plot(metric_value(paper, x_col), metric_value(paper, y_col), "*", color="black",
                 ms=16, label="paper's design")
     ax.set(xlabel=LABELS.get(x_col, x_col), ylabel=LABELS.get(y_col, y_col),
-           title=f"{spec.name}: Pareto front ({', '.join(spec.objectives)})")
+           title=f"{spec.name}: Pareto front")
+    ax.title.set_fontsize(10)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     try:
