@@ -12,7 +12,8 @@ Fewer solves: the block is mirror-symmetric about x = 0 and y = 0 (and about x =
 is square with windows on all four faces), so a direction that a symmetry maps onto one
 already solved is not solved again; its outputs are the mirror modules' and its forces the
 mirrored ones. With the defaults, 8 directions need 2 (0 and 45 deg). Paths solve in
-``workers`` processes at once, each pinned to one BLAS thread.
+``workers`` Dask worker processes at once (``physics/batch.py``), each pinned to one BLAS
+thread.
 
 Mesh: a half or full model on the curve's mesh took ~5 min a path (graded elements at the
 window edges invert under large shear and the steps are cut), so the grid solves a mesh with
@@ -26,13 +27,10 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import multiprocessing
 import os
-import queue as queue_module
 import tempfile
 import time
-from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -225,61 +223,28 @@ def solve_path(params: PhysicsParams, path: LoadPath, progress: Progress | None 
             "seconds": res.seconds}
 
 
-def _worker(params: dict[str, Any], path: LoadPath, index: int, queue: Any) -> dict[str, Any]:
-    def report(fraction: float, message: str) -> None:
-        queue.put((index, fraction, message))
-
-    return solve_path(PhysicsParams.from_mapping(params), path, report)
-
-
-@contextlib.contextmanager
-def _one_blas_thread() -> Iterator[None]:
-    """Spawned workers inherit the environment: one BLAS thread each, as many as cores."""
-    names = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
-    saved = {k: os.environ.get(k) for k in names}
-    os.environ.update(dict.fromkeys(names, "1"))
-    try:
-        yield
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+def _solve(values: dict[str, Any], path: LoadPath, progress: Progress | None
+           ) -> dict[str, Any]:
+    """:func:`solve_path` from plain values, as a batch task."""
+    return solve_path(PhysicsParams.from_mapping(values), path, progress)
 
 
 def solve_paths(params: PhysicsParams, paths: list[LoadPath], workers: int,
-                progress: Progress | None) -> list[dict[str, Any]]:
-    """Every path's arrays, in order; ``workers`` > 1 solves that many at once."""
-    costs = np.array([_path_cost(p) for p in paths])
-    done = np.zeros(len(paths))
+                progress: Progress | None, scheduler: str | None = None
+                ) -> list[dict[str, Any]]:
+    """Every path's arrays, in order, solved as batch tasks (``physics/batch.py``):
+    ``workers`` > 1 (or a ``scheduler``) solves that many at once on Dask."""
+    from .batch import run
 
-    def report(index: int, fraction: float, message: str) -> None:
-        done[index] = fraction
-        if progress is not None:
-            total = float(done @ costs / costs.sum())
-            path = paths[index]
-            what = "pure indentation" if path.direction < 0 else (
-                f"direction {path.direction}, level {path.level}")
-            progress(total, f"path {index + 1}/{len(paths)} ({what}): {message}")
-
-    if workers <= 1:
-        return [solve_path(params, path, lambda f, m, i=i: report(i, f, m))
-                for i, path in enumerate(paths)]
-    ctx = multiprocessing.get_context("spawn")
     values = {k: list(v) if isinstance(v, tuple) else v for k, v in params.to_dict().items()}
-    with ctx.Manager() as manager, _one_blas_thread(), ProcessPoolExecutor(
-            workers, mp_context=ctx) as pool:
-        queue = manager.Queue()
-        order = np.argsort(-costs, kind="stable")          # the longest paths first
-        futures = {int(i): pool.submit(_worker, values, paths[i], int(i), queue)
-                   for i in order}
-        while not all(f.done() for f in futures.values()):
-            with contextlib.suppress(queue_module.Empty):
-                report(*queue.get(timeout=0.5))
-        while not queue.empty():
-            report(*queue.get())
-        return [futures[i].result() for i in range(len(paths))]
+    results: list[dict[str, Any] | None] = [None] * len(paths)
+    for r in run(_solve, [(values, path) for path in paths], scheduler=scheduler,
+                 workers=workers, costs=[_path_cost(p) for p in paths],
+                 progress=progress, label="path"):
+        if r.error is not None:
+            raise r.error
+        results[r.index] = r.value
+    return [r for r in results if r is not None]
 
 
 def compute_grid(params: PhysicsParams, progress: Progress | None = None,
@@ -321,24 +286,30 @@ def compute_grid(params: PhysicsParams, progress: Progress | None = None,
                      paths=len(paths))
 
 
-def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
-                         progress: Progress | None = None, workers: int = 1) -> ArrayGrid:
-    """The cached grid for ``params`` (keyed by every parameter that shapes it)."""
+def grid_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:
     from .prediction import default_cache_dir
 
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = folder / f"array-grid-{params.grid_digest()}.json"
+    return folder / f"array-grid-{params.grid_digest()}.json"
+
+
+def cached_grid(params: PhysicsParams, cache_dir: Path | None = None) -> ArrayGrid | None:
+    """The cached grid for ``params``, or None (missing or damaged: recompute it)."""
+    path = grid_cache_path(params, cache_dir)
     if path.is_file():
         try:
             return ArrayGrid.from_dict(json.loads(path.read_text()))
         except (PhysicsError, ValueError, OSError):
             pass  # a damaged cache entry is recomputed and replaced
-    if progress is not None:
-        progress(0.0, f"computing the array calibration grid (cache miss: {path.name})")
-    grid = compute_grid(params, progress, workers)
+    return None
+
+
+def store_grid(params: PhysicsParams, grid: ArrayGrid, cache_dir: Path | None = None) -> None:
+    """Cache ``grid`` atomically; best effort (a read-only cache only costs time)."""
+    path = grid_cache_path(params, cache_dir)
     with contextlib.suppress(OSError):
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".array-grid-", suffix=".tmp")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".array-grid-", suffix=".tmp")
         try:
             with os.fdopen(fd, "w") as handle:
                 json.dump(grid.to_dict(), handle)
@@ -346,4 +317,17 @@ def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
         finally:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+
+
+def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
+                         progress: Progress | None = None, workers: int = 1) -> ArrayGrid:
+    """The cached grid for ``params`` (keyed by every parameter that shapes it)."""
+    grid = cached_grid(params, cache_dir)
+    if grid is not None:
+        return grid
+    if progress is not None:
+        progress(0.0, "computing the array calibration grid (cache miss: "
+                 f"{grid_cache_path(params, cache_dir).name})")
+    grid = compute_grid(params, progress, workers)
+    store_grid(params, grid, cache_dir)
     return grid

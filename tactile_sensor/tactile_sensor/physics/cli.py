@@ -1,6 +1,7 @@
 """``tactile-sensor model sweep``: the FEM prediction of the module from the command line;
 ``tactile-sensor model array-calibration``: the grid of load paths that calibrates modules on
-several faces for (Fx, Fy, Fz), its fit and the fit's error on held-out points.
+several faces for (Fx, Fy, Fz), its fit and the fit's error on held-out points;
+``tactile-sensor model study``: a design study over a space of parameters, run on Dask.
 
 Parameters come from the defaults, then ``--config`` (flat YAML or ROS ``ros__parameters``
 form, e.g. ``config/physics.yaml``), then ``--set NAME=VALUE``, then ``--boundary`` and
@@ -86,7 +87,39 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--plot", type=Path, metavar="PATH",
                    help="write a PNG: calibrated vs FEM force per axis on held-out points, "
                         "module outputs against the shear direction")
+    st = sub.add_parser(
+        "study", help="a design and placement study: the FEM over a design space, on Dask",
+        description="Solve every design of SPEC (YAML: parameters to vary as lists or "
+                    "ranges {from, to, count}, a grid or a seeded Sobol/Halton sample, fixed "
+                    "parameters, metrics; see config/studies/) as Dask tasks, measure each "
+                    "(sensitivity [V/N], full-scale force [N], non-linearity [%% FS], "
+                    "dynamic range [dB]; with several modules the sensitivity matrix over "
+                    "Fx, Fy, Fz, its singular values, condition number and cross-talk) and "
+                    "write results.csv, summary.json (Pareto designs), pareto.png, "
+                    "metrics.png and report.md to --out. Each design is cached: a rerun "
+                    "or a widened study solves only new designs; Ctrl-C keeps the finished "
+                    "ones.")
+    st.add_argument("spec", type=Path, metavar="SPEC", help="the study's YAML file")
+    st.add_argument("--out", type=Path, required=True, metavar="DIR",
+                    help="folder for the results (created if missing)")
+    st.add_argument("--scheduler", metavar="ADDRESS",
+                    help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+                         "(start one with 'dask scheduler' and 'dask worker'); default: a "
+                         "local cluster of --workers processes")
+    st.add_argument("--workers", type=int, metavar="N",
+                    help="local worker processes, one design each at a time (default: the "
+                         "cores, here " + str(_cores()) + "); 1 solves in this process")
+    st.add_argument("--cache-dir", type=Path, metavar="DIR",
+                    help="cache folder (default $XDG_CACHE_HOME/tactile_sensor, shared with "
+                         "'model sweep' and 'model array-calibration')")
+    st.add_argument("--quiet", action="store_true", help="no progress on stderr")
     return top
+
+
+def _cores() -> int:
+    from .batch import default_workers
+
+    return default_workers()
 
 
 def _model_options(p: argparse.ArgumentParser) -> None:
@@ -351,6 +384,58 @@ def array_calibration(args: argparse.Namespace) -> int:
     return 0
 
 
+def study(args: argparse.Namespace) -> int:
+    from .study import run_study
+    from .study_report import write_results
+    from .study_spec import StudySpecError, load_spec
+
+    try:
+        spec = load_spec(args.spec)
+    except StudySpecError as err:
+        raise UsageError(str(err)) from None
+    if args.workers is not None and args.workers < 1:
+        raise UsageError("--workers must be at least 1.")
+    if args.scheduler is not None and args.workers is not None:
+        raise UsageError("--workers sizes the local cluster and --scheduler names your own; "
+                         "give one of them.")
+    if args.out.exists() and not args.out.is_dir():
+        raise UsageError(f"--out {args.out} is a file; pass a folder.")
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise UsageError(f"cannot create --out {args.out} ({err.strerror}); pass a writable "
+                         "folder.") from None
+    started = time.perf_counter()
+    progress = _Progress(not args.quiet)
+    try:
+        rows = run_study(spec, scheduler=args.scheduler, workers=args.workers,
+                         cache_dir=args.cache_dir, progress=progress)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt("the finished designs are cached; rerun the same command "
+                                "to resume") from None
+    seconds = time.perf_counter() - started
+    try:
+        paths = write_results(rows, spec, args.out, seconds)
+    except OSError as err:
+        raise PhysicsError(f"cannot write the results to {args.out} "
+                           f"({err.strerror or err}); pass a writable folder.") from None
+    from .study_report import fmt_metric, pareto_rows
+
+    solved = sum(r.ok for r in rows)
+    lines = [f"study           {spec.name}",
+             f"designs         {len(rows)} ({solved} solved, {len(rows) - solved} failed), "
+             f"{seconds:.1f} s"]
+    if rows[0].ok:
+        lines.append("paper's design  " + ", ".join(
+            f"{c} {fmt_metric(c, rows[0].metrics[c])}" for c in spec.objectives))
+    front = pareto_rows(rows, spec)
+    lines.append(f"pareto          {len(front)} designs: "
+                 + ", ".join(r.design for r in front))
+    lines += [f"{p.name:<15} {p}" for p in paths.values()]
+    print("\n".join(lines))
+    return 0
+
+
 def _plain(params: PhysicsParams) -> dict[str, Any]:
     return {k: list(v) if isinstance(v, tuple) else v for k, v in params.to_dict().items()}
 
@@ -365,15 +450,17 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # --help
         return exc.code if isinstance(exc.code, int) else 0
     try:
-        code = sweep(args) if args.command == "sweep" else array_calibration(args)
+        code = {"sweep": sweep, "array-calibration": array_calibration,
+                "study": study}[args.command](args)
     except UsageError as err:
         print(f"{PROG} {args.command}: {err}", file=sys.stderr)
         return 2
     except PhysicsError as err:
         print(f"{PROG} {args.command}: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"{PROG} {args.command}: interrupted.", file=sys.stderr)
+    except KeyboardInterrupt as err:
+        why = f"; {err}." if str(err) else "."
+        print(f"{PROG} {args.command}: interrupted{why}", file=sys.stderr)
         return 130
     if not args.quiet:
         print(f"done in {time.perf_counter() - started:.1f} s", file=sys.stderr)

@@ -196,26 +196,47 @@ def compute_curve(params: PhysicsParams, progress: Progress | None = None) -> Pr
                             sweep.nodes, sweep.seconds, sweep)
 
 
-def load_or_compute_curve(params: PhysicsParams, cache_dir: Path | None = None,
-                          progress: Progress | None = None) -> PredictionCurve:
-    """The cached curve for ``params``, computing and caching it on a miss."""
+def cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    path = folder / f"prediction-{params.digest()}.json"
+    return folder / f"prediction-{params.digest()}.json"
+
+
+def cached_curve(params: PhysicsParams, cache_dir: Path | None = None
+                 ) -> PredictionCurve | None:
+    """The cached curve for ``params``, or None (missing or damaged: recompute it)."""
+    path = cache_path(params, cache_dir)
     if path.is_file():
         try:
             return PredictionCurve.from_dict(json.loads(path.read_text()))
         except (PhysicsError, ValueError, OSError):
             pass  # a damaged (even non-UTF-8) cache entry is recomputed and replaced
-    if progress is not None:
-        progress(0.0, f"computing the FEM sweep (cache miss: {path.name})")
-    curve = compute_curve(params, progress)
+    return None
+
+
+def store_curve(params: PhysicsParams, curve: PredictionCurve,
+                cache_dir: Path | None = None) -> None:
+    """Cache ``curve`` atomically (a crashed run never leaves half a file); best effort."""
+    path = cache_path(params, cache_dir)
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".prediction-", suffix=".tmp")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".prediction-", suffix=".tmp")
         with os.fdopen(fd, "w") as handle:
             json.dump(curve.to_dict(), handle)
         os.replace(tmp, path)
     except OSError:
         with contextlib.suppress(OSError, UnboundLocalError):
             os.unlink(tmp)
+
+
+def load_or_compute_curve(params: PhysicsParams, cache_dir: Path | None = None,
+                          progress: Progress | None = None) -> PredictionCurve:
+    """The cached curve for ``params``, computing and caching it on a miss."""
+    curve = cached_curve(params, cache_dir)
+    if curve is not None:
+        return curve
+    if progress is not None:
+        progress(0.0, "computing the FEM sweep (cache miss: "
+                 f"{cache_path(params, cache_dir).name})")
+    curve = compute_curve(params, progress)
+    store_curve(params, curve, cache_dir)
     return curve

@@ -38,6 +38,8 @@ PROVIDER = {
     "dynamixel_sdk": "python3-dynamixel-sdk-pip",
     "dynamixel_easy_sdk": "python3-dynamixel-sdk-pip",
     "apsw": "python3-apsw-pip",
+    "dask": "python3-dask-pip",
+    "distributed": "python3-distributed-pip",
     "mcap": "python3-mcap-pip",
     "ruamel": "python3-ruamel.yaml",
     "catkin_pkg": "python3-catkin-pkg",
