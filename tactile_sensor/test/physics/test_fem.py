@@ -295,3 +295,24 @@ def test_closed_form_tangent_matches_a_central_difference_of_the_stress():
     # the tangent of a hyperelastic stress is major-symmetric: A_iKkL = A_kLiK
     np.testing.assert_allclose(A, A.transpose(2, 3, 0, 1, 4), rtol=0,
                                atol=1e-12 * np.abs(A).max())
+
+
+def test_krylov_correction_meets_its_target_on_the_true_linear_residual():
+    """Right-preconditioned GMRES with an aged single-precision tangent: |r + K du| must be
+    within the target it was given, measured with the exact float64 tangent (a stopping
+    test on the preconditioned residual would not guarantee this)."""
+    p = PhysicsParams(mesh_nx=3, mesh_ny=3, mesh_nz=8, max_indentation=0.002)
+    m = SkinModel(p)
+    u0 = np.zeros(m.ndof)
+    lu = m._factorise(u0, m._perm)                          # tangent of the unloaded block
+    u = np.zeros(m.ndof)
+    m._prescribe(u, 0.3)
+    u, _ = m._tangent_predictor(u0, 0.3, m._perm)           # a loaded, unbalanced state
+    fint, K = m._evaluate(u, True)
+    r = fint[m._free]
+    target = 1e-4 * float(np.linalg.norm(r))
+    du = m._krylov(u, r, lu, target)
+    assert du is not None
+    assert m.stats["krylov"] > 1                            # the aged tangent needed GMRES
+    assert float(np.linalg.norm(r + K @ du)) <= 1.05 * target
+    assert m._krylov(u, r, lu, 1e-30) is None               # unreachable: reported, not raised
