@@ -10,6 +10,13 @@ own extrapolation uses the default mesh as its half, with the observed convergen
 p = log2((f_h/2 - f_h) / (f_h - f_2h)) from the three meshes. ``--7k`` adds a raw sweep on a
 quarter mesh of at least the paper's 7005 nodes.
 
+The raw default and half sweeps always run (also with ``--no-study``), each with the split of
+its time: residual evaluations (the stress), tangent assemblies, factorisations and
+triangular solves, with their counts, which do not depend on the machine's load. Timings on a
+shared machine are noisy: take the minimum of several runs, and note the load average that
+is printed. A busy machine slows OpenBLAS' threads badly (the residual's GEMMs and SuperLU's
+solves); ``OPENBLAS_NUM_THREADS=1`` shows the single-thread figure.
+
 The 2x mesh takes tens of minutes (a factorisation of its 64k unknowns takes ~25 s) and
 shows its progress; its first load steps need cutting (``SkinModel.sweep``), and a solve
 that still fails is reported, not raised.
@@ -18,6 +25,7 @@ that still fails is reported, not raised.
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -55,6 +63,13 @@ def raw(params: PhysicsParams, label: str, verbose: bool = False) -> SweepResult
           f"factorisations {model.stats['factorisations']}, step cuts {model.stats['cuts']}; at "
           f"{params.max_indentation * 1e3:.1f} mm force {res.force_n[-1]:.4f} N, bulge "
           f"{res.bulge_m[-1] * 1e3:.5f} mm", flush=True)
+    s = model.stats
+    rest = res.seconds - sum(s[k] for k in ("residual_s", "tangent_s", "factorise_s",
+                                             "solve_s"))
+    print(f"  split: residuals {s['residual_s']:.2f} s ({s['residuals']}), tangents "
+          f"{s['tangent_s']:.2f} s ({s['factorisations']}), factorisations "
+          f"{s['factorise_s']:.2f} s, solves {s['solve_s']:.2f} s ({s['solves']}), "
+          f"other {rest:.2f} s", flush=True)
     return res
 
 
@@ -72,6 +87,8 @@ def change(a: float, b: float) -> str:
 
 def main() -> None:
     base = PhysicsParams()
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores, "
+          f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}")
     start = time.perf_counter()
     curve = compute_curve(base)
     total = time.perf_counter() - start
@@ -83,9 +100,11 @@ def main() -> None:
           flush=True)
     if "--7k" in sys.argv:
         raw(base.replace(mesh_nx=12, mesh_ny=12, mesh_nz=42), "quarter mesh >= 7005 nodes")
+    half, default = raw(scaled(base, 0.5), "half mesh"), raw(base, "default mesh")
+    print(f"raw default sweep {default.seconds:.2f} s; half {half.seconds:.2f} s; "
+          f"load average now {os.getloadavg()[0]:.1f}", flush=True)
     if "--no-study" in sys.argv:
         return
-    half, default = raw(scaled(base, 0.5), "half mesh"), raw(base, "default mesh")
     fine_params = scaled(base, 2.0)
     try:
         fine = raw(fine_params, "2x finer mesh", verbose=True)

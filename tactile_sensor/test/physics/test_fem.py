@@ -247,3 +247,72 @@ def test_a_half_mesh_too_coarse_for_the_window_names_the_way_out():
                                            r"mesh_extrapolation_order_force and "
                                            r"mesh_extrapolation_order_bulge to 0"):
         fem.extrapolated_sweep(p)
+
+
+def _random_deformations(seed: int, n: int, spread: float) -> np.ndarray:
+    """(3, 3, n) deformation gradients around the identity with det F > 0.2."""
+    rng = np.random.default_rng(seed)
+    F = np.eye(3)[:, :, None] + spread * rng.normal(size=(3, 3, 4 * n))
+    keep = np.linalg.det(F.transpose(2, 0, 1)) > 0.2
+    return F[:, :, keep][:, :, :n]
+
+
+@given(st.integers(0, 2**31), st.floats(0.01, 0.5), st.floats(-1e4, 3e4),
+       st.floats(1e3, 3e4), st.floats(-1e6, 1e6))
+def test_closed_form_tangent_equals_the_complex_step_of_the_stress(seed, spread, c10, c01,
+                                                                    pres):
+    """The closed-form dP/dF must be the derivative of the very stress the residual uses."""
+    F = _random_deformations(seed, 16, spread)
+    n = F.shape[2]
+    P_ref, _ = fem._mooney_rivlin_piola(F, c10, c01, np.full(n, pres))
+    P, A = fem._mooney_rivlin_tangent(F, c10, c01, np.full(n, pres))
+    scale = np.abs(P_ref).max() + abs(c10) + c01 + abs(pres)
+    np.testing.assert_allclose(P, P_ref, rtol=0, atol=1e-12 * scale)
+    Fc = np.repeat(F[:, :, None].astype(complex), 9, axis=2)
+    for m in range(9):
+        Fc[m // 3, m % 3, m] += 1e-30j
+    Pc, _ = fem._mooney_rivlin_piola(Fc, c10, c01, np.full((9, n), pres))
+    A_ref = (Pc.imag / 1e-30).reshape(3, 3, 3, 3, n)
+    np.testing.assert_allclose(A, A_ref, rtol=0, atol=1e-10 * (np.abs(A_ref).max() + scale))
+
+
+def test_closed_form_tangent_matches_a_central_difference_of_the_stress():
+    """Independent of complex arithmetic: dP/dF by central differences, per component."""
+    F = _random_deformations(7, 40, 0.3)
+    n = F.shape[2]
+    pres = np.linspace(-2e4, 2e4, n)
+    _, A = fem._mooney_rivlin_tangent(F, -33.35, 12180.0, pres)
+    h = 1e-6
+    for k in range(3):
+        for L in range(3):
+            dF = np.zeros_like(F)
+            dF[k, L] = h
+            Pp, _ = fem._mooney_rivlin_piola(F + dF, -33.35, 12180.0, pres)
+            Pm, _ = fem._mooney_rivlin_piola(F - dF, -33.35, 12180.0, pres)
+            fd = (Pp - Pm) / (2 * h)
+            np.testing.assert_allclose(A[:, :, k, L], fd, rtol=0,
+                                       atol=1e-6 * np.abs(fd).max())
+    # the tangent of a hyperelastic stress is major-symmetric: A_iKkL = A_kLiK
+    np.testing.assert_allclose(A, A.transpose(2, 3, 0, 1, 4), rtol=0,
+                               atol=1e-12 * np.abs(A).max())
+
+
+def test_krylov_correction_meets_its_target_on_the_true_linear_residual():
+    """Right-preconditioned GMRES with an aged single-precision tangent: |r + K du| must be
+    within the target it was given, measured with the exact float64 tangent (a stopping
+    test on the preconditioned residual would not guarantee this)."""
+    p = PhysicsParams(mesh_nx=3, mesh_ny=3, mesh_nz=8, max_indentation=0.002)
+    m = SkinModel(p)
+    u0 = np.zeros(m.ndof)
+    lu = m._factorise(u0, m._perm)                          # tangent of the unloaded block
+    u = np.zeros(m.ndof)
+    m._prescribe(u, 0.3)
+    u, _ = m._tangent_predictor(u0, 0.3, m._perm)           # a loaded, unbalanced state
+    fint, K = m._evaluate(u, True)
+    r = fint[m._free]
+    target = 1e-4 * float(np.linalg.norm(r))
+    du = m._krylov(u, r, lu, target)
+    assert du is not None
+    assert m.stats["krylov"] > 1                            # the aged tangent needed GMRES
+    assert float(np.linalg.norm(r + K @ du)) <= 1.05 * target
+    assert m._krylov(u, r, lu, 1e-30) is None               # unreachable: reported, not raised
