@@ -58,6 +58,10 @@ from tactile_sensor.sensing.rate_calibration import describe_model
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
 
+#: Readings a reliable subscriber may fall behind before the publisher's KEEP_LAST history
+#: drops them unacknowledged: 2 s at 1 kHz. With 100 the recorder lost 34-247 readings at a
+#: time while a model process started beside it (benchmarks/soak.py).
+SAMPLE_QUEUE_DEPTH = 2000
 CALIBRATION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
 
@@ -216,8 +220,10 @@ class DriverNode(Node):
         self._adc = self._info_logged = None
         rate = values["publish_rate"]
         self._publish_every_ns = int(1e9 / rate) if rate > 0 else 0
-        self._wrench_pub = self.create_lifecycle_publisher(WrenchStamped, "~/wrench", 100)
-        self._reading_pub = self.create_lifecycle_publisher(TactileReading, "~/reading", 100)
+        self._wrench_pub = self.create_lifecycle_publisher(WrenchStamped, "~/wrench",
+                                                             SAMPLE_QUEUE_DEPTH)
+        self._reading_pub = self.create_lifecycle_publisher(TactileReading, "~/reading",
+                                                              SAMPLE_QUEUE_DEPTH)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._tare_srv = self.create_service(Trigger, "~/tare", self._on_tare)
         if values["calibration_source"] == "model" and modules:
@@ -472,6 +478,8 @@ class DriverNode(Node):
             "frames": stats.frames, "frames_dropped": stats.dropped_frames,
             "frames_overflowed": stats.backlog_dropped, "frames_backlog": stats.backlog,
             "frames_backlog_peak": stats.backlog_peak,
+            # what left on ~/reading, so a monitor can count losses by frame, not by rate
+            "readings_published": self.published_readings,
             "sequence_gaps": stats.sequence_gaps, "crc_errors": stats.crc_errors,
             "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
             "calibration_source": chain.calibration_source,
