@@ -76,6 +76,7 @@ FRAME_BYTES = 11  # one-channel frame (docs/serial-frame.md)
 # What a cable pull can swallow: the device's host buffer and the pseudo-terminal's.
 LINK_CAPACITY_FRAMES = (65536 + 20000) // FRAME_BYTES
 GRASP_FORCE_N = 2.0
+SELF = "soak (this process)"
 
 
 def say(text: str) -> None:
@@ -135,13 +136,15 @@ def wait_until(condition: Callable[[], Any], timeout_s: float = WAIT_S,
         time.sleep(period_s)
 
 
-def node_argv(spec_name: str, configuration: Any, namespace: str,
-              *extra: str) -> list[str]:
-    """``python -m <node module> --ros-args`` as the launch file gives it, in a namespace."""
+def node_argv(spec_name: str, configuration: Any, namespace: str, *extra: str,
+              params_file: Path | None = None) -> list[str]:
+    """``python -m <node module> --ros-args`` as the launch file gives it, in a namespace
+    (``params_file`` after the configuration's: its node sections beat theirs, a global
+    ``-p`` would not)."""
     from tactile_sensor.nodes.bringup_runner import node_arguments
 
     spec = next(s for s in configuration.nodes if s.name == spec_name)
-    return [sys.executable, "-m", spec.module, *node_arguments(spec, None),
+    return [sys.executable, "-m", spec.module, *node_arguments(spec, params_file),
             "-r", f"__ns:={namespace}", "-p", "autostart:=true", *extra]
 
 
@@ -333,6 +336,9 @@ class Soak:
         self.adc_link, self.adc_ctl = f / "bench_adc", f / "bench_adc.ctl"
         self.servo_link, self.servo_ctl = f / "xm430", f / "xm430.ctl"
         self.gripper_adc = f / "gripper_adc"
+        self.gripper_params = f / "soak_gripper.yaml"
+        self.gripper_params.write_text(  # the overload fault's recovery
+            "/**/gripper:\n  ros__parameters:\n    auto_reboot: true\n")
         topics = [f"{BENCH_NS}/driver/reading", f"{BENCH_NS}/driver/wrench"]
         self.reading_topic = topics[0]
         types = [f"{topics[0]}=tactile_sensor_interfaces/msg/TactileReading",
@@ -362,9 +368,10 @@ class Soak:
                 "driver", GRIPPER, GRIPPER_NS, "-p", f"port:={self.gripper_adc}"), f, env),
             "gripper": Proc("gripper", node_argv(
                 "gripper", GRIPPER, GRIPPER_NS, "-p", f"port:={self.servo_link}",
-                "-p", "auto_reboot:=true"), f, env),
+                params_file=self.gripper_params), f, env),
         }
         self.t0 = time.monotonic()
+        self.wall_minus_monitor_s = time.time() - (time.monotonic() - self.t0)
         self.monitor = Monitor(self.t0)
         self.sampler = Sampler(self._pids, self.monitor)
         self.grasps = GraspLoop(self.monitor)
@@ -375,7 +382,7 @@ class Soak:
 
     def _pids(self) -> dict[str, int]:
         pids = {name: p.pid for name, p in self.procs.items() if p.alive()}
-        pids["soak (this process)"] = os.getpid()
+        pids[SELF] = os.getpid()
         return pids
 
     # -- bring-up ---------------------------------------------------------------------------
@@ -481,13 +488,14 @@ class Soak:
         schedule = fault_schedule(run_s, spacing_s=min(30.0, max(15.0, run_s / 12)))
         say(f"soak: {self.minutes:g} min, ADC {ADC_RATE_HZ:g} Hz, bag split every "
             f"{self.split_s:g} s; bringing up {len(self.procs)} processes in {self.folder}")
+        watch_stop = threading.Event()
+        watcher = threading.Thread(target=self._watch_splits, args=(watch_stop,), daemon=True)
+        watcher.start()  # before the recorder starts: its first file's creation is seen
         self.bring_up()
         self.run_start_s = self.monitor.now()
         say(f"soak: up after {self.run_start_s:.1f} s; faults at "
-            + ", ".join(f"{f.at_s:.0f} s {f.kind}" for f in schedule))
-        watch_stop = threading.Event()
-        watcher = threading.Thread(target=self._watch_splits, args=(watch_stop,), daemon=True)
-        watcher.start()
+            + ", ".join(f"{self.run_start_s + f.at_s:.0f} s {f.kind}" for f in schedule)
+            + " (times since the benchmark started)")
         self.sampler.sample_once()
         self.sampler.thread.start()
         self.grasps.thread.start()
@@ -497,8 +505,7 @@ class Soak:
                 time.sleep(delay)
             result = self.inject(fault)
             self.faults.append(result)
-            say(f"  {self.monitor.now() - self.run_start_s:6.1f} s {fault.kind}: " +
-                _fault_line(result))
+            say(f"  {result.at_s:6.1f} s {fault.kind}: " + _fault_line(result))
         delay = self.run_start_s + run_s - self.monitor.now()
         if delay > 0:
             time.sleep(delay)
@@ -532,21 +539,20 @@ class Soak:
         for name in ("gripper", "gripper_driver", "gripper_model", "bench_driver",
                      "bench_model", "xm430"):
             codes[name] = p[name].stop(signal.SIGINT if name != "xm430" else signal.SIGTERM)
-        recorded, files = count_bag(self.bag, self.reading_topic)
-        splits = self._split_faults(files)
+        recorded, files, first_ns = count_bag(self.bag, self.reading_topic)
+        # the recorder splits by message time: due k x max_bag_duration after the first
+        first_s = first_ns * 1e-9 - self.wall_minus_monitor_s
+        splits = self._split_faults(files, first_s)
         return self.summarise(device, final, recorded, files, splits, codes)
 
-    def _split_faults(self, files: list[str]) -> list[FaultResult]:
+    def _split_faults(self, files: list[str], first: float) -> list[FaultResult]:
         """Each split: detected when its file appeared, relative to when it was due (the
-        first file's appearance + k x max_bag_duration)."""
+        bag's first message + k x max_bag_duration, both in this process's clock)."""
         seen = sorted(self.split_files.items(), key=lambda kv: kv[1])
-        if not seen:
-            return []
-        first = seen[0][1]
         out = []
         for k, (name, t) in enumerate(seen[1:], start=1):
             due = first + k * self.split_s
-            out.append(FaultResult(SPLIT_KIND, due - self.run_start_s, t - due,
+            out.append(FaultResult(SPLIT_KIND, due, t - due,
                                    t - due if name in files else None,
                                    f"{name}; recovered = it holds messages in the bag"))
         return out
@@ -570,15 +576,17 @@ class Soak:
         unrecovered = [f"{f.kind} at {f.at_s:.0f} s" for f in self.faults if not f.recovered]
         unrecovered += [f"{n} restarted" for n in restarted]
         run_s = self.minutes * 60.0
-        warmup_s = self.run_start_s + min(60.0, 0.25 * run_s)
+        warmup_s = min(60.0, 0.25 * run_s)  # after each process's first sample
         processes = []
         growth: dict[str, float] = {}
         for series in self.sampler.series.values():
             s = series.samples
             label = f"{series.name} (pid {series.pid})"
-            rss_h = growth_per_hour([(t, mb) for t, mb, _ in s], warmup_s)
-            fd_h = growth_per_hour([(t, float(fd)) for t, _, fd in s], warmup_s)
-            growth[label] = rss_h
+            after = s[0][0] + warmup_s
+            rss_h = growth_per_hour([(t, mb) for t, mb, _ in s], after)
+            fd_h = growth_per_hour([(t, float(fd)) for t, _, fd in s], after)
+            if series.name != SELF:  # it keeps every report it receives, by design
+                growth[label] = rss_h
             processes.append({"process": label, "samples": len(s),
                               "rss_start_mb": s[0][1], "rss_end_mb": s[-1][1],
                               "fds_start": s[0][2], "fds_end": s[-1][2],
@@ -596,7 +604,7 @@ class Soak:
             "loss": asdict(loss), "unplugged_windows_s": self.windows,
             "recorded": recorded, "bag_files": files,
             "faults": [asdict(f) for f in self.faults],
-            "processes": processes, "rss_warmup_until_s": warmup_s,
+            "processes": processes, "rss_warmup_s": warmup_s,
             "grasps": {"attempted": self.grasps.attempted, "succeeded": self.grasps.succeeded,
                        "outcomes": self.grasps.outcomes},
             "exit_codes": codes,
@@ -631,15 +639,19 @@ def parse_device_stats(log: str) -> dict[str, int]:
     return out
 
 
-def count_bag(path: Path, topic: str) -> tuple[int, list[str]]:
-    """Messages on ``topic`` in every storage file of the bag, and the files."""
+def count_bag(path: Path, topic: str) -> tuple[int, list[str], int]:
+    """Messages on ``topic`` in every storage file of the bag, the files, and the bag's
+    first reception stamp [ns, system clock]."""
     from tactile_sensor.analysis.bag_reader import open_reader
 
-    with open_reader(path) as reader:
-        files = [Path(p).name for p in reader.paths]
+    reader = open_reader(path)  # every storage file metadata.yaml lists
+    try:
         connections = [c for c in reader.connections if c.topic == topic]
         count = sum(1 for _ in reader.messages(connections=connections))
-    return count, files
+        first_ns = reader.start_time
+    finally:
+        reader.close()
+    return count, sorted(p.name for p in path.glob("*.mcap")), first_ns
 
 
 def print_report(r: dict[str, Any]) -> None:
@@ -662,11 +674,13 @@ def print_report(r: dict[str, Any]) -> None:
             f"{int(g.get('readings_published', 0)):,} readings published (250 Hz)")
     say(f"recorder: {r['recorded']:,} readings in {len(r['bag_files'])} file(s) "
         f"({', '.join(r['bag_files'])}) of {loss['published']:,} published")
-    say("faults (times from injection; split: from when it was due):")
+    say("faults (at: since the benchmark started; detection and recovery: from the "
+        "injection, for a split from when it was due):")
     for f in r["faults"]:
         say(f"  {f['at_s']:6.1f} s {f['kind']:<16} " + _fault_line(FaultResult(**f)))
     say(f"processes (RSS growth: Theil-Sen slope of samples every {SAMPLE_PERIOD_S:g} s "
-        f"after {r['rss_warmup_until_s']:.0f} s):")
+        f"from {r['rss_warmup_s']:.0f} s after each process's first one; this process "
+        "keeps every report, so it is listed but not judged):")
     say(f"  {'process':<34} {'RSS MB start':>12} {'end':>7} {'MB/h':>8} {'fds':>9} {'fd/h':>7}")
     for p in r["processes"]:
         say(f"  {p['process']:<34} {p['rss_start_mb']:12.1f} {p['rss_end_mb']:7.1f} "

@@ -1,0 +1,53 @@
+"""Two minutes of ``benchmarks/soak.py``: both configurations in real processes on the mock
+devices, every fault once, grasps throughout; the issue's goals asserted from its JSON."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+SOAK = Path(__file__).resolve().parents[3] / "benchmarks" / "soak.py"
+KINDS = {"adc_unplug", "servo_overload", "cpu_burner", "model_restart", "recording_split"}
+
+
+def test_two_minute_soak_meets_the_goals(spawn, ros_domain, tmp_path: Path) -> None:
+    report_path = tmp_path / "soak.json"
+    # --split 40: a 2-minute bag splits twice, so the recorder's count crosses files
+    run = spawn(sys.executable, "-u", str(SOAK), "--minutes", "2", "--split", "40",
+                "--json", str(report_path), "--keep", str(tmp_path / "work"))
+    # The bound is for a starved machine (bring-up alone may take minutes); every step of
+    # the benchmark waits for a condition, the run itself is two minutes of faults.
+    run.proc.wait(timeout=1200)
+    assert report_path.exists(), run.output()
+    report = json.loads(report_path.read_text())
+    goals = {g["name"]: g for g in report["goals"]}
+    loss = report["loss"]
+    # Every frame the device sent plugged in is a reading, bar those the pulls explain; the
+    # device did pull the cable (or the goal would hold trivially).
+    assert report["device"]["unplugs"] >= 1 and report["device"]["frames_unplugged"] > 0
+    assert loss["lost_outside"] == 0, (loss, run.output())
+    assert loss["published"] > 0.5 * loss["sent"], loss
+    # The recorder kept every reading, across the split files.
+    assert len(report["bag_files"]) >= 2, report["bag_files"]
+    assert report["recorded"] == loss["published"], run.output()
+    # Every kind of fault happened, was detected where detectable, and recovered without
+    # restarting the affected process (only the model restart fault restarts one).
+    assert {f["kind"] for f in report["faults"]} == KINDS
+    assert all(f["recovered_after_s"] is not None for f in report["faults"]), report["faults"]
+    assert goals["every fault recovered without a restart"]["passed"], run.output()
+    # The gripper kept grasping through it all.
+    assert report["grasps"]["succeeded"] >= 1, report["grasps"]
+    # Every process was sampled at the start and the end. RSS growth is NOT asserted: two
+    # minutes leave about one minute after the warm-up, where a single arena or DDS buffer
+    # growth of 0.1 MB reads as 6 MB/h; the 5-minute-plus benchmark judges it. Open file
+    # descriptors are discrete, so a leak per reconnection (the ADC was pulled, the model
+    # restarted) would show: the bench driver ends with no more than it started with + 2.
+    driver = next(p for p in report["processes"] if p["process"].startswith("bench_driver"))
+    assert driver["samples"] >= 2 and driver["fds_end"] <= driver["fds_start"] + 2, driver
+    # The benchmark's exit status follows the goals.
+    assert run.proc.returncode == (0 if all(g["passed"] for g in goals.values()) else 1)
