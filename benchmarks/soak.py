@@ -65,6 +65,7 @@ from tactile_sensor.analysis.soak import (  # noqa: E402
     evaluate_goals,
     fault_schedule,
     growth_per_hour,
+    parse_device_stats,
 )
 from tactile_sensor.configurations import BENCH, GRIPPER  # noqa: E402
 
@@ -254,7 +255,9 @@ class GraspLoop:
                 break
             result = m.call(m.grasp, m.Grasp.Goal(target_force=GRASP_FORCE_N), 30.0)
             self.attempted += 1
-            outcome = "no result" if result is None else result.message or "?"
+            # the outcome without its figures: "contact", "tactile_stale", ...
+            outcome = ("no result" if result is None
+                       else (result.message or "?").split(":")[0])
             self.outcomes[outcome] = self.outcomes.get(outcome, 0) + 1
             if result is not None and result.contact_detected:
                 self.succeeded += 1
@@ -326,8 +329,10 @@ def write_fifo(path: Path, line: str) -> None:
 
 
 class Soak:
-    def __init__(self, folder: Path, minutes: float, split_s: float) -> None:
+    def __init__(self, folder: Path, minutes: float, split_s: float,
+                 schedule: list[ScheduledFault], bring_up_timeout_s: float = 180.0) -> None:
         self.folder, self.minutes, self.split_s = folder, minutes, split_s
+        self.schedule, self.bring_up_timeout_s = schedule, bring_up_timeout_s
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(SOURCE), env.get("PYTHONPATH")]))
         self.env = env
@@ -413,7 +418,7 @@ class Soak:
                      "the gripper's driver published no reading", "gripper_driver")
 
     def _expect(self, condition: Callable[[], Any], failure: str, name: str) -> None:
-        if not wait_until(condition, 180.0):
+        if not wait_until(condition, self.bring_up_timeout_s):
             tail = self.procs[name].log()[-2000:]
             raise RuntimeError(f"{failure}; {self.procs[name].log_path} ends:\n{tail}")
 
@@ -454,18 +459,17 @@ class Soak:
                                  f"busy process {fault.duration_s:g} s; driver backlog peak "
                                  f"{peak} frames; recovery = backlog empty after it ended")
             return result
-        if fault.kind == "model_restart":
-            model = self.procs["bench_model"]
-            seen = len(m.calibrations)
-            model.stop(signal.SIGTERM)
-            exited = m.now()
-            model.start()
-            rec = wait_until(lambda: len(m.calibrations) > seen)
-            return FaultResult(fault.kind, at, exited - at,
-                               None if rec is None else m.calibrations[seen] - at,
-                               f"SIGTERM (exit {model.exit_codes[-1]}), new process; "
-                               "recovered = its calibration_curve received")
-        raise ValueError(f"unknown fault kind {fault.kind!r}")
+        assert fault.kind == "model_restart", fault.kind  # FAULT_KINDS holds no other
+        model = self.procs["bench_model"]
+        seen = len(m.calibrations)
+        model.stop(signal.SIGTERM)
+        exited = m.now()
+        model.start()
+        rec = wait_until(lambda: len(m.calibrations) > seen)
+        return FaultResult(fault.kind, at, exited - at,
+                           None if rec is None else m.calibrations[seen] - at,
+                           f"SIGTERM (exit {model.exit_codes[-1]}), new process; "
+                           "recovered = its calibration_curve received")
 
     def _last(self, name: str) -> Report | None:
         history = self.monitor.history(name)
@@ -485,7 +489,7 @@ class Soak:
     # -- the run ----------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
         run_s = self.minutes * 60.0
-        schedule = fault_schedule(run_s, spacing_s=min(30.0, max(15.0, run_s / 12)))
+        schedule = self.schedule
         say(f"soak: {self.minutes:g} min, ADC {ADC_RATE_HZ:g} Hz, bag split every "
             f"{self.split_s:g} s; bringing up {len(self.procs)} processes in {self.folder}")
         watch_stop = threading.Event()
@@ -626,19 +630,6 @@ def _fault_line(f: FaultResult) -> str:
     return f"detected after {det}, recovered after {rec} ({f.note})"
 
 
-def parse_device_stats(log: str) -> dict[str, int]:
-    """The mock ADC's last ``DeviceStats(...)`` line (printed when it stops)."""
-    found = re.findall(r"DeviceStats\(([^)]*)\)", log)
-    if not found:
-        raise RuntimeError("the mock ADC printed no final DeviceStats")
-    out = {}
-    for item in found[-1].split(", "):
-        key, _, value = item.partition("=")
-        if value.isdigit():
-            out[key] = int(value)
-    return out
-
-
 def count_bag(path: Path, topic: str) -> tuple[int, list[str], int]:
     """Messages on ``topic`` in every storage file of the bag, the files, and the bag's
     first reception stamp [ns, system clock]."""
@@ -701,19 +692,30 @@ def main(argv: list[str] | None = None) -> int:
                         help="recorder max_bag_duration [s] (default: a third of the run)")
     parser.add_argument("--keep", type=Path, default=None,
                         help="work folder to keep (logs, bag); default: a temporary one")
+    parser.add_argument("--bring-up-timeout", type=float, default=180.0,
+                        help="seconds each bring-up step may take (default %(default)g)")
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_DOMAIN_ID", "216")
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     split_s = args.split or max(10.0, args.minutes * 60.0 / 3.0)
+    run_s = args.minutes * 60.0
+    try:
+        schedule = fault_schedule(run_s, spacing_s=min(30.0, max(15.0, run_s / 12)))
+    except ValueError as exc:
+        print(f"soak: --minutes {args.minutes:g}: {exc}", file=sys.stderr)
+        return 2
     with contextlib.ExitStack() as stack:
         if args.keep is not None:
             args.keep.mkdir(parents=True, exist_ok=False)
             folder = args.keep
         else:
             folder = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="soak_")))
-        soak = Soak(folder, args.minutes, split_s)
+        soak = Soak(folder, args.minutes, split_s, schedule, args.bring_up_timeout)
         try:
             report = soak.run()
+        except RuntimeError as exc:  # a node did not come up or report: say which, where
+            say(f"soak: {exc}")
+            return 1
         finally:
             soak.close()
     print_report(report)

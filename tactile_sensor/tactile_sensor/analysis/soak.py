@@ -10,6 +10,7 @@ slope after the warm-up, so start-up allocation is not mistaken for a leak).
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -157,3 +158,13 @@ def evaluate_goals(loss: LossAccount, recorded: int, published_during_recording:
              "not recovered: " + ", ".join(faults_unrecovered)),
         Goal(f"RSS growth < {rss_limit_mb_per_h:g} MB/h", not growing, rss_detail),
     ]
+
+
+def parse_device_stats(log: str) -> dict[str, int]:
+    """The counters of the mock ADC's last ``DeviceStats(...)`` line (it prints one when it
+    stops, and for each ``stats`` control command); ``ValueError`` when there is none."""
+    found = re.findall(r"DeviceStats\(([^)]*)\)", log)
+    if not found:
+        raise ValueError("the mock ADC printed no DeviceStats line (did it stop cleanly?).")
+    pairs = (item.partition("=") for item in found[-1].split(", "))
+    return {key: int(value) for key, _, value in pairs if value.isdigit()}

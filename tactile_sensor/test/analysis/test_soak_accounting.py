@@ -18,6 +18,7 @@ from tactile_sensor.analysis.soak import (
     fault_schedule,
     growth_per_hour,
     in_any_window,
+    parse_device_stats,
 )
 
 
@@ -124,3 +125,16 @@ def test_goals_fail_on_each_kind_of_problem() -> None:
                          {"driver": 6.0})
     assert [g.passed for g in bad] == [False, False, False, False]
     assert "over: driver" in bad[3].detail
+
+
+def test_device_stats_are_read_from_the_last_line() -> None:
+    log = ("mock adc: ok DeviceStats(frames_generated=5, frames_written=5, frames_dropped=0, "
+           "frames_unplugged=0, bytes_lost=0, garbage_bytes=0, unplugs=0, plugged=True)\n"
+           "mock adc: stopped; DeviceStats(frames_generated=9, frames_written=7, "
+           "frames_dropped=0, frames_unplugged=2, bytes_lost=0, garbage_bytes=0, unplugs=1, "
+           "plugged=True)\n")
+    stats = parse_device_stats(log)
+    assert stats["frames_generated"] == 9 and stats["frames_unplugged"] == 2
+    assert "plugged" not in stats
+    with pytest.raises(ValueError, match="no DeviceStats"):
+        parse_device_stats("mock adc: 1000 Hz on /tmp/x\n")

@@ -4,17 +4,18 @@ devices, every fault once, grasps throughout; the issue's goals asserted from it
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-pytestmark = [pytest.mark.ros, pytest.mark.slow]
-
 SOAK = Path(__file__).resolve().parents[3] / "benchmarks" / "soak.py"
 KINDS = {"adc_unplug", "servo_overload", "cpu_burner", "model_restart", "recording_split"}
 
 
+@pytest.mark.ros
+@pytest.mark.slow
 def test_two_minute_soak_meets_the_goals(spawn, ros_domain, tmp_path: Path) -> None:
     report_path = tmp_path / "soak.json"
     # --split 40: a 2-minute bag splits twice, so the recorder's count crosses files
@@ -51,3 +52,26 @@ def test_two_minute_soak_meets_the_goals(spawn, ros_domain, tmp_path: Path) -> N
     assert driver["samples"] >= 2 and driver["fds_end"] <= driver["fds_start"] + 2, driver
     # The benchmark's exit status follows the goals.
     assert run.proc.returncode == (0 if all(g["passed"] for g in goals.values()) else 1)
+
+
+def test_a_run_too_short_for_every_fault_is_refused_before_anything_starts(
+        tmp_path: Path) -> None:
+    done = subprocess.run([sys.executable, str(SOAK), "--minutes", "0.5",
+                           "--keep", str(tmp_path / "work")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "needs at least" in done.stderr and "--minutes 0.5" in done.stderr
+    assert not (tmp_path / "work").exists()
+
+
+@pytest.mark.ros
+def test_a_node_that_does_not_come_up_is_named_and_everything_stops(
+        spawn, ros_domain, own_processes, tmp_path: Path) -> None:
+    # 1 ms is less than any recorder needs to subscribe: bring-up fails at its first step
+    run = spawn(sys.executable, "-u", str(SOAK), "--minutes", "2", "--bring-up-timeout",
+                "0.001", "--keep", str(tmp_path / "work"))
+    assert run.proc.wait(timeout=120) == 1, run.output()
+    assert "soak: the recorder did not subscribe" in run.output()
+    assert "recorder.log ends" in run.output()
+    assert not (tmp_path / "work" / "soak.json").exists()
+    assert own_processes() == []  # the nodes it had started are gone with it
