@@ -186,8 +186,16 @@ class Monitor:
         self.Grasp, self.Release = Grasp, Release
         self.executor = MultiThreadedExecutor(num_threads=2)
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.spinning = threading.Event()
+        self.spinning.set()
+        self.thread = threading.Thread(target=self._spin, daemon=True)
         self.thread.start()
+
+    def _spin(self) -> None:
+        # spin_once in a loop, so close() can stop it before the node and context go (a
+        # thread left in spin() when they do aborts the interpreter at exit)
+        while self.spinning.is_set():
+            self.executor.spin_once(timeout_sec=0.05)
 
     def now(self) -> float:
         return time.monotonic() - self.t0
@@ -227,7 +235,9 @@ class Monitor:
     def close(self) -> None:
         import rclpy
 
-        self.executor.shutdown()
+        self.spinning.clear()
+        self.thread.join(5.0)
+        self.executor.shutdown(timeout_sec=2.0)
         self.node.destroy_node()
         rclpy.try_shutdown()
 
@@ -447,9 +457,11 @@ class Soak:
                                 "auto_reboot" + ("" if same else "; the gripper process died"))
         if fault.kind == "cpu_burner":
             burner = subprocess.Popen([sys.executable, "-c", "while True: pass"])
-            time.sleep(fault.duration_s)
-            burner.kill()
-            burner.wait()
+            try:
+                time.sleep(fault.duration_s)
+            finally:  # never leave a busy loop behind (Ctrl-C, an error)
+                burner.kill()
+                burner.wait()
             end = m.now()
             rec = m.first(DRIVER_DIAG, end, lambda r: r.values.get("frames_backlog") == "0")
             peak = max((int(r.values.get("frames_backlog", 0))

@@ -6,7 +6,7 @@ import math
 from itertools import pairwise
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tactile_sensor.analysis.soak import (
@@ -22,6 +22,7 @@ from tactile_sensor.analysis.soak import (
 )
 
 
+@settings(deadline=None)  # a loaded machine, not the code, sets the time
 @given(st.floats(60.0, 7200.0), st.floats(0.0, 30.0), st.floats(5.0, 60.0))
 def test_schedule_holds_every_kind_spaced_and_inside_the_run(run_s: float, warmup_s: float,
                                                              spacing_s: float) -> None:
@@ -81,6 +82,7 @@ def test_losses_refuse_counters_that_go_backwards_or_negative() -> None:
         account_losses(-1, 0, 0, [], [], 0)
 
 
+@settings(deadline=None)  # a loaded machine, not the code, sets the time
 @given(st.lists(st.integers(0, 50), min_size=1, max_size=30), st.integers(0, 100),
        st.integers(0, 100), st.integers(0, 5))
 def test_losses_add_up(increases: list[int], link: int, unpublished: int,
@@ -100,6 +102,7 @@ def test_losses_add_up(increases: list[int], link: int, unpublished: int,
         assert loss.lost_in_windows == 0
 
 
+@settings(deadline=None)  # a loaded machine, not the code, sets the time
 @given(st.floats(-100.0, 100.0), st.floats(0.0, 1e3), st.integers(0, 3))
 def test_growth_is_the_slope_after_warmup_despite_outliers(slope_per_h: float, base: float,
                                                            outliers: int) -> None:
