@@ -59,9 +59,11 @@ from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMs
 from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
 
 #: Readings a reliable subscriber may fall behind before the publisher's KEEP_LAST history
-#: drops them unacknowledged: 2 s at 1 kHz. With 100 the recorder lost 34-247 readings at a
-#: time while a model process started beside it (benchmarks/soak.py).
-SAMPLE_QUEUE_DEPTH = 2000
+#: drops them unacknowledged: 10 s at 1 kHz, as deep as the recorder's own queue. With 100
+#: the recorder lost 34-247 readings at a time while a model process started beside it,
+#: with 2000 it lost 2,691 after a CPU burner left 2,433 frames to publish at once
+#: (benchmarks/soak.py).
+SAMPLE_QUEUE_DEPTH = 10_000
 CALIBRATION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
 
