@@ -606,7 +606,8 @@ class Soak:
             processes.append({"process": label, "samples": len(s),
                               "rss_start_mb": s[0][1], "rss_end_mb": s[-1][1],
                               "fds_start": s[0][2], "fds_end": s[-1][2],
-                              "rss_growth_mb_per_h": rss_h, "fd_growth_per_h": fd_h})
+                              "rss_growth_mb_per_h": rss_h, "fd_growth_per_h": fd_h,
+                              "samples_t_s_rss_mb_fds": s})
         gripper_final = self._last(GRIPPER_DRIVER_DIAG)
         goals = evaluate_goals(loss, recorded, published, unrecovered, growth)
         return {
