@@ -4,6 +4,7 @@ success, and every rejected goal. Goals are plain namespaces shaped like the mes
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 from types import SimpleNamespace as NS
 
@@ -222,8 +223,8 @@ def test_settings_from_the_node_parameters():
 
 
 def test_a_closing_current_above_the_limit_is_refused_naming_both():
-    with pytest.raises(InvalidConfiguration, match="'closing_current' = 1.5 A exceeds "
-                       "'current_limit' = 1.0 A"):
+    with pytest.raises(InvalidConfiguration, match=re.escape("'closing_current' = 1.5 A exceeds "
+                       "'current_limit' = 1.0 A")):
         settings_from_parameters({**PARAMETERS, "closing_current": 1.5})
 
 
