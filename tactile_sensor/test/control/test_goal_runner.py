@@ -138,6 +138,15 @@ def in_thread(call):
     return thread, out
 
 
+def closing(rig: Rig):
+    """A slow grasp that finds nothing, started in its own thread and past its first
+    feedback (the closing loop runs)."""
+    thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
+    while not rig.feedback:
+        rig.servo.await_sample(1.0)
+    return thread, out
+
+
 def test_a_grasp_closes_to_contact_settles_and_reports():
     with Rig() as rig:
         end = rig.run(accept_grasp, grasp())
@@ -190,9 +199,7 @@ def test_torque_off_is_turned_on_holding_where_the_fingers_are():
 
 def test_cancel_stops_where_the_fingers_are():
     with Rig(rod_m=0.0) as rig:
-        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
-        while not rig.feedback:
-            rig.servo.await_sample(1.0)
+        thread, out = closing(rig)
         rig.runner.stop("goal")
         rig.cancel.set()
         thread.join()
@@ -205,9 +212,7 @@ def test_cancel_stops_where_the_fingers_are():
 
 def test_a_failed_cancel_stop_is_written_by_the_goal_and_its_failure_logged():
     with Rig(rod_m=0.0) as rig:
-        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
-        while not rig.feedback:
-            rig.servo.await_sample(1.0)
+        thread, out = closing(rig)
         rig.client.fail_commands = [PortLost("unplugged")]
         rig.runner.stop("goal")  # the cancel callback's stop fails ...
         rig.cancel.set()
@@ -219,9 +224,7 @@ def test_a_failed_cancel_stop_is_written_by_the_goal_and_its_failure_logged():
 
 def test_a_newer_goal_preempts_without_a_stop():
     with Rig(rod_m=0.0) as rig:
-        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
-        while not rig.feedback:
-            rig.servo.await_sample(1.0)
+        thread, out = closing(rig)
         rig.slot.take_over("newer goal")
         rig.runner.stop("goal")  # a cancel of the old goal does not touch the servo now
         thread.join()
@@ -231,9 +234,7 @@ def test_a_newer_goal_preempts_without_a_stop():
 
 def test_deactivation_aborts_the_running_goal_with_its_reason():
     with Rig(rod_m=0.0) as rig:
-        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
-        while not rig.feedback:
-            rig.servo.await_sample(1.0)
+        thread, out = closing(rig)
         rig.slot.abort_active("the gripper node was deactivated")
         thread.join()
     assert out["end"].message == "the gripper node was deactivated"
@@ -241,9 +242,7 @@ def test_deactivation_aborts_the_running_goal_with_its_reason():
 
 def test_an_unreachable_servo_aborts_the_goal():
     with Rig(rod_m=0.0) as rig:
-        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
-        while not rig.feedback:
-            rig.servo.await_sample(1.0)
+        thread, out = closing(rig)
         rig.client.fail_reads = CommunicationTimeout("no status packet")
         thread.join()
     assert out["end"].status is GoalStatus.ABORTED
@@ -265,9 +264,7 @@ def test_a_command_that_cannot_be_written_aborts_the_goal():
 
 def test_a_hardware_error_while_moving_ends_the_goal_and_is_reported():
     with Rig(rod_m=0.0) as rig:
-        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
-        while not rig.feedback:
-            rig.servo.await_sample(1.0)
+        thread, out = closing(rig)
         rig.client.bits = frozenset({"overheating"})
         thread.join()
     assert out["end"].status is GoalStatus.ABORTED
