@@ -27,7 +27,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from tactile_sensor.control.errors import InvalidRequest
+from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
+from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import (
     BaseController,
     ForceSettler,
@@ -62,6 +63,28 @@ class GoalSettings:
     #: A stalled move (force limit or current limit) succeeds (ros2_controllers' meaning).
     allow_stalling: bool = True
     skin_stiffness_n_per_m: float = 2500.0
+
+
+def settings_from_parameters(values: dict[str, Any]) -> GoalSettings:
+    """The gripper node's parameter values (named as declared) -> what goals read; raises
+    InvalidConfiguration (or ValueError from the geometry) naming the bad parameter."""
+    if values["closing_current"] > values["current_limit"]:
+        raise InvalidConfiguration(
+            f"Parameter 'closing_current' = {values['closing_current']} A exceeds "
+            f"'current_limit' = {values['current_limit']} A; lower it.")
+    geometry = GripperGeometry(pitch_radius_m=values["geometry.pitch_radius"],
+                               open_opening_m=values["geometry.open_opening"],
+                               closed_opening_m=values["geometry.closed_opening"])
+    config = GraspConfig(geometry=geometry, closing_current_a=values["closing_current"],
+                         hold_current_a=values["closing_current"],
+                         stale_after_s=values["tactile_timeout"])
+    return GoalSettings(
+        config=config, joint_name=values["joint_name"],
+        closing_speed_m_s=values["default_closing_speed"],
+        opening_speed_m_s=values["release_speed"], timeout_s=values["default_timeout"],
+        goal_tolerance_m=values["goal_tolerance"], stall_time_s=values["stall_timeout"],
+        allow_stalling=values["allow_stalling"],
+        skin_stiffness_n_per_m=values["skin_stiffness"])
 
 
 @dataclass(frozen=True)

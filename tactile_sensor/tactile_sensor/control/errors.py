@@ -9,3 +9,7 @@ class ControlError(Exception):
 
 class InvalidRequest(ControlError):
     """A grasp or release request that cannot be executed as given."""
+
+
+class InvalidConfiguration(ControlError):
+    """Gripper settings that contradict each other (the message names the parameters)."""

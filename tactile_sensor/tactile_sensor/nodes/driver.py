@@ -13,10 +13,9 @@ and no force is published.
 from __future__ import annotations
 
 import threading
-import time
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import Node, State, TransitionCallbackReturn
@@ -30,11 +29,11 @@ from tactile_sensor.hardware.adc_reader import (
     DEFAULT_BACKLOG,
     AdcStreamReader,
     ConnectionState,
-    ReaderStats,
     Sample,
 )
 from tactile_sensor.hardware.errors import HardwareError
 from tactile_sensor.nodes import array_calibration_msg
+from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
@@ -42,6 +41,7 @@ from tactile_sensor.nodes.parameters import (
     declare_parameters,
     read_parameters,
 )
+from tactile_sensor.sensing.adc_health import FrameRate, LossCounter, adc_health
 from tactile_sensor.sensing.adc_settings import AdcSettings, resolve_adc
 from tactile_sensor.sensing.array_chain import (
     ArrayChain,
@@ -50,7 +50,14 @@ from tactile_sensor.sensing.array_chain import (
     parse_modules,
 )
 from tactile_sensor.sensing.calibration import Calibration
-from tactile_sensor.sensing.chain import ChainConfig, Reading, SignalChain
+from tactile_sensor.sensing.chain import Reading, SignalChain
+from tactile_sensor.sensing.chain_parameters import (
+    RUNTIME_PARAMETERS,
+    chain_config,
+    configure_only_refusal,
+    publish_period_ns,
+    with_runtime_changes,
+)
 from tactile_sensor.sensing.device_clock import DeviceClock
 from tactile_sensor.sensing.errors import SensingError, TareError
 from tactile_sensor.sensing.filters import FILTERS
@@ -133,43 +140,7 @@ SPECS = [
               "a connection change)", minimum=0.05, maximum=60.0),
 ]
 
-#: What 'ros2 param set' may change while the driver is configured: the signal chain's
-#: filter, tare and contact settings and how readings are published take effect at once.
-#: The rest describe the device and its wiring; they are read on configure, so setting one
-#: then is refused with how to apply it (never silently ignored).
-RUNTIME_PARAMETERS = frozenset({
-    "filter_type", "filter.window", "filter.cutoff_hz", "filter.order", "filter.min_cutoff_hz",
-    "filter.beta", "filter.d_cutoff_hz", "contact_on_force", "contact_off_force",
-    "contact_debounce", "tare_window", "tare_max_spread", "auto_tare", "publish_rate",
-    "frame_id"})
 SPEC_BY_NAME = {spec.name: spec for spec in SPECS}
-
-FILTER_KEYS = {"savgol": ("window",), "moving_average": ("window",),
-               "butterworth": ("order", "cutoff_hz"),
-               "one_euro": ("min_cutoff_hz", "beta", "d_cutoff_hz"), "none": ()}
-
-
-def chain_config(values: dict[str, Any]) -> ChainConfig:
-    """ROS parameter values -> the signal chain's configuration (validated there too)."""
-    name = values["filter_type"]
-    params = {key: values[f"filter.{key}"] for key in FILTER_KEYS[name]}
-    if params.get("window") == 0:
-        del params["window"]
-    if values["contact_off_force"] >= values["contact_on_force"]:
-        raise ParameterError(
-            f"Parameter 'contact_off_force' = {values['contact_off_force']} must be below "
-            f"'contact_on_force' = {values['contact_on_force']} (hysteresis).")
-    if values["calibration_source"] == "file" and not values["calibration_file"]:
-        raise ParameterError("Parameter 'calibration_file' is empty but calibration_source "
-                             "is 'file'; give the calibration JSON's path.")
-    return ChainConfig(
-        rate_hz=values["sample_rate"], adc_bits=values["adc_bits"] or ChainConfig.adc_bits,
-        vref_v=values["reference_voltage"] or ChainConfig.vref_v, channel=values["channel"],
-        filter_name=name,
-        filter_params=params, tare_window_s=values["tare_window"],
-        tare_max_spread_v=values["tare_max_spread"], auto_tare=values["auto_tare"],
-        contact_on_n=values["contact_on_force"], contact_off_n=values["contact_off_force"],
-        contact_debounce_s=values["contact_debounce"])
 
 
 class DriverNode(Node):
@@ -185,11 +156,11 @@ class DriverNode(Node):
         self._clock_map = DeviceClock()
         self._publish_every_ns = 0
         self._next_publish_ns = 0
-        self._last_diag = (time.monotonic(), 0)  # (when, frames then) for the sample rate
+        self._frame_rate = FrameRate()
         self._lock = threading.Lock()
         self.published_readings = 0  # ~/reading messages published since construction
         self.published_until_ns = 0  # stamp of the newest reading published
-        self._lost_reported = 0  # ADC frames lost, as last logged
+        self._loss = LossCounter()  # ADC frames lost, as last logged
         self._adc: AdcSettings | None = None  # decided on the device's info, per connection
         self._info_logged: DeviceInfo | None = None
         self._wrench_pub = self._reading_pub = self._diag_pub = None
@@ -218,10 +189,9 @@ class DriverNode(Node):
         self._values, self._chain, self._reader = values, chain, reader
         self._faces = [m.face for m in modules]
         self._clock_map = DeviceClock()
-        self._lost_reported = 0
+        self._loss = LossCounter()
         self._adc = self._info_logged = None
-        rate = values["publish_rate"]
-        self._publish_every_ns = int(1e9 / rate) if rate > 0 else 0
+        self._publish_every_ns = publish_period_ns(values)
         self._wrench_pub = self.create_lifecycle_publisher(WrenchStamped, "~/wrench",
                                                              SAMPLE_QUEUE_DEPTH)
         self._reading_pub = self.create_lifecycle_publisher(TactileReading, "~/reading",
@@ -287,31 +257,22 @@ class DriverNode(Node):
         self._tare_srv = self._calibration_sub = self._diag_timer = None
 
     # -- ros2 param set while configured -------------------------------------------------------
-    def _runtime_values(self, params: list[Parameter]) -> dict[str, Any]:
-        """The configured values with ``params`` applied; ParameterError when one is bad."""
-        values = dict(self._values)
-        for param in params:
-            if param.name in RUNTIME_PARAMETERS:
-                values[param.name] = SPEC_BY_NAME[param.name].validate(param.value)
-        chain_config(values).validate()  # the combination must hold (contact hysteresis)
-        return values
-
     def _check_runtime_change(self, params: list[Parameter]) -> SetParametersResult:
         if self._chain is None:  # unconfigured: every parameter is read on configure
             return SetParametersResult(successful=True)
-        fixed = [p.name for p in params
-                 if p.name in SPEC_BY_NAME and p.name not in RUNTIME_PARAMETERS]
-        if fixed:
-            node = self.get_fully_qualified_name()
-            return SetParametersResult(successful=False, reason=(
-                f"Parameter '{fixed[0]}' is read on configure and cannot change while the "
-                f"driver is configured; run 'ros2 lifecycle set {node} deactivate' and "
-                f"'... cleanup', set it, then configure and activate again."))
+        refusal = configure_only_refusal([p.name for p in params], SPEC_BY_NAME,
+                                         self.get_fully_qualified_name())
+        if refusal is not None:
+            return SetParametersResult(successful=False, reason=refusal)
         try:
             self._runtime_values(params)
         except (ParameterError, SensingError) as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
+
+    def _runtime_values(self, params: list[Parameter]) -> dict[str, Any]:
+        return with_runtime_changes(self._values, {p.name: p.value for p in params},
+                                    lambda name, value: SPEC_BY_NAME[name].validate(value))
 
     def _apply_runtime_change(self, params: list[Parameter]) -> None:
         chain = self._chain
@@ -320,8 +281,7 @@ class DriverNode(Node):
             return
         values = self._runtime_values(changed)
         chain.reconfigure(chain_config(values))
-        rate = values["publish_rate"]
-        self._publish_every_ns = int(1e9 / rate) if rate > 0 else 0
+        self._publish_every_ns = publish_period_ns(values)
         self._values = values
         self.get_logger().info("changed while running: " + ", ".join(
             f"{p.name} = {values[p.name]}" for p in changed))
@@ -444,75 +404,14 @@ class DriverNode(Node):
         if reader is None or chain is None or pub is None:
             return
         stats = reader.stats()
-        now = time.monotonic()
-        with self._lock:
-            then, frames_then = self._last_diag
-            self._last_diag = (now, stats.frames)
-        rate = max(0, stats.frames - frames_then) / max(now - then, 1e-3)
-        lost_now = self._report_loss(stats)
-        status = DiagnosticStatus(name=f"{self.get_fully_qualified_name()}: tactile ADC",
-                                  hardware_id=str(self._values["port"]))
-        adc = self._adc
-        if stats.state is ConnectionState.CONNECTED:
-            if adc is None:
-                status.level = DiagnosticStatus.WARN
-                status.message = (f"waiting for the device's info frame ({stats.awaiting_info} "
-                                  "sample(s) held)")
-                if stats.info_errors:
-                    status.message += f"; its last was unusable: {stats.last_info_error}"
-            elif not adc.usable:
-                status.level, status.message = DiagnosticStatus.ERROR, adc.problem
-            elif not chain.tared:
-                status.level, status.message = DiagnosticStatus.WARN, "not tared yet"
-            elif chain.calibration is None:
-                status.level, status.message = DiagnosticStatus.WARN, "no calibration yet"
-            elif lost_now:
-                status.level = DiagnosticStatus.WARN
-                status.message = f"streaming; {lost_now} ADC frame(s) lost since the last report"
-            else:
-                status.level, status.message = DiagnosticStatus.OK, "streaming"
-        elif stats.state is ConnectionState.DISCONNECTED:
-            status.level, status.message = DiagnosticStatus.ERROR, stats.reason
-        else:
-            status.level, status.message = DiagnosticStatus.WARN, stats.reason
-        values = {
-            "connection": stats.state.value, "sample_rate_hz": f"{rate:.1f}",
-            "frames": stats.frames, "frames_dropped": stats.dropped_frames,
-            "frames_overflowed": stats.backlog_dropped, "frames_backlog": stats.backlog,
-            "frames_backlog_peak": stats.backlog_peak,
-            # what left on ~/reading, so a monitor can count losses by frame, not by rate
-            "readings_published": self.published_readings,
-            "sequence_gaps": stats.sequence_gaps, "crc_errors": stats.crc_errors,
-            "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
-            "calibration_source": chain.calibration_source,
-            "calibration_model": describe_model(chain.calibration),
-            "baseline_v": "none" if chain.baseline_v is None else f"{chain.baseline_v:.4f}",
-            "device": stats.device_info.summary() if stats.device_info else "not stated yet",
-            "adc_settings": adc.source.value if adc else "not decided yet",
-            "adc_bits": chain.conversion.bits if adc and adc.usable else "none",
-            "reference_voltage": (f"{chain.conversion.vref_v:g}" if adc and adc.usable
-                                  else "none"),
-        }
-        if isinstance(chain, ArrayChain):
-            baselines = chain.baselines_v or (None,) * len(chain.faces)
-            values.update({f"baseline_v.{face}": "none" if b is None else f"{b:.4f}"
-                           for face, b in zip(chain.faces, baselines, strict=True)})
-        status.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
-        array = DiagnosticArray(status=[status])
-        array.header.stamp = self.get_clock().now().to_msg()
-        pub.publish(array)
-
-    def _report_loss(self, stats: ReaderStats) -> int:
-        """Log ADC frames lost since the last report (never silent); returns how many."""
-        lost = stats.dropped_frames + stats.backlog_dropped
-        with self._lock:
-            new, self._lost_reported = lost - self._lost_reported, lost
-        if new > 0:
-            self.get_logger().warning(
-                f"{new} ADC frame(s) lost ({stats.dropped_frames} missing in the sequence, "
-                f"{stats.backlog_dropped} dropped with a full backlog, since start); the "
-                "device or the port overflowed: this process gets too little CPU")
-        return max(new, 0)
+        rate = self._frame_rate.update(stats.frames)
+        lost_now, warning = self._loss.update(stats)
+        if warning is not None:
+            self.get_logger().warning(warning)
+        health = adc_health(stats, self._adc, chain, rate, lost_now, self.published_readings)
+        pub.publish(diagnostic_array(f"{self.get_fully_qualified_name()}: tactile ADC",
+                                     str(self._values["port"]), health,
+                                     self.get_clock().now().to_msg()))
 
 
 def main(args: list[str] | None = None) -> None:

@@ -13,3 +13,7 @@ class CalibrationError(SensingError):
 
 class TareError(SensingError):
     """A tare was refused (sensor not at rest, or too few samples yet)."""
+
+
+class ParameterConflict(SensingError):
+    """Driver parameters that are each valid but contradict each other."""

@@ -4,6 +4,7 @@ success, and every rejected goal. Goals are plain namespaces shaped like the mes
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import replace
 from types import SimpleNamespace as NS
 
@@ -20,8 +21,9 @@ from tactile_sensor.control.actions import (
     accept_gripper_command,
     accept_parallel_gripper_command,
     accept_release,
+    settings_from_parameters,
 )
-from tactile_sensor.control.errors import InvalidRequest
+from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import GraspConfig, Outcome, Phase, Step
 
@@ -200,3 +202,32 @@ def test_each_goal_runs_its_controller_start_tick_cancel():
         assert step.command is not None and not step.finished
         assert not goal.tick(0.05, 0.0, 0.04, servo).finished
         assert goal.cancel(0.1, servo).outcome is Outcome.CANCELED
+
+
+#: The gripper node's parameters as declared (nodes/gripper.py), at their defaults.
+PARAMETERS = {
+    "geometry.pitch_radius": 0.014, "geometry.open_opening": 0.060,
+    "geometry.closed_opening": 0.002, "current_limit": 1.0, "closing_current": 0.6,
+    "default_closing_speed": 0.01, "release_speed": 0.02, "default_timeout": 10.0,
+    "tactile_timeout": 0.2, "skin_stiffness": 2500.0, "joint_name": "finger_opening",
+    "goal_tolerance": 0.0005, "stall_timeout": 0.2, "allow_stalling": True}
+
+
+def test_settings_from_the_node_parameters():
+    settings = settings_from_parameters({**PARAMETERS, "closing_current": 0.5,
+                                         "geometry.open_opening": 0.05})
+    config = settings.config
+    assert config.closing_current_a == config.hold_current_a == 0.5
+    assert config.geometry.open_opening_m == 0.05 and config.stale_after_s == 0.2
+    assert settings == replace(SETTINGS, config=config)
+
+
+def test_a_closing_current_above_the_limit_is_refused_naming_both():
+    with pytest.raises(InvalidConfiguration, match=re.escape("'closing_current' = 1.5 A exceeds "
+                       "'current_limit' = 1.0 A")):
+        settings_from_parameters({**PARAMETERS, "closing_current": 1.5})
+
+
+def test_a_travel_without_room_is_refused():
+    with pytest.raises(ValueError, match="closed_opening_m"):
+        settings_from_parameters({**PARAMETERS, "geometry.closed_opening": 0.06})

@@ -1,0 +1,301 @@
+"""The runner every gripper action shares (control/goal_runner.py), without ROS: a
+kinematic in-memory servo closing on a linear skin, sampled by a control-loop thread."""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from types import SimpleNamespace
+
+import pytest
+
+from tactile_sensor.control.actions import (
+    GoalSettings,
+    accept_grasp,
+    accept_gripper_command,
+    accept_release,
+)
+from tactile_sensor.control.goal_runner import (
+    PREEMPTED,
+    GoalLink,
+    GoalRunner,
+    GoalSlot,
+    GoalStatus,
+    RunnerTiming,
+)
+from tactile_sensor.control.grasp import GraspConfig
+from tactile_sensor.control.servo_link import ServoLink
+from tactile_sensor.control.tactile_force import TactileForce
+from tactile_sensor.hardware.errors import CommunicationTimeout, PortLost
+from tactile_sensor.hardware.xm430 import ServoState
+
+CONFIG = GraspConfig()
+GEOMETRY = CONFIG.geometry
+SETTINGS = GoalSettings(config=CONFIG)
+#: Servo time each read advances [s] (the control period).
+TICK_S = 0.002
+
+
+class KinematicServo:
+    """Moves at its profile velocity toward the goal, TICK_S per read; ``faults`` raise."""
+
+    def __init__(self, opening_m: float = 0.040) -> None:
+        self.position = GEOMETRY.position_rad(opening_m)
+        self.goal, self.speed, self.velocity = self.position, 0.0, 0.0
+        self.torque, self.bits = True, frozenset[str]()
+        self.fail_reads: Exception | None = None
+        self.fail_commands: list[Exception] = []
+        self.commands: list[float] = []
+
+    def read_state(self) -> ServoState:
+        if self.fail_reads is not None:
+            raise self.fail_reads
+        if self.torque and not self.bits:
+            step = max(-self.speed * TICK_S, min(self.speed * TICK_S, self.goal - self.position))
+            self.position += step
+            self.velocity = step / TICK_S
+        return ServoState(self.position, self.velocity, 0.2, 12.0, 30.0,
+                          abs(self.velocity) > 1e-6, self.bits)
+
+    def command_position(self, position_rad: float, velocity_rad_s: float,
+                         acceleration_rad_s2: float = math.inf,
+                         goal_current_a: float | None = None) -> None:
+        if self.fail_commands:
+            raise self.fail_commands.pop(0)
+        self.goal, self.speed = position_rad, velocity_rad_s
+        self.commands.append(position_rad)
+
+    def set_torque(self, enabled: bool) -> None:
+        self.torque = enabled
+
+    def torque_enabled(self) -> bool:
+        return self.torque
+
+    def set_operating_mode(self, mode: object) -> None:
+        pass
+
+    def set_current_limit_a(self, amps: float) -> None:
+        pass
+
+    def reboot(self, wait_s: float = 2.0) -> None:
+        self.bits = frozenset()
+
+
+class Rig:
+    """Servo, link, forces and runner, with a control-loop thread sampling the servo and a
+    skin of ``stiffness`` N/m around a rod ``rod_m`` wide feeding the tactile force."""
+
+    def __init__(self, rod_m: float = 0.030, stiffness: float = 2500.0,
+                 settle_time_s: float = 0.5) -> None:
+        self.client = KinematicServo()
+        self.servo = ServoLink(self.client, CONFIG, period_s=TICK_S, retries=0)
+        self.forces, self.slot = TactileForce(), GoalSlot()
+        self.hardware_errors: list[frozenset[str]] = []
+        self.errors: list[str] = []
+        self.runner = GoalRunner(self.servo, self.forces, self.slot,
+                                 RunnerTiming(TICK_S, TICK_S, settle_time_s),
+                                 on_hardware_error=self.hardware_errors.append,
+                                 log_error=self.errors.append)
+        self.rod_m, self.stiffness = rod_m, stiffness
+        self.feedback: list[dict] = []
+        self.cancel = threading.Event()
+        self._running = True
+        self._loop = threading.Thread(target=self._control_loop, daemon=True)
+
+    def _control_loop(self) -> None:
+        while self._running:
+            poll = self.servo.poll()
+            if poll.state is not None:
+                squeeze = self.rod_m - GEOMETRY.opening_m(poll.state.position_rad)
+                self.forces.add(self.stiffness * max(squeeze, 0.0), time.time())
+            time.sleep(TICK_S)
+
+    def __enter__(self) -> Rig:
+        self.servo.poll()
+        self._loop.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._running = False
+        self._loop.join()
+
+    def link(self, token: object = "goal") -> GoalLink:
+        return GoalLink(token, self.cancel.is_set, self.feedback.append)
+
+    def run(self, accept, goal, token: object = "goal"):
+        return self.runner.run(self.link(token), lambda: accept(goal, SETTINGS))
+
+
+def grasp(force_n: float = 2.0, speed: float = 0.02, timeout: float = 5.0):
+    return SimpleNamespace(target_force=force_n, closing_speed=speed, timeout=timeout)
+
+
+def in_thread(call):
+    out: dict = {}
+    thread = threading.Thread(target=lambda: out.setdefault("end", call()), daemon=True)
+    thread.start()
+    return thread, out
+
+
+def closing(rig: Rig):
+    """A slow grasp that finds nothing, started in its own thread and past its first
+    feedback (the closing loop runs)."""
+    thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
+    while not rig.feedback:
+        rig.servo.await_sample(1.0)
+    return thread, out
+
+
+def test_a_grasp_closes_to_contact_settles_and_reports():
+    with Rig() as rig:
+        end = rig.run(accept_grasp, grasp())
+    assert end.status is GoalStatus.SUCCEEDED and end.message.startswith("contact")
+    assert end.result["contact_detected"] and end.result["force"] >= 1.8
+    assert end.result["opening"] < 0.030
+    assert rig.feedback and set(rig.feedback[0]) == {"force", "opening"}
+    assert rig.slot.superseded("goal")  # the slot is free again
+
+
+def test_a_release_opens():
+    with Rig() as rig:
+        end = rig.run(accept_release, SimpleNamespace(opening=0.050))
+    assert end.status is GoalStatus.SUCCEEDED and end.result["success"]
+    assert end.result["opening"] == pytest.approx(0.050, abs=CONFIG.open_tolerance_m)
+
+
+def test_an_invalid_goal_aborts_with_no_result():
+    with Rig() as rig:
+        end = rig.run(accept_grasp, grasp(speed=5.0))
+    assert end.status is GoalStatus.ABORTED and end.result is None
+    assert "speed" in end.message and rig.client.commands == []
+
+
+def test_a_gripper_never_sampled_is_not_active():
+    rig = Rig()
+    end = rig.run(accept_grasp, grasp())
+    assert (end.status, end.message, end.result) == (
+        GoalStatus.ABORTED, "the gripper is not active", None)
+
+
+def test_a_latched_hardware_error_aborts_before_anything_moves():
+    with Rig() as rig:
+        rig.client.bits = frozenset({"overload"})
+        while rig.servo.hardware_error != rig.client.bits:
+            rig.servo.await_sample(1.0)
+        end = rig.run(accept_grasp, grasp())
+    assert end.status is GoalStatus.ABORTED
+    assert end.message == "servo hardware error: overload"
+    assert end.result["opening"] == pytest.approx(0.040) and rig.client.commands == []
+
+
+def test_torque_off_is_turned_on_holding_where_the_fingers_are():
+    with Rig() as rig:
+        rig.client.torque = False
+        end = rig.run(accept_release, SimpleNamespace(opening=0.045))
+    assert end.status is GoalStatus.SUCCEEDED
+    assert rig.client.commands[0] == pytest.approx(GEOMETRY.position_rad(0.040))
+
+
+def test_cancel_stops_where_the_fingers_are():
+    with Rig(rod_m=0.0) as rig:
+        thread, out = closing(rig)
+        rig.runner.stop("goal")
+        rig.cancel.set()
+        thread.join()
+    end = out["end"]
+    assert end.status is GoalStatus.CANCELED
+    assert end.message == "canceled: stopped where the fingers were"
+    assert rig.servo.stop_written == "goal" and rig.errors == []
+    assert end.result["opening"] > GEOMETRY.closed_opening_m
+
+
+def test_a_failed_cancel_stop_is_written_by_the_goal_and_its_failure_logged():
+    with Rig(rod_m=0.0) as rig:
+        thread, out = closing(rig)
+        rig.client.fail_commands = [PortLost("unplugged")]
+        rig.runner.stop("goal")  # the cancel callback's stop fails ...
+        rig.cancel.set()
+        thread.join()
+    assert rig.errors == ["stop on cancel failed: unplugged"]
+    assert out["end"].status is GoalStatus.CANCELED
+    assert rig.servo.stop_written == "goal"  # ... the goal's loop wrote it
+
+
+def test_a_newer_goal_preempts_without_a_stop():
+    with Rig(rod_m=0.0) as rig:
+        thread, out = closing(rig)
+        rig.slot.take_over("newer goal")
+        rig.runner.stop("goal")  # a cancel of the old goal does not touch the servo now
+        thread.join()
+    assert (out["end"].status, out["end"].message) == (GoalStatus.ABORTED, PREEMPTED)
+    assert rig.servo.stop_written is None
+
+
+def test_deactivation_aborts_the_running_goal_with_its_reason():
+    with Rig(rod_m=0.0) as rig:
+        thread, out = closing(rig)
+        rig.slot.abort_active("the gripper node was deactivated")
+        thread.join()
+    assert out["end"].message == "the gripper node was deactivated"
+
+
+def test_an_unreachable_servo_aborts_the_goal():
+    with Rig(rod_m=0.0) as rig:
+        thread, out = closing(rig)
+        rig.client.fail_reads = CommunicationTimeout("no status packet")
+        thread.join()
+    assert out["end"].status is GoalStatus.ABORTED
+    assert out["end"].message == "servo unreachable: no status packet"
+
+
+def test_a_command_that_cannot_be_written_aborts_the_goal():
+    """A GripperCommand with a force limit sends a slower speed as the force rises."""
+    with Rig(rod_m=0.039, stiffness=100.0) as rig:
+        thread, out = in_thread(lambda: rig.run(accept_gripper_command, SimpleNamespace(
+            command=SimpleNamespace(position=0.010, max_effort=1.0))))
+        while len(rig.client.commands) < 1:
+            rig.servo.await_sample(1.0)
+        rig.client.fail_commands = [PortLost("unplugged")] * 100
+        thread.join()
+    assert out["end"].status is GoalStatus.ABORTED
+    assert out["end"].message == "servo unreachable: unplugged"
+
+
+def test_a_hardware_error_while_moving_ends_the_goal_and_is_reported():
+    with Rig(rod_m=0.0) as rig:
+        thread, out = closing(rig)
+        rig.client.bits = frozenset({"overheating"})
+        thread.join()
+    assert out["end"].status is GoalStatus.ABORTED
+    assert out["end"].message.startswith("hardware_error")
+    assert rig.hardware_errors == [frozenset({"overheating"})]
+
+
+def test_settling_aborts_when_the_servo_is_lost():
+    with Rig(stiffness=20000.0, settle_time_s=60.0) as rig:
+        # the settler assumes 2500 N/m: on this stiffer skin it overshoots and never settles
+        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(force_n=10.0)))
+        while not (rig.forces.latest and rig.forces.latest[0] >= 10.0):
+            rig.servo.await_sample(1.0)
+        settling = len(rig.client.commands) + 3
+        while len(rig.client.commands) < settling:
+            rig.servo.await_sample(1.0)
+        rig.client.fail_reads = CommunicationTimeout("no status packet")
+        thread.join()
+    assert out["end"].message == "servo unreachable: no status packet"
+    assert out["end"].result["contact_detected"]  # lost while settling, after contact
+
+
+def test_the_slot_frees_only_for_its_own_goal():
+    slot = GoalSlot()
+    slot.take_over("a")
+    slot.take_over("b")
+    slot.release("a")
+    assert slot.superseded("a") and not slot.superseded("b")
+    slot.release("b")
+    assert slot.superseded("b")
+    slot.abort_active("rebooting")
+    assert slot.abort_reason == "rebooting"
+    slot.take_over("c")
+    assert slot.abort_reason == PREEMPTED
