@@ -8,15 +8,19 @@ import itertools
 import numpy as np
 import pytest
 
-from tactile_sensor.physics import fem
 from tactile_sensor.physics.array_grid import face_image, symmetries
-from tactile_sensor.physics.design_metrics import (OBSERVE_SNR, WRENCH_AXES, distinct_output,
-                                                   full_scale, wrench_matrix, wrench_metrics)
+from tactile_sensor.physics.design_metrics import (
+    OBSERVE_SNR,
+    WRENCH_AXES,
+    distinct_output,
+    full_scale,
+    wrench_matrix,
+    wrench_metrics,
+)
 from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.fem import SkinModel, rotation_matrix
 from tactile_sensor.physics.params import PhysicsParams
-from tactile_sensor.physics.wrench import (WrenchSet, compute_wrench_set, map_wrench,
-                                           wrench_paths)
+from tactile_sensor.physics.wrench import WrenchSet, compute_wrench_set, map_wrench, wrench_paths
 
 FOUR = "front,back,left,right"
 SMALL = dict(mesh_nx=3, mesh_ny=3, mesh_nz=8, steps=2, max_indentation=0.002, modules=FOUR)
@@ -130,7 +134,7 @@ def test_a_pure_twist_is_a_load_path():
 
 def test_wrench_tilt_that_lifts_the_probe_is_refused_before_solving():
     p = PhysicsParams(wrench_tilt=0.4)
-    with pytest.raises(PhysicsError, match="'wrench_tilt' .* lower wrench_tilt below 0.273"):
+    with pytest.raises(PhysicsError, match=r"'wrench_tilt' .* lower wrench_tilt below 0.273"):
         wrench_paths(p)
 
 
