@@ -24,11 +24,8 @@ reports by how much.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
-import os
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -322,17 +319,9 @@ def cached_grid(params: PhysicsParams, cache_dir: Path | None = None) -> ArrayGr
 
 def store_grid(params: PhysicsParams, grid: ArrayGrid, cache_dir: Path | None = None) -> None:
     """Cache ``grid`` atomically; best effort (a read-only cache only costs time)."""
-    path = grid_cache_path(params, cache_dir)
-    with contextlib.suppress(OSError):
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".array-grid-", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w") as handle:
-                json.dump(grid.to_dict(), handle)
-            os.replace(tmp, path)
-        finally:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+    from .prediction import write_cache
+
+    write_cache(grid_cache_path(params, cache_dir), grid.to_dict())
 
 
 def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,

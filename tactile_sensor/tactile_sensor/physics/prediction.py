@@ -185,6 +185,21 @@ def default_cache_dir() -> Path:
     return Path(base) / "tactile_sensor"
 
 
+def write_cache(path: Path, data: Any) -> None:
+    """Write ``data`` as JSON atomically (a crashed run never leaves half a file); best effort:
+    a read-only cache only costs time."""
+    with contextlib.suppress(OSError):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}-", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "w") as handle:
+                json.dump(data, handle)
+            os.replace(tmp, path)
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
 def compute_curve(params: PhysicsParams, progress: Progress | None = None) -> PredictionCurve:
     from .fem import extrapolated_sweep  # scikit-fem is only needed for a cold sweep
 

