@@ -317,7 +317,7 @@ def _row(design: str, distinct: dict[str, float], observed: tuple[str, ...]) -> 
     for k in range(1, 7):
         metrics[f"wrench_singular_value_{k}_v"] = 0.1 / k
     for a in WRENCH_AXES:
-        metrics[f"distinct_{a}_v"] = distinct.get(a, 0.5)
+        metrics[f"distinct_{a}_v"] = distinct.get(a, 0.5 if a.startswith("f") else 0.0)
         metrics[f"observes_{a}"] = float(a in observed or a.startswith("f"))
     return DesignRow(design, {"modules": design}, "d" + design, metrics)
 
