@@ -18,7 +18,11 @@ see ``PhysicsParams.modules``), so pure indentation is symmetric about both plan
 probe displacement along x breaks the symmetry about x = 0 (but keeps y = 0), so that load
 path solves the half model x in [-W/2, W/2]; one along y the other half; both, the full
 block. The half and full meshes are the quarter mesh mirrored, so on pure indentation all
-three give the same numbers to the solver's tolerance (tested).
+three give the same numbers to the solver's tolerance (tested). Likewise a tilt of the probe
+about x spans y, a tilt about y spans x, a twist about z both, and windows off their face's
+centre without a mirror image span the axis they break (``spans_needed``). Tilt and twist
+turn the probe's nodes rigidly about the probe's centre (``SkinModel.probe_motion``); the
+probe's torque is the moment of their reactions (``SkinModel.probe_torque``).
 """
 
 from __future__ import annotations
