@@ -24,7 +24,6 @@ reports by how much.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable
@@ -308,13 +307,9 @@ def grid_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Pat
 
 def cached_grid(params: PhysicsParams, cache_dir: Path | None = None) -> ArrayGrid | None:
     """The cached grid for ``params``, or None (missing or damaged: recompute it)."""
-    path = grid_cache_path(params, cache_dir)
-    if path.is_file():
-        try:
-            return ArrayGrid.from_dict(json.loads(path.read_text()))
-        except (PhysicsError, ValueError, OSError):
-            pass  # a damaged cache entry is recomputed and replaced
-    return None
+    from .prediction import read_cache
+
+    return read_cache(grid_cache_path(params, cache_dir), ArrayGrid.from_dict)
 
 
 def store_grid(params: PhysicsParams, grid: ArrayGrid, cache_dir: Path | None = None) -> None:

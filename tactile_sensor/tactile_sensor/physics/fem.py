@@ -298,9 +298,9 @@ class SkinModel:
         if full is None:
             full = needed
         elif (needed[0] and not full[0]) or (needed[1] and not full[1]):
-            raise PhysicsError("This load path or window layout is not symmetric about x = 0 "
-                               "or y = 0, so the model must span that axis; pass "
-                               f"full={needed}.")
+            raise PhysicsError("This load path or window layout needs the model to span the "
+                               "axis it shears along, turns about or whose mirror the windows "
+                               f"break; pass full={needed}.")
         self.full = (bool(full[0]), bool(full[1]))
         self.mesh = build_mesh(params, self.full)
         mesh = self.mesh

@@ -156,13 +156,9 @@ def wrench_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> P
 def cached_wrench_set(params: PhysicsParams, cache_dir: Path | None = None
                       ) -> WrenchSet | None:
     """The cached set for ``params``, or None (missing or damaged: recompute it)."""
-    path = wrench_cache_path(params, cache_dir)
-    if path.is_file():
-        try:
-            return WrenchSet.from_dict(json.loads(path.read_text()))
-        except (PhysicsError, ValueError, OSError):
-            pass
-    return None
+    from .prediction import read_cache
+
+    return read_cache(wrench_cache_path(params, cache_dir), WrenchSet.from_dict)
 
 
 def store_wrench_set(params: PhysicsParams, data: WrenchSet,
