@@ -24,11 +24,7 @@ reports by how much.
 
 from __future__ import annotations
 
-import contextlib
-import json
 import math
-import os
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -38,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from .errors import PhysicsError
-from .params import FACES, PhysicsParams
+from .params import FACES, PhysicsParams, label, parse_modules
 
 Progress = Callable[[float, str], None]
 GRID_FORMAT = "tactile_sensor/array_grid"
@@ -48,12 +44,17 @@ _NORMALS = {face: np.array([sign if axis == 0 else 0, sign if axis == 1 else 0],
 
 @dataclass(frozen=True)
 class LoadPath:
-    """One solved path: a canonical direction's index (or -1: pure indentation) and level."""
+    """One solved path: a canonical direction's index (or -1: pure indentation) and level,
+    and the probe's rotation at its end (tilt about x and y, twist about z [rad]; the
+    wrench paths of ``physics/wrench.py`` only)."""
 
     direction: int
     level: int
     shear_x_m: float
     shear_y_m: float
+    tilt_x_rad: float = 0.0
+    tilt_y_rad: float = 0.0
+    twist_z_rad: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,18 +139,24 @@ class ArrayGrid:
 
 def symmetries(params: PhysicsParams) -> list[np.ndarray]:
     """Orthogonal 2 x 2 maps of the (x, y) plane that leave the block and its windows alone."""
-    reflections = [np.diag([sx, sy]).astype(float) for sx in (1, -1) for sy in (1, -1)]
-    square = math.isclose(params.width, params.depth, rel_tol=1e-12)
-    if square and len(params.window_faces) == 4:
+    maps = [np.diag([sx, sy]).astype(float) for sx in (1, -1) for sy in (1, -1)]
+    if math.isclose(params.width, params.depth, rel_tol=1e-12):
         swap = np.array([[0.0, 1.0], [1.0, 0.0]])
-        reflections += [swap @ g for g in reflections]
-    return reflections
+        maps += [swap @ g for g in maps]
+    windows = set(params.window_labels)
+    return [g for g in maps if {face_image(g, w) for w in windows} == windows]
 
 
-def face_image(g: np.ndarray, face: str) -> str:
-    """The face that ``g`` moves ``face`` onto."""
+def face_image(g: np.ndarray, module: str) -> str:
+    """The module (face, or FACE@OFFSET) that ``g`` moves ``module``'s window onto."""
+    ((face, offset),) = parse_modules(module)
+    axis = FACES[face][0]
+    along = np.zeros(2)
+    along[1 - axis] = offset
     n = g @ _NORMALS[face]
-    return next(f for f, m in _NORMALS.items() if np.allclose(m, n))
+    image = next(f for f, m in _NORMALS.items() if np.allclose(m, n))
+    moved = g @ along
+    return label(image, float(moved[1 - FACES[image][0]]) + 0.0)
 
 
 def canonical_directions(params: PhysicsParams) -> list[tuple[int, np.ndarray]]:
@@ -180,7 +187,7 @@ def grid_params(params: PhysicsParams) -> PhysicsParams:
                           mesh_nz=max(2, math.ceil(params.mesh_nz * s)),
                           mesh_extrapolation_order_force=0.0,
                           mesh_extrapolation_order_bulge=0.0,
-                          modules=",".join(params.window_faces), steps=params.array_steps,
+                          modules=",".join(params.window_labels), steps=params.array_steps,
                           max_shear_x=0.0, max_shear_y=0.0)
 
 
@@ -206,7 +213,9 @@ def _clean(v: float) -> float:
 def _path_cost(path: LoadPath) -> float:
     """Relative solve time, for progress and for starting the longest paths first: the
     model's size (quarter 1, half 2, full 4) to the power 1.5 (sparse factorisation)."""
-    copies = (2 if path.shear_x_m else 1) * (2 if path.shear_y_m else 1)
+    twist = path.twist_z_rad != 0
+    copies = (2 if path.shear_x_m or path.tilt_y_rad or twist else 1) * \
+        (2 if path.shear_y_m or path.tilt_x_rad or twist else 1)
     return float(copies) ** 1.5
 
 
@@ -215,11 +224,14 @@ def solve_path(params: PhysicsParams, path: LoadPath, progress: Progress | None 
     """One path's sweep on the grid's mesh, as plain arrays (picklable, for a worker)."""
     from .fem import SkinModel  # scikit-fem only for a cold grid
 
-    p = grid_params(params).replace(max_shear_x=path.shear_x_m, max_shear_y=path.shear_y_m)
+    p = grid_params(params).replace(max_shear_x=path.shear_x_m, max_shear_y=path.shear_y_m,
+                                    max_tilt_x=path.tilt_x_rad, max_tilt_y=path.tilt_y_rad,
+                                    max_twist_z=path.twist_z_rad)
     res = SkinModel(p).sweep(progress)
     return {"indentation_m": res.indentation_m, "shear_x_m": res.shear_x_m,
             "shear_y_m": res.shear_y_m, "force_x_n": res.force_x_n,
             "force_y_n": res.force_y_n, "force_n": res.force_n, "bulges_m": res.bulges_m,
+            "torque_nm": res.torque_nm, "rotation_rad": res.rotation_rad,
             "seconds": res.seconds}
 
 
@@ -295,28 +307,16 @@ def grid_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Pat
 
 def cached_grid(params: PhysicsParams, cache_dir: Path | None = None) -> ArrayGrid | None:
     """The cached grid for ``params``, or None (missing or damaged: recompute it)."""
-    path = grid_cache_path(params, cache_dir)
-    if path.is_file():
-        try:
-            return ArrayGrid.from_dict(json.loads(path.read_text()))
-        except (PhysicsError, ValueError, OSError):
-            pass  # a damaged cache entry is recomputed and replaced
-    return None
+    from .prediction import read_cache
+
+    return read_cache(grid_cache_path(params, cache_dir), ArrayGrid.from_dict)
 
 
 def store_grid(params: PhysicsParams, grid: ArrayGrid, cache_dir: Path | None = None) -> None:
     """Cache ``grid`` atomically; best effort (a read-only cache only costs time)."""
-    path = grid_cache_path(params, cache_dir)
-    with contextlib.suppress(OSError):
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".array-grid-", suffix=".tmp")
-        try:
-            with os.fdopen(fd, "w") as handle:
-                json.dump(grid.to_dict(), handle)
-            os.replace(tmp, path)
-        finally:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+    from .prediction import write_cache
+
+    write_cache(grid_cache_path(params, cache_dir), grid.to_dict())
 
 
 def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,

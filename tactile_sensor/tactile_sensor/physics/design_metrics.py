@@ -11,8 +11,19 @@ Fx, Fy, Fz) [V/N], the least-squares linear map from force to outputs over the g
 offset: rest reads zero); its singular values, condition number (largest / smallest of
 three; infinite when fewer than three modules or a force axis moves no output) and
 cross-talk (largest |cosine| between two force axes' output patterns: 0 when each axis moves
-the modules its own way, 1 when two axes look alike to the modules). Torque (twist, tilt)
-columns are not computed: the grid has no torque load paths yet.
+the modules its own way, 1 when two axes look alike to the modules).
+
+Wrench (from the wrench paths of ``physics/wrench.py``: press, shear, tilt about x and y,
+twist about z): S6 (modules x Fx, Fy, Fz, Tx, Ty, Tz) likewise. S6 [V/N, V/(N m)] mixes
+units, so its singular values mean nothing until each column is scaled by the load the paths
+reach (full scale): the scaled
+column is the output pattern [V] a full-scale load of that component produces. Its singular
+values compare with the module noise directly: a direction whose singular value is below
+``OBSERVE_SNR`` x noise_v is not resolved at full scale. A component is observed when, added
+to the components already observed (order Fz, Fx, Fy, Tz, Tx, Ty: forces first), the scaled
+columns' smallest singular value stays above that threshold; ``distinct`` is the part of a
+component's pattern that no combination of the three forces explains (for a force, of the
+other two).
 """
 
 from __future__ import annotations
@@ -28,8 +39,16 @@ from .params import FACES
 if TYPE_CHECKING:
     from .array_grid import ArrayGrid
     from .prediction import PredictionCurve
+    from .wrench import WrenchSet
 
 AXES = ("fx", "fy", "fz")
+#: Components in matrix order: forces [N] (Fz pressing positive), torques [N m] (right hand).
+WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
+#: Greedy order in which components are admitted as observed: forces first.
+OBSERVE_ORDER = ("fz", "fx", "fy", "tz", "tx", "ty")
+#: A wrench direction is resolved when its full-scale output pattern exceeds this many times
+#: the module noise (about 10 dB: three distinguishable levels across the full scale).
+OBSERVE_SNR = 3.0
 
 
 def curve_metrics(curve: PredictionCurve, noise_v: float) -> dict[str, float]:
@@ -76,3 +95,69 @@ def matrix_metrics(grid: ArrayGrid) -> dict[str, float]:
     out["crosstalk"] = max(cosines)
     out["shear_sensitivity_v_per_n"] = float(np.mean(np.abs(s[:, :2]).max(axis=0)))
     return out
+
+
+# -- wrench -----------------------------------------------------------------------------------
+
+
+def wrench_matrix(data: WrenchSet) -> np.ndarray:
+    """(modules, 6) least-squares S with outputs = S @ (Fx, Fy, Fz, Tx, Ty, Tz)."""
+    solution, *_ = np.linalg.lstsq(data.wrench, data.output_matrix(), rcond=None)
+    return solution.T
+
+
+def full_scale(data: WrenchSet) -> np.ndarray:
+    """The largest |component| the paths reach, per component (N, N m)."""
+    return np.abs(data.wrench).max(axis=0)
+
+
+def _smallest_singular(a: np.ndarray) -> float:
+    values = np.linalg.svd(a, compute_uv=False)
+    return float(values[-1]) if values.size == a.shape[1] else 0.0
+
+
+def distinct_output(scaled: np.ndarray, k: int) -> float:
+    """|part of column k| [V] that no combination of the force columns (other than k)
+    explains."""
+    others = [j for j in range(3) if j != k]
+    basis = scaled[:, others]
+    coef, *_ = np.linalg.lstsq(basis, scaled[:, k], rcond=None)
+    return float(np.linalg.norm(scaled[:, k] - basis @ coef))
+
+
+def wrench_metrics(data: WrenchSet, noise_v: float) -> dict[str, float]:
+    """Singular values of the full-scale output patterns, their rank above the threshold,
+    and per component its full scale, distinct output and whether it is observed."""
+    threshold = OBSERVE_SNR * noise_v
+    scale = full_scale(data)
+    if np.any(scale <= 0):
+        raise PhysicsError("A wrench path produced no load along one component; check "
+                           "wrench_twist, wrench_tilt and array_shear_ratio.")
+    scaled = wrench_matrix(data) * scale[None, :]
+    singular = np.zeros(len(WRENCH_AXES))
+    values = np.linalg.svd(scaled, compute_uv=False)
+    singular[:values.size] = values
+    out: dict[str, float] = {f"wrench_singular_value_{k}_v": float(v)
+                             for k, v in enumerate(singular, start=1)}
+    out["wrench_rank"] = float(np.sum(singular > threshold))
+    observed: list[int] = []
+    for name in OBSERVE_ORDER:
+        k = WRENCH_AXES.index(name)
+        if _smallest_singular(scaled[:, [*observed, k]]) > threshold:
+            observed.append(k)
+    for k, name in enumerate(WRENCH_AXES):
+        unit = "n" if name.startswith("f") else "nm"
+        out[f"full_scale_{name}_{unit}"] = float(scale[k])
+        out[f"distinct_{name}_v"] = distinct_output(scaled, k)
+        out[f"observes_{name}"] = float(k in observed)
+    out["observed_torques"] = float(sum(k in observed for k in (3, 4, 5)))
+    return out
+
+
+#: The study table's columns of the metric ``wrench_observability``.
+WRENCH_COLUMNS = ("observed_torques", "wrench_rank",
+                  *(f"wrench_singular_value_{k}_v" for k in range(1, 7)),
+                  *(f"observes_{a}" for a in WRENCH_AXES),
+                  *(f"distinct_{a}_v" for a in WRENCH_AXES),
+                  *(f"full_scale_{a}_{'n' if a.startswith('f') else 'nm'}"
+                    for a in WRENCH_AXES))

@@ -18,7 +18,11 @@ see ``PhysicsParams.modules``), so pure indentation is symmetric about both plan
 probe displacement along x breaks the symmetry about x = 0 (but keeps y = 0), so that load
 path solves the half model x in [-W/2, W/2]; one along y the other half; both, the full
 block. The half and full meshes are the quarter mesh mirrored, so on pure indentation all
-three give the same numbers to the solver's tolerance (tested).
+three give the same numbers to the solver's tolerance (tested). Likewise a tilt of the probe
+about x spans y, a tilt about y spans x, a twist about z both, and windows off their face's
+centre without a mirror image span the axis they break (``spans_needed``). Tilt and twist
+turn the probe's nodes rigidly about the probe's centre (``SkinModel.probe_motion``); the
+probe's torque is the moment of their reactions (``SkinModel.probe_torque``).
 """
 
 from __future__ import annotations
@@ -63,6 +67,10 @@ class SweepResult:
     and ``force_y_n`` along +x and +y: each positive along the probe's own displacement when
     it moves along one axis. ``bulges_m`` maps each module face to its window's outward
     displacement [m]; ``bulge_m`` is the first module's (front's, by default).
+    ``rotation_rad`` (steps, 3) is the probe's rotation vector (tilt about x, tilt about y,
+    twist about z) and ``torque_nm`` (steps, 3) the probe's torque on the skin about the
+    probe's centre (Tx, Ty, Tz), right-hand rule about +x, +y, +z: positive along the probe's
+    own rotation when it turns about one axis.
     """
 
     indentation_m: np.ndarray
@@ -75,6 +83,8 @@ class SweepResult:
     force_x_n: np.ndarray
     force_y_n: np.ndarray
     bulges_m: dict[str, np.ndarray]
+    rotation_rad: np.ndarray
+    torque_nm: np.ndarray
 
 
 # --------------------------------------------------------------------------------------------
@@ -138,9 +148,13 @@ def build_mesh(params: PhysicsParams, full: tuple[bool, bool] = (False, False)
         per_axis = []
         for k in (0, 1):
             breaks, refine = [0.0, half[k]], []
-            if 1 - k in axes:          # windows on the other faces span |coordinate| < ww
-                breaks.append(ww)
-                refine.append(ww)
+            # windows on the faces across this axis span |coordinate - offset| < ww; their
+            # edges and their mirror images' (|offset -+ ww|) are nodes, so the mirrored
+            # mesh of a full model has every window's edges too
+            edges = sorted({abs(c + s * ww) for f, c in p.windows if FACES[f][0] == 1 - k
+                            for s in (-1, 1)})
+            breaks += edges
+            refine += edges
             if k in axes:              # windows on this axis' own faces
                 refine.append(half[k])
             per_axis.append(_axis(breaks, (p.mesh_nx, p.mesh_ny)[k], tuple(refine), g,
@@ -280,12 +294,13 @@ class SkinModel:
         """``full``: whether the model spans the whole width (x) and depth (y); by default
         the quarter, or the half or full block a shear load path needs."""
         self.params = params
+        needed = spans_needed(params)
         if full is None:
-            full = (params.max_shear_x != 0, params.max_shear_y != 0)
-        elif (params.max_shear_x != 0 and not full[0]) or (params.max_shear_y != 0
-                                                             and not full[1]):
-            raise PhysicsError("A shear load path needs the model to span the axis it "
-                               "shears along; pass full=(True, ...) for x, (..., True) for y.")
+            full = needed
+        elif (needed[0] and not full[0]) or (needed[1] and not full[1]):
+            raise PhysicsError("This load path or window layout needs the model to span the "
+                               "axis it shears along, turns about or whose mirror the windows "
+                               f"break; pass full={needed}.")
         self.full = (bool(full[0]), bool(full[1]))
         self.mesh = build_mesh(params, self.full)
         mesh = self.mesh
@@ -312,12 +327,14 @@ class SkinModel:
             "solve_s": 0.0}
 
     # -- boundary conditions -------------------------------------------------------------------
-    def _in_mesh(self, face: str) -> str:
-        """The face itself, or the mirror face standing for it in a symmetric model."""
+    def _in_mesh(self, face: str, offset: float) -> tuple[str, float]:
+        """The window itself, or the mirror window standing for it in a symmetric model."""
         axis, sign = FACES[face]
-        if sign > 0 or self.full[axis]:
-            return face
-        return next(f for f, (a, s) in FACES.items() if a == axis and s > 0)
+        if not (sign > 0 or self.full[axis]):
+            face = next(f for f, (a, s) in FACES.items() if a == axis and s > 0)
+        if offset < 0 and not self.full[1 - axis]:
+            offset = -offset
+        return face, offset
 
     def _setup_constraints(self) -> None:
         p = self.params
@@ -342,12 +359,13 @@ class SkinModel:
                     if not wall.any():
                         continue                              # beyond a symmetry plane
                     window = np.zeros_like(wall)
-                    if face in p.window_faces:
-                        window = wall & (abs(X[1 - k]) < ww - tol) & (abs(z - zc) < wh - tol)
-                        if not window.any():
+                    for c in (c for f, c in p.windows if f == face):
+                        one = wall & (abs(X[1 - k] - c) < ww - tol) & (abs(z - zc) < wh - tol)
+                        if not one.any() and c >= X[1 - k].min() - tol:
                             raise PhysicsError("The mesh has no node inside the "
                                                "photoreflector window; raise mesh_nx, "
                                                "mesh_ny and mesh_nz or enlarge the window.")
+                        window |= one
                     fixed[wall & ~window, :] = True
         else:
             fixed[bottom, 2] = True
@@ -355,10 +373,11 @@ class SkinModel:
         self._top = top
         self._fixed = fixed.ravel()
         self._free = np.flatnonzero(~self._fixed)
-        self._patches = {face: self._window_patch(self._in_mesh(face))
-                         for face in p.module_faces}
+        self._patches = {name: self._window_patch(*self._in_mesh(face, c))
+                         for name, (face, c) in zip(p.module_faces, p.module_windows,
+                                                    strict=True)}
 
-    def _window_patch(self, face: str) -> tuple[int, int, np.ndarray]:
+    def _window_patch(self, face: str, offset: float = 0.0) -> tuple[int, int, np.ndarray]:
         """(axis, outward sign, node weights): the area-weighted average of the face's
         outward displacement over its quads inside the window."""
         p = self.params
@@ -372,14 +391,15 @@ class SkinModel:
         on_face = np.all(sign * x[k][facets] > h - tol, axis=0)
         across = x[1 - k][facets]
         cz = x[2][facets].mean(axis=0)
-        inside = on_face & (abs(across.mean(axis=0)) < ww) & (abs(cz - zc) < wh)
+        inside = on_face & (abs(across.mean(axis=0) - offset) < ww) & (abs(cz - zc) < wh)
         for f in np.flatnonzero(inside):
             nodes = facets[:, f]
             area = np.ptp(across[:, f]) * np.ptp(x[2][nodes])
             np.add.at(weights, nodes, area / 4)
         if weights.sum() == 0:  # window finer than the mesh: nearest node of the face
             cand = np.flatnonzero(sign * x[k] > h - tol)
-            weights[cand[np.argmin(x[1 - k][cand] ** 2 + (x[2][cand] - zc) ** 2)]] = 1.0
+            weights[cand[np.argmin((x[1 - k][cand] - offset) ** 2 + (x[2][cand] - zc) ** 2)]
+                    ] = 1.0
         return k, sign, weights / weights.sum()
 
     def bulges(self, u: np.ndarray) -> dict[str, float]:
@@ -399,6 +419,26 @@ class SkinModel:
         fx = copies * float(on_top[0]) if self.full[0] else 0.0
         fy = copies * float(on_top[1]) if self.full[1] else 0.0
         return fx, fy, -copies * float(on_top[2])
+
+    def probe_torque(self, fint: np.ndarray, u: np.ndarray, t: float
+                     ) -> tuple[float, float, float]:
+        """The probe's torque on the skin (Tx, Ty, Tz) [N m] about the probe's centre, from
+        the reactions at the probe's nodes in their deformed positions, at load fraction t.
+
+        The centre is the top face's centre, carried along by the probe's translation. A
+        mirror copy about x = 0 flips Ty and Tz (a torque is a pseudo-vector) and one about
+        y = 0 flips Tx and Tz: a component that a missing copy would cancel is 0.
+        """
+        p = self.params
+        top = self._top
+        centre = np.array([0.0, 0.0, p.height]) + t * np.array(
+            [p.max_shear_x, p.max_shear_y, -p.max_indentation])
+        arm = (self.mesh.p[:, top].T + u.reshape(-1, 3)[top]) - centre
+        moment = np.cross(arm, fint.reshape(-1, 3)[top]).sum(axis=0)
+        copies = (1 if self.full[0] else 2) * (1 if self.full[1] else 2)
+        keep = (self.full[1], self.full[0], self.full[0] and self.full[1])
+        return tuple(copies * float(m) if k else 0.0    # type: ignore[return-value]
+                     for m, k in zip(moment, keep, strict=True))
 
     def _setup_pattern(self) -> None:
         """CSR pattern of the free-free stiffness and the scatter index of every element entry."""
@@ -477,9 +517,23 @@ class SkinModel:
         fixed = self._fixed.reshape(-1, 3)
         u3[fixed] = 0.0
         if p.boundary == "bonded":
-            u3[self._top] = t * np.array([p.max_shear_x, p.max_shear_y, -p.max_indentation])
+            u3[self._top] = self.probe_motion(self.mesh.p[:, self._top], t)
         else:
             u3[self._top, 2] = -t * p.max_indentation
+
+    def probe_motion(self, points: np.ndarray, t: float) -> np.ndarray:
+        """Displacements (n, 3) of ``points`` (3, n) carried rigidly by the probe at load
+        fraction t: turned by t x (max_tilt_x, max_tilt_y, max_twist_z) about the probe's
+        centre (the top face's centre), then moved by t x (max_shear_x, max_shear_y,
+        -max_indentation)."""
+        p = self.params
+        u = np.tile(t * np.array([p.max_shear_x, p.max_shear_y, -p.max_indentation]),
+                    (points.shape[1], 1))
+        if p.is_rotation:
+            arm = points.T - np.array([0.0, 0.0, p.height])
+            turn = rotation_matrix(t * np.array([p.max_tilt_x, p.max_tilt_y, p.max_twist_z]))
+            u += arm @ (turn - np.eye(3)).T
+        return u
 
     def sweep(self, progress: Progress | None = None) -> SweepResult:
         """Move the probe linearly from 0 to (max_indentation, max_shear_x, max_shear_y)
@@ -495,6 +549,7 @@ class SkinModel:
         start = time.perf_counter()
         t_all = np.linspace(0.0, 1.0, p.steps + 1)
         forces = [(0.0, 0.0, 0.0)]
+        torques = [(0.0, 0.0, 0.0)]
         bulges = [dict.fromkeys(self._patches, 0.0)]
         history: list[tuple[float, np.ndarray]] = [(0.0, np.zeros(self.ndof))]
         lu = None
@@ -503,6 +558,7 @@ class SkinModel:
             u, lu = self._advance(history, lu, t_all[n], 0)
             fint, _ = self._evaluate(u, tangent=False)
             forces.append(self.probe_force(fint))
+            torques.append(self.probe_torque(fint, u, t_all[n]))
             bulges.append(self.bulges(u))
             if progress is not None:
                 cut = self.stats["cuts"] - cuts_before
@@ -517,10 +573,11 @@ class SkinModel:
                          f"{forces[-1][2]:.3f} N{shear}{note}")
         f = np.array(forces)
         per_face = {face: np.array([b[face] for b in bulges]) for face in self._patches}
+        rotation = t_all[:, None] * np.array([p.max_tilt_x, p.max_tilt_y, p.max_twist_z])
         return SweepResult(t_all * p.max_indentation, f[:, 2], per_face[p.module_faces[0]],
                            self.nodes, time.perf_counter() - start,
                            t_all * p.max_shear_x, t_all * p.max_shear_y, f[:, 0], f[:, 1],
-                           per_face)
+                           per_face, rotation, np.array(torques))
 
     def _advance(self, history: list[tuple[float, np.ndarray]], lu: object, d: float,
                  depth: int) -> tuple[np.ndarray, object]:
@@ -755,7 +812,29 @@ def extrapolated_sweep(params: PhysicsParams, progress: Progress | None = None,
               for face in fine.bulges_m}
     return SweepResult(fine.indentation_m, force("force_n"), bulges[params.module_faces[0]],
                        fine.nodes, fine.seconds + coarse.seconds, fine.shear_x_m,
-                       fine.shear_y_m, force("force_x_n"), force("force_y_n"), bulges)
+                       fine.shear_y_m, force("force_x_n"), force("force_y_n"), bulges,
+                       fine.rotation_rad, force("torque_nm"))
+
+
+def spans_needed(params: PhysicsParams) -> tuple[bool, bool]:
+    """Whether the model must span x and y: the load path or the windows break the mirror
+    symmetry about x = 0 (shear along x, tilt about y, twist) or y = 0 (likewise)."""
+    p = params
+    return (p.max_shear_x != 0 or p.max_tilt_y != 0 or p.max_twist_z != 0
+            or not p.mirror_symmetric(0),
+            p.max_shear_y != 0 or p.max_tilt_x != 0 or p.max_twist_z != 0
+            or not p.mirror_symmetric(1))
+
+
+def rotation_matrix(vector: np.ndarray) -> np.ndarray:
+    """The rotation by ``vector`` (axis times angle [rad], right-hand rule), Rodrigues'
+    formula: one rotation for a combined tilt and twist, independent of an order of axes."""
+    angle = float(np.linalg.norm(vector))
+    if angle == 0.0:
+        return np.eye(3)
+    kx, ky, kz = np.asarray(vector, float) / angle
+    k = np.array([[0.0, -kz, ky], [kz, 0.0, -kx], [-ky, kx, 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
 
 
 def richardson(fine: np.ndarray, coarse: np.ndarray, ratio: float, order: float

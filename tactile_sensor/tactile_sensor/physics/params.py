@@ -68,6 +68,18 @@ class PhysicsParams:
                             "(max_indentation, max_shear_x, max_shear_y); non-zero needs "
                             "the bonded boundary and solves the half or full model")
     max_shear_y: float = _f(0.0, "m", "the same along +y (toward the front face)")
+    max_tilt_x: float = _f(0.0, "rad", "rotation of the probe about +x through its centre "
+                           "(the top face's centre) at the end of the load path, right-hand "
+                           "rule, growing linearly with the indentation; the probe's edge "
+                           "may not lift: |tilt| x half the depth <= max_indentation; "
+                           "non-zero needs the bonded boundary and spans the model in y",
+                           low=-0.5, high=0.5)
+    max_tilt_y: float = _f(0.0, "rad", "the same about +y (|tilt| x half the width <= "
+                           "max_indentation; spans the model in x)", low=-0.5, high=0.5)
+    max_twist_z: float = _f(0.0, "rad", "rotation of the probe about +z (its axis) through "
+                            "its centre at the end of the load path, right-hand rule; "
+                            "non-zero needs the bonded boundary and solves the full model",
+                            low=-1.0, high=1.0)
     steps: int = _f(15, "1", "load steps from 0 to the end of the load path", low=1,
                     high=1000)
     boundary: str = _f("bonded", "-", "'bonded': base fixed, top bonded to the flat probe "
@@ -83,7 +95,10 @@ class PhysicsParams:
                               "module", low=0.0)
     modules: str = _f("front", "-", "side faces that carry a module (a photoreflector "
                       "behind its own window), comma-separated, any of front (+y, the "
-                      "paper's), back (-y), left (-x), right (+x); windows come in "
+                      "paper's), back (-y), left (-x), right (+x), each optionally with the "
+                      "window centre's offset along the face [m] as FACE@OFFSET (along +x "
+                      "on front and back, +y on left and right; e.g. front@0.005, several "
+                      "per face allowed); windows come in "
                       "opposite pairs (a module's window in one wall of the band and the "
                       "same window in the opposite wall, as the single-module model has "
                       "always assumed), so 'front' alone also opens the back wall")
@@ -138,6 +153,17 @@ class PhysicsParams:
                                  "relative to mesh_nx/ny/nz, solved alone (a shear path on "
                                  "the full mesh took ~5 min; docs/array.md gives the error)",
                                  curve=False, grid=True, low=0.0, low_open=True, high=2.0)
+    wrench_twist: float = _f(0.2, "rad", "probe twist about z of the wrench load paths "
+                             "(physics/wrench.py, study metric wrench_observability); "
+                             "assumption: a rotation whose edge displacement is of the "
+                             "indentation's scale (0.2 rad moves the top's edge midpoints "
+                             "2.2 mm) and small enough for the grid's coarse mesh",
+                             curve=False, low=0.0, low_open=True, high=1.0)
+    wrench_tilt: float = _f(0.1, "rad", "probe tilt about x and about y of the wrench load "
+                            "paths; with max_indentation it must keep the probe's edge down "
+                            "(tilt x half the width <= max_indentation: 0.1 rad lifts the "
+                            "edge 1.1 mm of the 3 mm)", curve=False, low=0.0, low_open=True,
+                            high=0.5)
     # --- mesh (quarter model, symmetric about x = 0 and y = 0) ------------------------------
     mesh_nx: int = _f(10, "1", "elements across the half width", low=1, high=200)
     mesh_ny: int = _f(10, "1", "elements across the half depth", low=1, high=200)
@@ -179,21 +205,29 @@ class PhysicsParams:
         if self.c10 + self.c01 <= 0:
             raise PhysicsError("Parameters 'c10' + 'c01' must be positive (the shear "
                                "modulus 2(C10+C01) would be <= 0); fix the material.")
-        faces = [f.strip() for f in self.modules.split(",") if f.strip()]
-        unknown = [f for f in faces if f not in FACES]
-        if not faces or unknown or len(set(faces)) != len(faces):
-            raise PhysicsError(f"Parameter 'modules' is {self.modules!r}; give distinct "
-                               f"faces out of {', '.join(FACES)}, comma-separated.")
-        # one spelling per set of faces, so equal sets compare and hash equal
-        object.__setattr__(self, "modules", ",".join(f for f in FACES if f in faces))
+        modules = parse_modules(self.modules)
+        # one spelling per set of modules, so equal sets compare and hash equal
+        object.__setattr__(self, "modules", ",".join(label(f, c) for f, c in modules))
         shear = self.max_shear_x != 0 or self.max_shear_y != 0
-        if self.max_indentation == 0 and not shear:
-            raise PhysicsError("The load path is zero (max_indentation, max_shear_x and "
-                               "max_shear_y all 0); give an indentation or a shear.")
+        if self.max_indentation == 0 and not shear and not self.is_rotation:
+            raise PhysicsError("The load path is zero (max_indentation, max_shear_x, "
+                               "max_shear_y, max_tilt_x, max_tilt_y and max_twist_z all 0); "
+                               "give an indentation, a shear or a rotation.")
         if shear and self.boundary != "bonded":
             raise PhysicsError("Parameters 'max_shear_x'/'max_shear_y' need the bonded "
                                "boundary (a frictionless probe cannot shear the skin); set "
                                "boundary to bonded.")
+        if self.is_rotation and self.boundary != "bonded":
+            raise PhysicsError("Parameters 'max_tilt_x'/'max_tilt_y'/'max_twist_z' need the "
+                               "bonded boundary (a frictionless probe cannot turn the skin); "
+                               "set boundary to bonded.")
+        for name, half in (("max_tilt_x", self.depth / 2), ("max_tilt_y", self.width / 2)):
+            lift = abs(getattr(self, name)) * half
+            if lift > self.max_indentation * (1 + 1e-9):
+                raise PhysicsError(f"Parameter {name!r} lifts the probe's edge {lift * 1e3:.3g}"
+                                   f" mm, more than max_indentation "
+                                   f"({self.max_indentation * 1e3:.3g} mm); tilt less or "
+                                   "press deeper.")
         if self.max_indentation >= 0.6 * self.height:
             raise PhysicsError("Parameter 'max_indentation' exceeds 60 % of 'height'; "
                                "reduce it or make the skin taller.")
@@ -207,6 +241,7 @@ class PhysicsParams:
             if self.window_width >= min(self.width, self.depth):
                 raise PhysicsError("Parameter 'window_width' must be smaller than 'width' "
                                    "and 'depth'.")
+            self._check_windows()
             if self.module_height >= self.height - self.max_indentation:
                 raise PhysicsError("Parameter 'module_height' reaches the probe; make it "
                                    "lower than height - max_indentation.")
@@ -214,7 +249,28 @@ class PhysicsParams:
             raise PhysicsError("Parameter 'window_center_z' lies above the skin top; lower "
                                "it below 'height'.")
 
+    def _check_windows(self) -> None:
+        """Every window inside its face, and no two windows of a face overlapping."""
+        ww = self.window_width
+        for face, c in self.windows:
+            half = self.face_half_width(face)
+            if abs(c) + ww / 2 >= half:
+                raise PhysicsError(f"The window of module {label(face, c)!r} reaches past its "
+                                   f"face's edge (|offset| + window_width/2 must be < "
+                                   f"{half * 1e3:.3g} mm); move it toward the centre or "
+                                   "narrow the window.")
+            for other, d in self.windows:
+                if other == face and c < d < c + ww:
+                    raise PhysicsError(f"The windows at {label(face, c)!r} and "
+                                       f"{label(face, d)!r} overlap; space the offsets at "
+                                       "least window_width apart.")
+
     # ------------------------------------------------------------------------------------------
+    def face_half_width(self, face: str) -> float:
+        """Half the face's extent along its horizontal axis (x on front/back, y on
+        left/right) [m]."""
+        return self.width / 2 if FACES[face][0] == 1 else self.depth / 2
+
     @property
     def shear_modulus(self) -> float:
         """Initial shear modulus mu = 2 (C10 + C01) [Pa]."""
@@ -227,18 +283,48 @@ class PhysicsParams:
 
     @property
     def module_faces(self) -> tuple[str, ...]:
-        """The faces carrying a module, in the fixed order front, back, left, right."""
+        """The modules' labels (a face, or FACE@OFFSET off the face's centre), in the fixed
+        order front, back, left, right, then by offset."""
         return tuple(self.modules.split(","))
+
+    @property
+    def module_windows(self) -> tuple[tuple[str, float], ...]:
+        """(face, offset [m]) of each module, in ``module_faces`` order."""
+        return parse_modules(self.modules)
+
+    @property
+    def windows(self) -> tuple[tuple[str, float], ...]:
+        """(face, offset) of every open window: the modules' and, at the same offset, their
+        opposite walls', ordered by face then offset."""
+        mods = self.module_windows
+        found = set(mods) | {(OPPOSITE[f], c) for f, c in mods}
+        return tuple(sorted(found, key=lambda w: (list(FACES).index(w[0]), w[1])))
 
     @property
     def window_faces(self) -> tuple[str, ...]:
         """Faces with an open window: the modules' and their opposite walls'."""
-        faces = set(self.module_faces) | {OPPOSITE[f] for f in self.module_faces}
+        faces = {f for f, _ in self.windows}
         return tuple(f for f in FACES if f in faces)
+
+    @property
+    def window_labels(self) -> tuple[str, ...]:
+        """Labels of every open window (the modules a grid reads), as ``modules`` spells them."""
+        return tuple(label(f, c) for f, c in self.windows)
+
+    def mirror_symmetric(self, axis: int) -> bool:
+        """Whether the windows are symmetric about the plane ``axis`` = 0 (x: 0, y: 1): a
+        window on a face across that axis must have its mirror image at minus its offset."""
+        windows = set(self.windows)
+        return all((f, -c) in windows for f, c in windows if FACES[f][0] != axis)
 
     @property
     def is_shear(self) -> bool:
         return self.max_shear_x != 0 or self.max_shear_y != 0
+
+    @property
+    def is_rotation(self) -> bool:
+        """Whether the load path turns the probe (tilt or twist)."""
+        return self.max_tilt_x != 0 or self.max_tilt_y != 0 or self.max_twist_z != 0
 
     @classmethod
     def names(cls) -> list[str]:
@@ -295,7 +381,37 @@ class PhysicsParams:
 
 
 #: Curve fields added after prediction caches existed, with the defaults that keep them valid.
-_LATER_FIELDS: dict[str, Any] = {"max_shear_x": 0.0, "max_shear_y": 0.0, "modules": "front"}
+_LATER_FIELDS: dict[str, Any] = {"max_shear_x": 0.0, "max_shear_y": 0.0, "modules": "front",
+                                 "max_tilt_x": 0.0, "max_tilt_y": 0.0, "max_twist_z": 0.0}
+
+
+def label(face: str, offset: float) -> str:
+    """A module's name: its face, with ``@offset`` [m] when off the face's centre."""
+    return face if offset == 0 else f"{face}@{offset:.6g}"
+
+
+def parse_modules(text: str) -> tuple[tuple[str, float], ...]:
+    """(face, offset [m]) of each entry of a ``modules`` string, sorted by face then offset;
+    one sentence on a bad entry."""
+    out: list[tuple[str, float]] = []
+    for item in (t.strip() for t in text.split(",")):
+        if not item:
+            continue
+        face, _, offset = item.partition("@")
+        try:
+            c = float(offset) if offset.strip() else 0.0
+        except ValueError:
+            c = math.nan
+        if face.strip() not in FACES or not math.isfinite(c) or (_ and not offset.strip()):
+            out = []
+            break
+        out.append((face.strip(), c + 0.0))          # + 0.0: no -0.0
+    if not out or len(set(out)) != len(out):
+        raise PhysicsError(f"Parameter 'modules' is {text!r}; give distinct faces out of "
+                           f"{', '.join(FACES)}, comma-separated, each optionally FACE@OFFSET "
+                           "with the window's offset along the face in m (e.g. "
+                           "front@0.005).")
+    return tuple(sorted(out, key=lambda w: (list(FACES).index(w[0]), w[1])))
 
 
 def _coerce(f: dataclasses.Field[Any], raw: Any) -> Any:

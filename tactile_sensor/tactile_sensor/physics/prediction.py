@@ -185,6 +185,32 @@ def default_cache_dir() -> Path:
     return Path(base) / "tactile_sensor"
 
 
+def read_cache(path: Path, parse: Callable[[Any], Any]) -> Any:
+    """``parse`` of the JSON at ``path``, or None when it is missing or damaged (even
+    non-UTF-8): a damaged cache entry is recomputed and replaced."""
+    if path.is_file():
+        try:
+            return parse(json.loads(path.read_text()))
+        except (PhysicsError, ValueError, OSError):
+            pass
+    return None
+
+
+def write_cache(path: Path, data: Any) -> None:
+    """Write ``data`` as JSON atomically (a crashed run never leaves half a file); best effort:
+    a read-only cache only costs time."""
+    with contextlib.suppress(OSError):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}-", suffix=".tmp")
+        try:
+            with os.fdopen(fd, "w") as handle:
+                json.dump(data, handle)
+            os.replace(tmp, path)
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
 def compute_curve(params: PhysicsParams, progress: Progress | None = None) -> PredictionCurve:
     from .fem import extrapolated_sweep  # scikit-fem is only needed for a cold sweep
 
@@ -204,13 +230,7 @@ def cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:
 def cached_curve(params: PhysicsParams, cache_dir: Path | None = None
                  ) -> PredictionCurve | None:
     """The cached curve for ``params``, or None (missing or damaged: recompute it)."""
-    path = cache_path(params, cache_dir)
-    if path.is_file():
-        try:
-            return PredictionCurve.from_dict(json.loads(path.read_text()))
-        except (PhysicsError, ValueError, OSError):
-            pass  # a damaged (even non-UTF-8) cache entry is recomputed and replaced
-    return None
+    return read_cache(cache_path(params, cache_dir), PredictionCurve.from_dict)
 
 
 def store_curve(params: PhysicsParams, curve: PredictionCurve,

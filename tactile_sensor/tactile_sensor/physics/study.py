@@ -18,16 +18,17 @@ from pathlib import Path
 from typing import Any
 
 from .batch import run
-from .design_metrics import curve_metrics, matrix_metrics
+from .design_metrics import curve_metrics, matrix_metrics, wrench_metrics
 from .errors import PhysicsError
 from .params import PhysicsParams
-from .study_spec import MATRIX_METRIC, SINGLE_METRICS, StudySpec
+from .study_spec import MATRIX_METRIC, SINGLE_METRICS, WRENCH_METRIC, StudySpec
 
 Progress = Callable[[float, str], None]
 REFERENCE = "paper"
 #: Relative cost of a design's solves, for ordering and the time estimate: a grid's two
 #: shear paths on the half-scale mesh took ~14 s, the extrapolated sweep ~6 s.
-CURVE_COST, GRID_COST = 1.0, 2.5
+#: The wrench set's six paths, twist on the full model, took ~4x the grid's two.
+CURVE_COST, GRID_COST, WRENCH_COST = 1.0, 2.5, 10.0
 
 
 @dataclass
@@ -48,14 +49,15 @@ class DesignRow:
 
 
 def design_task(values: dict[str, Any], needs_curve: bool, needs_grid: bool,
-                progress: Progress | None) -> dict[str, Any]:
+                needs_wrench: bool, progress: Progress | None) -> dict[str, Any]:
     """A design's solves on a worker, as plain data (the client caches and measures)."""
     from .array_grid import compute_grid
     from .prediction import compute_curve
+    from .wrench import compute_wrench_set
 
     params = PhysicsParams.from_mapping(values)
-    parts = [name for name, needed in (("curve", needs_curve), ("grid", needs_grid))
-             if needed]
+    parts = [name for name, needed in (("curve", needs_curve), ("grid", needs_grid),
+                                       ("wrench", needs_wrench)) if needed]
     out: dict[str, Any] = {}
     for k, name in enumerate(parts):
         def stage(f: float, message: str, k: int = k, name: str = name) -> None:
@@ -64,8 +66,10 @@ def design_task(values: dict[str, Any], needs_curve: bool, needs_grid: bool,
 
         if name == "curve":
             out["curve"] = compute_curve(params, stage).to_dict()
-        else:
+        elif name == "grid":
             out["grid"] = compute_grid(params, stage, workers=1).to_dict()
+        else:
+            out["wrench"] = compute_wrench_set(params, stage, workers=1).to_dict()
     return out
 
 
@@ -87,9 +91,11 @@ def run_study(spec: StudySpec, *, scheduler: str | None = None, workers: int | N
     """Every design's row (the paper's first), computing only what the cache lacks."""
     from .array_grid import cached_grid, store_grid
     from .prediction import PredictionCurve, cached_curve, store_curve
+    from .wrench import WrenchSet, cached_wrench_set, store_wrench_set, wrench_digest
 
     needs_curve = any(m in SINGLE_METRICS for m in spec.metrics)
     needs_grid = MATRIX_METRIC in spec.metrics
+    needs_wrench = WRENCH_METRIC in spec.metrics
     designs = [(REFERENCE, {})] + [(str(i), d) for i, d in enumerate(spec.designs())]
     rows = [DesignRow(name, values) for name, values in designs]
     params: dict[int, PhysicsParams] = {}
@@ -99,15 +105,18 @@ def run_study(spec: StudySpec, *, scheduler: str | None = None, workers: int | N
         except PhysicsError as err:
             row.error = f"rejected: {_one_sentence(err)}"
             continue
-        row.digest = params[i].grid_digest() if needs_grid else params[i].digest()
+        row.digest = (wrench_digest(params[i]) if needs_wrench else params[i].grid_digest()
+                      if needs_grid else params[i].digest())
     rows[0].values = {name: getattr(params[0], name) for name in spec.varied}
 
-    def measure(row: DesignRow, curve: Any, grid: Any) -> None:
+    def measure(row: DesignRow, curve: Any, grid: Any, wrench: Any) -> None:
         try:
             if needs_curve:
                 row.metrics.update(curve_metrics(curve, spec.noise_v))
             if needs_grid:
                 row.metrics.update(matrix_metrics(grid))
+            if needs_wrench:
+                row.metrics.update(wrench_metrics(wrench, spec.noise_v))
         except PhysicsError as err:
             row.error = _one_sentence(err)
 
@@ -124,27 +133,29 @@ def run_study(spec: StudySpec, *, scheduler: str | None = None, workers: int | N
                 pass
         curve = cached_curve(p, cache_dir) if needs_curve else None
         grid = cached_grid(p, cache_dir) if needs_grid else None
-        if (curve is None and needs_curve) or (grid is None and needs_grid):
+        wrench = cached_wrench_set(p, cache_dir) if needs_wrench else None
+        if (curve is None and needs_curve) or (grid is None and needs_grid) or (
+                wrench is None and needs_wrench):
             todo.setdefault(row.digest, []).append(i)
             continue
         row.worker = "cache"
-        row.seconds = (curve.seconds if curve is not None else 0.0) + \
-            (grid.seconds if grid is not None else 0.0)
-        measure(row, curve, grid)
+        row.seconds = sum(part.seconds for part in (curve, grid, wrench) if part is not None)
+        measure(row, curve, grid, wrench)
 
     keys = list(todo)
     if progress is not None:
         progress(0.0, f"{len(rows)} designs: {len(rows) - sum(map(len, todo.values()))} "
                  f"done before (cache or rejected), {len(keys)} to solve")
-    cost = (CURVE_COST if needs_curve else 0.0) + (GRID_COST if needs_grid else 0.0)
+    cost = (CURVE_COST if needs_curve else 0.0) + (GRID_COST if needs_grid else 0.0) + \
+        (WRENCH_COST if needs_wrench else 0.0)
     args = [({k: list(v) if isinstance(v, tuple) else v
-              for k, v in params[todo[key][0]].to_dict().items()}, needs_curve, needs_grid)
-            for key in keys]
+              for k, v in params[todo[key][0]].to_dict().items()}, needs_curve, needs_grid,
+             needs_wrench) for key in keys]
     for result in run(design_task, args, scheduler=scheduler, workers=workers,
                       costs=[cost] * len(args), progress=progress, label="design"):
         key = keys[result.index]
         p = params[todo[key][0]]
-        curve = grid = None
+        curve = grid = wrench = None
         error = ""
         if result.error is not None:
             error = _one_sentence(result.error)
@@ -159,11 +170,14 @@ def run_study(spec: StudySpec, *, scheduler: str | None = None, workers: int | N
 
                 grid = ArrayGrid.from_dict(result.value["grid"])
                 store_grid(p, grid, cache_dir)
+            if needs_wrench:
+                wrench = WrenchSet.from_dict(result.value["wrench"])
+                store_wrench_set(p, wrench, cache_dir)
         for i in todo[key]:
             row = rows[i]
             row.seconds, row.worker, row.error = result.seconds, result.worker, error
             if not error:
-                measure(row, curve, grid)
+                measure(row, curve, grid, wrench)
     return rows
 
 

@@ -15,29 +15,37 @@ from typing import Any
 
 import numpy as np
 
+from .design_metrics import OBSERVE_SNR, WRENCH_AXES
 from .params import PhysicsParams
 from .pareto import pareto_mask
 from .study import REFERENCE, DesignRow, metric_value
-from .study_spec import StudySpec
+from .study_spec import WRENCH_METRIC, StudySpec
 
-TORQUE_NOTE = ("Torque columns (twist about z, tilt about x and y) are not computed yet: the "
-               "array grid has no torque load paths, so the sensitivity matrix covers Fx, "
-               "Fy, Fz only.")
+TORQUE_NOTE = ("The sensitivity matrix covers Fx, Fy, Fz only; torque (twist about z, tilt "
+               "about x and y) is the metric wrench_observability, which solves the wrench "
+               "paths (physics/wrench.py) and tells which of Fx, Fy, Fz, Tx, Ty, Tz a layout "
+               "resolves above the noise.")
 _UNITS = {name: meta["unit"] for name, meta in PhysicsParams.describe().items()}
 NAMES = {"sensitivity_v_per_n": "sensitivity", "full_scale_n": "full-scale force",
          "linearity_pct_fs": "non-linearity", "dynamic_range_db": "dynamic range",
          "condition_number": "condition number of S", "crosstalk": "cross-talk",
-         "shear_sensitivity_v_per_n": "shear sensitivity"}
+         "shear_sensitivity_v_per_n": "shear sensitivity",
+         "observed_torques": "torques observed", "wrench_rank": "wrench directions resolved"}
 #: Axis labels (with units) of the plots.
 LABELS = {"sensitivity_v_per_n": "sensitivity [V/N]", "full_scale_n": "full-scale force [N]",
           "linearity_pct_fs": "non-linearity [% FS]", "dynamic_range_db": "dynamic range [dB]",
           "condition_number": "condition number of S", "crosstalk": "cross-talk (max |cos|)",
-          "shear_sensitivity_v_per_n": "shear sensitivity [V/N]"}
+          "shear_sensitivity_v_per_n": "shear sensitivity [V/N]",
+          "observed_torques": "torques observed (of Tx, Ty, Tz)",
+          "wrench_rank": "wrench directions resolved (of 6)"}
 
 
 def headline_columns(spec: StudySpec) -> list[str]:
-    """The metric columns worth a plot and a sentence (not S's twelve entries)."""
-    return [c for c in spec.columns if not c.startswith(("s_", "singular_value_"))]
+    """The metric columns worth a plot and a sentence (not S's twelve entries, nor the
+    wrench metric's per-component detail)."""
+    return [c for c in spec.columns if not c.startswith((
+        "s_", "singular_value_", "wrench_singular_value_", "observes_", "distinct_",
+        "full_scale_f", "full_scale_t"))]
 
 
 def pareto_rows(rows: list[DesignRow], spec: StudySpec) -> list[DesignRow]:
@@ -123,7 +131,9 @@ def summary(rows: list[DesignRow], spec: StudySpec) -> dict[str, Any]:
             "varied": list(spec.varied), "fixed": spec.fixed, "noise_v": spec.noise_v,
             "paper": _plain(rows[0], spec),
             "pareto": [_plain(r, spec) for r in pareto_rows(rows, spec)],
-            "best": best, "torque": TORQUE_NOTE}
+            "best": best,
+            "torque": (wrench_finding(rows, spec) if WRENCH_METRIC in spec.metrics
+                       else TORQUE_NOTE)}
 
 
 # -- lessons -----------------------------------------------------------------------------------
@@ -247,11 +257,68 @@ def report_markdown(rows: list[DesignRow], spec: StudySpec, seconds: float,
     if failed:
         lines += ["", "## Failed designs", ""]
         lines += [f"- {describe(r)}: {r.error}" for r in failed]
-    if any(c in spec.columns for c in ("condition_number",)):
+    if WRENCH_METRIC in spec.metrics:
+        lines += ["", "## Torque: which wrench components each layout observes", ""]
+        lines += wrench_lines(rows, spec)
+    elif "condition_number" in spec.columns:
         lines += ["", f"Note: {TORQUE_NOTE}"]
     lines += ["", "## Files", "", "- results.csv: one row per design", "- summary.json: "
               "Pareto designs and the best per objective"] + [f"- {p}" for p in plots]
     return "\n".join(lines) + "\n"
+
+
+# -- torque ------------------------------------------------------------------------------------
+
+
+def _observed(row: DesignRow) -> list[str]:
+    return [a.upper() for a in WRENCH_AXES if metric_value(row, f"observes_{a}") == 1.0]
+
+
+def wrench_finding(rows: list[DesignRow], spec: StudySpec) -> str:
+    """One computed sentence: which designs observe a torque, or that none does and by how
+    much the best torque signal falls short of the threshold."""
+    threshold = OBSERVE_SNR * spec.noise_v
+    ok = [r for r in rows if r.ok and math.isfinite(metric_value(r, "observed_torques"))]
+    if not ok:
+        return "No design was solved, so the study cannot tell whether a layout observes torque."
+    seeing = [r for r in ok if metric_value(r, "observed_torques") > 0]
+    best, axis = max(((r, a) for r in ok for a in ("tx", "ty", "tz")),
+                     key=lambda ra: metric_value(ra[0], f"distinct_{ra[1]}_v"))
+    signal = metric_value(best, f"distinct_{axis}_v")
+    rule = (f"the threshold is {OBSERVE_SNR:g} x noise_v = {threshold * 1e3:.3g} mV of "
+            "output a full-scale component must move the modules by beyond what the forces "
+            "explain")
+    if not seeing:
+        return (f"No layout within the study's bounds observes a torque: the largest "
+                f"torque signal not explained by the forces is {signal * 1e3:.3g} mV "
+                f"({axis.upper()}, {describe(best)}), and {rule}.")
+    names = "; ".join(f"{describe(r)}: {', '.join(t for t in _observed(r) if t[0] == 'T')}"
+                      for r in seeing)
+    return (f"{len(seeing)} of {len(ok)} solved designs observe a torque ({names}); the "
+            f"largest torque signal is {signal * 1e3:.3g} mV ({axis.upper()}, "
+            f"{describe(best)}), and {rule}.")
+
+
+def wrench_lines(rows: list[DesignRow], spec: StudySpec) -> list[str]:
+    """Per solved design: the components observed, the singular values of the full-scale
+    output patterns [V] and each torque's signal beyond the forces; then the finding."""
+    out = []
+    for r in rows:
+        if not r.ok or not math.isfinite(metric_value(r, "wrench_rank")):
+            continue
+        values = ", ".join(f"{metric_value(r, f'wrench_singular_value_{k}_v') * 1e3:.3g}"
+                           for k in range(1, 7))
+        torques = ", ".join(f"{a.upper()} {metric_value(r, f'distinct_{a}_v') * 1e3:.3g}"
+                            for a in ("tx", "ty", "tz"))
+        out.append(f"- {describe(r)}: observes {', '.join(_observed(r)) or 'nothing'} "
+                   f"({metric_value(r, 'wrench_rank'):.0f} of 6 directions resolved); "
+                   f"singular values {values} mV; torque signal beyond the forces "
+                   f"{torques} mV.")
+    out += ["", wrench_finding(rows, spec),
+            "(Singular values of S6 with each column scaled to the load the wrench paths "
+            "reach, full_scale_* in results.csv; a direction counts when it exceeds the "
+            "threshold.)"]
+    return out
 
 
 # -- plots -------------------------------------------------------------------------------------

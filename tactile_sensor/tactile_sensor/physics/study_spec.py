@@ -10,7 +10,8 @@ YAML (``config/studies/*.yaml``)::
     design: grid                          # every combination, or a quasi-random sample:
     # design: {sample: sobol, points: 16, seed: 1}        # (sobol or halton, seeded)
     metrics: [sensitivity, full_scale, linearity, dynamic_range, sensitivity_matrix]
-    noise_v: 0.013                        # [V] output noise for the dynamic range
+    # (or wrench_observability: which of Fx, Fy, Fz, Tx, Ty, Tz the layout resolves)
+    noise_v: 0.013                        # [V] output noise: dynamic range, wrench threshold
     objectives: {sensitivity_v_per_n: max, full_scale_n: max}   # for the Pareto front
 
 The paper's design is the defaults with ``fixed`` applied; every study solves it too, as the
@@ -29,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .design_metrics import WRENCH_COLUMNS
 from .errors import PhysicsError
 from .params import FACES, PhysicsParams
 
@@ -40,7 +42,9 @@ MATRIX_COLUMNS = ("condition_number", "crosstalk", "shear_sensitivity_v_per_n",
                   "singular_value_1_v_per_n", "singular_value_2_v_per_n",
                   "singular_value_3_v_per_n",
                   *(f"s_{face}_{axis}_v_per_n" for face in FACES for axis in ("fx", "fy", "fz")))
-METRICS = (*SINGLE_METRICS, MATRIX_METRIC)
+#: Which of the six wrench components a layout resolves (physics/wrench.py).
+WRENCH_METRIC = "wrench_observability"
+METRICS = (*SINGLE_METRICS, MATRIX_METRIC, WRENCH_METRIC)
 SAMPLERS = ("grid", "sobol", "halton")
 #: The paper's resolution after its 9-point mean (0.186 N x 0.07 V/N): 31.5 dB at 7 N.
 DEFAULT_NOISE_V = 0.013
@@ -90,7 +94,8 @@ class StudySpec:
     def columns(self) -> tuple[str, ...]:
         """Metric columns of the table, in spec order."""
         out = [SINGLE_METRICS[m] for m in self.metrics if m in SINGLE_METRICS]
-        return tuple(out + (list(MATRIX_COLUMNS) if MATRIX_METRIC in self.metrics else []))
+        out += list(MATRIX_COLUMNS) if MATRIX_METRIC in self.metrics else []
+        return tuple(out + (list(WRENCH_COLUMNS) if WRENCH_METRIC in self.metrics else []))
 
     def reference(self) -> dict[str, Any]:
         """The paper's design: the defaults with ``fixed`` applied."""
