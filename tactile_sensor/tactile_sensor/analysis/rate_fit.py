@@ -60,6 +60,7 @@ AT_BOUND = 0.01  # a fitted time within 1 % of a bound sits on it (not resolved)
 NEGLIGIBLE_G = 1e-3  # a term this small does nothing; its time does not matter
 START_G = 0.02
 SMOOTH_SHARE = 0.1  # zero-phase low-pass cut-off / fit rate (20 Hz for 200 Hz)
+KNOT_MARGIN_SIGMAS = 3.0  # the curve reaches this many output-noise RMS past the data
 REVERSAL_SHARE = 0.05  # unloading samples before the output fell by this share are left out
 FIT_TOLERANCE = 1e-6  # relative change of cost / parameters that ends a fit
 ONE_SPEED = ("the rate terms cannot be fitted from one speed; record the `speeds` protocol "
@@ -147,10 +148,11 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
                 f"{fit_rate_hz:g} Hz fit grid up to the longest press); request times in "
                 "that range or record longer presses and holds.")
         lo, hi = a, b
-    grid = _prepare(record, fit_rate_hz)
+    grid, noise_v = _prepare(record, fit_rate_hz)
+    margin_v = KNOT_MARGIN_SIGMAS * noise_v
     counts: dict[int, TermCount] = {}
     for n in ([terms] if terms is not None else range(1, MAX_RATE_TERMS + 1)):
-        counts[n] = _cross_validate(record, grid, speeds, n, (lo, hi), knots)
+        counts[n] = _cross_validate(record, grid, speeds, n, (lo, hi), knots, margin_v)
     # fewest terms within the tolerance of the best held-out error first, then the rest
     # by error; the first whose fit on all speeds puts no time on a bound wins
     best = min(c.mean_rmse_n for c in counts.values())
@@ -158,7 +160,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     order = near + sorted((n for n in counts if n not in near), key=lambda n:
                           counts[n].mean_rmse_n)
     for n in order:
-        cal, pinned = _fit(grid, speeds, n, (lo, hi), knots, source)
+        cal, pinned = _fit(grid, speeds, n, (lo, hi), knots, source, margin_v)
         if not pinned:
             break
     else:
@@ -184,9 +186,14 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
 
 # -- internals -----------------------------------------------------------------------------
 
-def _prepare(record: RateRecord, fit_rate_hz: float) -> RateRecord:
-    """The fit's grid: uniform, low-passed, reversal plays left out, block means."""
-    return _decimate(_without_reversals(_smooth(_uniform(record), fit_rate_hz)), fit_rate_hz)
+def _prepare(record: RateRecord, fit_rate_hz: float) -> tuple[RateRecord, float]:
+    """(the fit's grid: uniform, low-passed, reversal plays left out, block means; the RMS
+    the low-pass removed from the in-press output [V], its noise)."""
+    uniform = _uniform(record)
+    smooth = _smooth(uniform, fit_rate_hz)
+    inside = uniform.mask()
+    noise_v = _rmse(uniform.output_v[inside], smooth.output_v[inside]) if np.any(inside) else 0.0
+    return _decimate(_without_reversals(smooth), fit_rate_hz), noise_v
 
 
 def _uniform(record: RateRecord) -> RateRecord:
@@ -264,14 +271,28 @@ def _decimate(record: RateRecord, fit_rate_hz: float) -> RateRecord:
                       record.speed_mm_s[mid], record.phase[mid])
 
 
+def _fold_bounds(record: RateRecord, train: list[float], tau_bounds: tuple[float, float]
+                 ) -> tuple[float, float]:
+    """The times a fold's training speeds resolve: up to their own longest press (a fold
+    without the slow press would otherwise fit times only the slow press can show, and
+    score them on it), unless that leaves no range."""
+    phase = np.where(record.mask(train), record.phase, OUTSIDE).astype(np.int8)
+    longest = RateRecord(record.t_s, record.output_v, record.force_n, record.speed_mm_s,
+                         phase).longest_press_s()
+    hi = min(tau_bounds[1], longest)
+    return (tau_bounds[0], hi) if hi > 2 * tau_bounds[0] else tau_bounds
+
+
 def _cross_validate(record: RateRecord, grid: RateRecord, speeds: list[float], n: int,
-                    tau_bounds: tuple[float, float], knots: int) -> TermCount:
+                    tau_bounds: tuple[float, float], knots: int, margin_v: float
+                    ) -> TermCount:
     held: dict[str, float] = {}
     static: dict[str, float] = {}
     pinned_folds = 0
     for out in speeds:
         train = [s for s in speeds if s != out]
-        cal, pinned = _fit(grid, train, n, tau_bounds, knots, "fold")
+        cal, pinned = _fit(grid, train, n, _fold_bounds(record, train, tau_bounds), knots,
+                           "fold", margin_v)
         pinned_folds += int(pinned)
         test = record.mask([out])
         force = rate_force_history(cal, record.t_s, record.output_v)
@@ -294,7 +315,7 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float, float],
-         knots: int, source: str) -> tuple[RateCalibration, bool]:
+         knots: int, source: str, margin_v: float = 0.0) -> tuple[RateCalibration, bool]:
     """Least squares on ``speeds``' in-press samples of the grid; (calibration, whether a
     non-negligible term's time sits on a bound).
 
@@ -308,7 +329,9 @@ def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float,
     if not hi_x > lo_x:
         raise RateFitError("the module output does not change during the presses, so no "
                            "calibration can be fitted; check the reading topic and the sensor.")
-    knot_v = np.linspace(lo_x, hi_x, knots)
+    # the curve reaches ``margin_v`` beyond the (low-passed) outputs: the driver's noisy
+    # outputs past its ends would be clamped, biasing a hold at full scale low
+    knot_v = np.linspace(lo_x - margin_v, hi_x + margin_v, knots)
     hats = _hat_basis(knot_v, grid.output_v)
     # knots x samples, C order: lfilter along the last axis runs ~3x faster than strided
     hat_changes = np.ascontiguousarray(
