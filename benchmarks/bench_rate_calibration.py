@@ -37,6 +37,7 @@ from tactile_sensor.analysis.rate_evaluation import (
     PhaseError,
     phase_table,
 )
+from tactile_sensor.analysis.rate_fit import RateFit, fit_rate_calibration
 from tactile_sensor.analysis.rate_record import record_from_segmentation
 from tactile_sensor.configurations import config_dir
 
@@ -95,6 +96,8 @@ def main() -> int:
     ap.add_argument("--reuse", type=Path, help="score DIR/speeds and DIR/check; record nothing")
     ap.add_argument("--keep", type=Path, help="record into DIR (kept) instead of a temporary one")
     ap.add_argument("--speeds", default="speeds:cycles=1", help="the fit's protocol")
+    ap.add_argument("--terms", type=int, choices=(1, 2, 3),
+                    help="fit this many rate terms instead of choosing by held-out error")
     args = ap.parse_args()
     os.environ.setdefault("ROS_DOMAIN_ID", "171")
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -112,14 +115,20 @@ def main() -> int:
             print("no rate terms fitted:", *fit_run.metrics["notes"], sep="\n  ")
             return 1
         check = analyse_bag(str(run / "check"), Options(calibration=fit_run.fitted))
-        return report(fit_run, check, fit_s)
+        fit = fit_run.rate_fit
+        if args.terms is not None:
+            sig = fit_run.signals
+            fit = fit_rate_calibration(
+                record_from_segmentation(sig.t_s, sig.output_v, sig.force_n,
+                                         fit_run.segmentation), "bench", terms=args.terms)
+        return report(fit_run, fit, check, fit_s)
 
 
-def report(fit_run: Characterisation, check: Characterisation, fit_s: float) -> int:
-    fit = fit_run.rate_fit
-    assert fit is not None and check.static_reference is not None
+def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit_s: float
+           ) -> int:
+    assert check.static_reference is not None
     print(f"fit on {fit_run.recording.path} in {fit_s:.0f} s (incl. reading): "
-          f"{fit.terms} term(s) chosen by leave-one-speed-out RMSE "
+          f"{fit.terms} term(s); leave-one-speed-out RMSE (low-passed) "
           + ", ".join(f"{n}: {c.mean_rmse_n:.3f} N" for n, c in fit.counts.items()))
     truth = true_terms()
     print(f"{'term':>4} {'fitted g':>9} {'fitted tau [s]':>15} | {'true g':>7} "

@@ -15,7 +15,8 @@ Why this way:
   (25 ms at 200 Hz) to the longest press: a faster term cannot be told from the curve's
   instant response, a slower one from a constant offset.
 - Number of terms by held-out error: leave one speed out, fit on the rest, score the
-  held-out speed; the fewest terms within ``SELECT_TOLERANCE`` of the best mean wins.
+  held-out speed (low-passed like the fit's data, so noise does not hide the difference);
+  the fewest terms within ``SELECT_TOLERANCE`` of the best mean wins.
 - Every speed weighs the same (``_speed_weights``): on the grid a 0.1 mm/s press has ~100x
   the samples of a 10 mm/s one, so unweighted the fit served the slow press, where the
   rate force is nearly nil, and fitted the fast terms to nothing (one 18 s term came out).
@@ -72,7 +73,7 @@ class TermCount:
     """Leave-one-speed-out scores of one number of terms."""
 
     terms: int
-    held_out_rmse_n: dict[str, float]  # speed key -> RMSE of that speed when held out
+    held_out_rmse_n: dict[str, float]  # speed key -> its RMSE held out (low-passed)
     static_rmse_n: dict[str, float]  # the same folds with a static curve fitted on the rest
     pinned_folds: int  # folds whose fit put a time on a bound (one speed alone may)
 
@@ -152,7 +153,8 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     margin_v = KNOT_MARGIN_SIGMAS * noise_v
     counts: dict[int, TermCount] = {}
     for n in ([terms] if terms is not None else range(1, MAX_RATE_TERMS + 1)):
-        counts[n] = _cross_validate(record, grid, speeds, n, (lo, hi), knots, margin_v)
+        counts[n] = _cross_validate(record, grid, speeds, n, (lo, hi), knots, margin_v,
+                                    fit_rate_hz)
     # fewest terms within the tolerance of the best held-out error first, then the rest
     # by error; the first whose fit on all speeds puts no time on a bound wins
     best = min(c.mean_rmse_n for c in counts.values())
@@ -284,23 +286,26 @@ def _fold_bounds(record: RateRecord, train: list[float], tau_bounds: tuple[float
 
 
 def _cross_validate(record: RateRecord, grid: RateRecord, speeds: list[float], n: int,
-                    tau_bounds: tuple[float, float], knots: int, margin_v: float
-                    ) -> TermCount:
+                    tau_bounds: tuple[float, float], knots: int, margin_v: float,
+                    fit_rate_hz: float) -> TermCount:
+    """Each held-out speed scored on the low-passed record: the output's white noise, the
+    same for every term count, would otherwise swamp the differences between them."""
     held: dict[str, float] = {}
     static: dict[str, float] = {}
     pinned_folds = 0
+    scored = _smooth(_uniform(record), fit_rate_hz)
     for out in speeds:
         train = [s for s in speeds if s != out]
         cal, pinned = _fit(grid, train, n, _fold_bounds(record, train, tau_bounds), knots,
                            "fold", margin_v)
         pinned_folds += int(pinned)
-        test = record.mask([out])
-        force = rate_force_history(cal, record.t_s, record.output_v)
-        held[speed_label(out)] = _rmse(force[test], record.force_n[test])
+        test = scored.mask([out])
+        force = rate_force_history(cal, scored.t_s, scored.output_v)
+        held[speed_label(out)] = _rmse(force[test], scored.force_n[test])
         curve = _static_competitor(record, train)
         static[speed_label(out)] = _rmse(
-            static_force(curve.output_v, curve.force_n, record.output_v[test]),
-            record.force_n[test])
+            static_force(curve.output_v, curve.force_n, scored.output_v[test]),
+            scored.force_n[test])
     return TermCount(n, held, static, pinned_folds)
 
 

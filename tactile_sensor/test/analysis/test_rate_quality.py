@@ -70,25 +70,26 @@ def mock_like(speeds_m_s=(0.3e-3, 1e-3, 10e-3), hold_s=0.0, noise_v=0.01, play_m
 
 @pytest.fixture(scope="module")
 def noisy_fit():
-    return fit_rate_calibration(mock_like(), "mock-like", terms=2)
+    return fit_rate_calibration(mock_like(), "mock-like", terms=1)
 
 
-def test_terms_are_recovered_from_a_noisy_record_with_play_and_no_holds(noisy_fit):
-    """Before: one term, g 0.07 and tau 18 s (the play read as a slow relaxation and the
-    slow press outweighing the fast one). 50 % on g and tau: no holds, 10 mV of noise."""
+def test_one_term_lands_between_the_true_ones_from_a_noisy_record_with_play(noisy_fit):
+    """Before: g 0.07 and tau 18 s on the mock's `speeds` (the play read as a slow
+    relaxation, the slow press outweighing the fast one). Without holds and with 10 mV of
+    noise, one term is what the data resolve: its step gain is the truth's 1 + sum g and
+    its time lies between the true ones."""
     cal = noisy_fit.calibration
-    assert cal.g == pytest.approx(TRUE_G, rel=0.5)
-    assert cal.tau_s == pytest.approx(TRUE_TAU_S, rel=0.5)
+    assert cal.instant_gain == pytest.approx(1 + sum(TRUE_G), rel=0.03)
+    assert TRUE_TAU_S[0] <= cal.tau_s[0] <= TRUE_TAU_S[1]
 
 
 def test_the_fit_helps_on_held_out_speeds_with_holds(noisy_fit):
     """Scored on other speeds with holds, after the low-pass: the rate-aware model error is
-    below the static curve's in every phase of the fast press."""
+    below the static curve's in every phase of both held-out speeds."""
     check = mock_like(speeds_m_s=(3e-3, 20e-3), hold_s=2.0, seed=2)
     rows = phase_table(check, noisy_fit.calibration.static, noisy_fit.calibration)
-    fast = [r for r in rows if r.speed_mm_s == 20.0]
-    assert {r.phase for r in fast} == {"loading", "hold", "unloading"}
-    for r in fast:
+    assert len(rows) == 6
+    for r in rows:
         assert r.rate_model_rmse_n < r.static_model_rmse_n, r
 
 
