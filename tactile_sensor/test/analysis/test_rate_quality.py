@@ -29,17 +29,14 @@ from tactile_sensor.analysis.rate_fit import (
 )
 from tactile_sensor.analysis.rate_history import zero_phase_low_pass
 from tactile_sensor.analysis.rate_record import (
-    HOLD,
     LOADING,
     OUTSIDE,
     UNLOADING,
     RateRecord,
 )
-from tactile_sensor.physics.viscoelastic import RateDependentForce
+from tactile_sensor.analysis.synthetic import rate_press_record
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.rate_calibration import RateCalibration, RateTerm
-from tactile_sensor.sim.bench_world import play
-from tactile_sensor.sim.profiles import LoadProfile
 
 TRUE_G = (0.05, 0.04)
 TRUE_TAU_S = (0.1, 1.5)
@@ -49,23 +46,8 @@ PLAY_M = 6.5e-5
 def mock_like(speeds_m_s=(0.3e-3, 1e-3, 10e-3), hold_s=0.0, noise_v=0.01, play_m=PLAY_M,
               seed=1) -> RateRecord:
     """Like the mock: output through a play and with noise, force with the true terms."""
-    profile = LoadProfile(depth_m=3e-3, speeds_m_s=speeds_m_s, cycles=1, hold_s=hold_s,
-                          rest_s=1.0)
-    t = np.arange(0.0, profile.duration_s, 1e-3)
-    d = np.asarray(profile.indentation(t))
-    rng = np.random.default_rng(seed)
-    output = 0.5 * (play(d, play_m) / 3e-3).clip(0) ** 0.9 + rng.normal(0.0, noise_v, t.size)
-    force = RateDependentForce(TRUE_G, TRUE_TAU_S).force_history(t, 7.0 * (d / 3e-3) ** 1.3)
-    knots_t, _ = profile.knots()
-    speed = np.full(t.size, np.nan)
-    phase = np.full(t.size, OUTSIDE, dtype=np.int8)
-    for i, s in enumerate(profile.speeds_m_s):
-        start, top, hold_end, bottom = knots_t[1 + 4 * i:5 + 4 * i]
-        speed[(t >= start) & (t < bottom)] = s * 1e3
-        phase[(t >= start) & (t < top)] = LOADING
-        phase[(t >= top) & (t < hold_end)] = HOLD
-        phase[(t >= hold_end) & (t < bottom)] = UNLOADING
-    return RateRecord(t, output, force, speed, phase)
+    return rate_press_record(speeds_m_s, hold_s, TRUE_G, TRUE_TAU_S, seed=seed,
+                             output_noise_v=noise_v, force_noise_n=0.0, play_m=play_m)
 
 
 @pytest.fixture(scope="module")
