@@ -393,8 +393,13 @@ def write_array_bag(path: Path | str, signals: ShearSignals, storage: str = "sql
     return path
 
 
+TRUE_PRONY_G = (0.05, 0.04)  # the mock's (config/physics.yaml), as the default truth
+TRUE_PRONY_TAU_S = (0.1, 1.5)
+
+
 def rate_press_record(speeds_m_s: Sequence[float], hold_s: float = 2.0,
-                      g: Sequence[float] = (0.05, 0.04), tau_s: Sequence[float] = (0.1, 1.5),
+                      g: Sequence[float] = TRUE_PRONY_G,
+                      tau_s: Sequence[float] = TRUE_PRONY_TAU_S,
                       rate_hz: float = 1000.0, seed: int = 0, output_noise_v: float = 1e-3,
                       force_noise_n: float = 0.01, play_m: float = 0.0) -> Any:
     """A labelled ``RateRecord`` of one 3 mm press per speed with known rate terms: output

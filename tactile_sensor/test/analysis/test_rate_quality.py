@@ -28,18 +28,13 @@ from tactile_sensor.analysis.rate_fit import (
     fit_rate_calibration,
 )
 from tactile_sensor.analysis.rate_history import zero_phase_low_pass
-from tactile_sensor.analysis.rate_record import (
-    LOADING,
-    OUTSIDE,
-    UNLOADING,
-    RateRecord,
-)
+from tactile_sensor.analysis.rate_record import LOADING, OUTSIDE, UNLOADING, RateRecord
+from tactile_sensor.analysis.synthetic import TRUE_PRONY_G as TRUE_G
+from tactile_sensor.analysis.synthetic import TRUE_PRONY_TAU_S as TRUE_TAU_S
 from tactile_sensor.analysis.synthetic import rate_press_record
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.rate_calibration import RateCalibration, RateTerm
 
-TRUE_G = (0.05, 0.04)
-TRUE_TAU_S = (0.1, 1.5)
 PLAY_M = 6.5e-5
 
 
