@@ -15,8 +15,12 @@ import numpy as np
 
 from tactile_sensor.sensing.rate_calibration import RateCalibration
 
-from .rate_history import rate_force_history, static_force
+from .rate_history import rate_force_history, static_force, zero_phase_low_pass
 from .rate_record import PHASES, RateRecord
+
+MODEL_CUTOFF_HZ = 5.0  # a 20 mm/s ramp (0.15 s) still has ~1 cycle; white noise is cut ~10x
+GOAL_RATIO = 0.5  # rate-aware RMSE at most half the static curve's ...
+GOAL_SHARE_FS = 0.015  # ... and at most 1.5 % of full scale, in every speed and phase
 
 
 class CurveLike(Protocol):
@@ -36,6 +40,16 @@ class PhaseError:
     samples: int
     static_rmse_n: float
     rate_rmse_n: float
+    static_model_rmse_n: float = math.nan  # after the low-pass (module docstring)
+    rate_model_rmse_n: float = math.nan
+    noise_rmse_n: float = math.nan  # what the low-pass removed from the rate-aware estimate
+
+    def meets_goal(self, full_scale_n: float, model: bool) -> bool:
+        """Issue 21's goal on one measure: rate-aware at most ``GOAL_RATIO`` of the static
+        error and at most ``GOAL_SHARE_FS`` of full scale."""
+        static, rate = ((self.static_model_rmse_n, self.rate_model_rmse_n) if model
+                        else (self.static_rmse_n, self.rate_rmse_n))
+        return bool(rate <= GOAL_RATIO * static and rate <= GOAL_SHARE_FS * full_scale_n)
 
 
 def phase_table(record: RateRecord, static: CurveLike, rate: RateCalibration
@@ -45,25 +59,38 @@ def phase_table(record: RateRecord, static: CurveLike, rate: RateCalibration
     static_f = static_force(np.asarray(static.output_v, float), np.asarray(static.force_n, float),
                             record.output_v)
     rate_f = rate_force_history(rate, record.t_s, record.output_v)
+    period = float(np.median(np.diff(record.t_s)))
+    smooth = [zero_phase_low_pass(period, MODEL_CUTOFF_HZ, x)
+              for x in (static_f, rate_f, record.force_n)]
     rows = []
     for speed in record.speeds():
         for code, name in PHASES.items():
             keep = record.mask([speed], code)
             if not np.any(keep):
                 continue
+            model = (math.nan, math.nan, math.nan)
+            if all(x is not None for x in smooth):
+                ls, lr, lg = smooth
+                assert ls is not None and lr is not None and lg is not None
+                model = (_rmse(ls[keep], lg[keep]), _rmse(lr[keep], lg[keep]),
+                         _rmse(rate_f[keep], lr[keep]))
             rows.append(PhaseError(speed, name, int(np.count_nonzero(keep)),
                                    _rmse(static_f[keep], record.force_n[keep]),
-                                   _rmse(rate_f[keep], record.force_n[keep])))
+                                   _rmse(rate_f[keep], record.force_n[keep]), *model))
     return rows
 
 
 def table_dict(rows: list[PhaseError]) -> dict[str, dict[str, dict[str, Any]]]:
-    """JSON-ready: speed key -> phase -> samples and both RMSEs [N]."""
+    """JSON-ready: speed key -> phase -> samples, both per-sample RMSEs [N] and both model
+    errors (``*_model_rmse_n``, low-passed) with the noise the low-pass removed."""
     out: dict[str, dict[str, dict[str, Any]]] = {}
     for r in rows:
         out.setdefault(str(float(f"{r.speed_mm_s:.2g}")), {})[r.phase] = {
             "samples": r.samples, "static_rmse_n": _round(r.static_rmse_n),
-            "rate_rmse_n": _round(r.rate_rmse_n)}
+            "rate_rmse_n": _round(r.rate_rmse_n),
+            "static_model_rmse_n": _round(r.static_model_rmse_n),
+            "rate_model_rmse_n": _round(r.rate_model_rmse_n),
+            "noise_rmse_n": _round(r.noise_rmse_n)}
     return out
 
 

@@ -15,7 +15,20 @@ Why this way:
   (25 ms at 200 Hz) to the longest press: a faster term cannot be told from the curve's
   instant response, a slower one from a constant offset.
 - Number of terms by held-out error: leave one speed out, fit on the rest, score the
-  held-out speed; the fewest terms within ``SELECT_TOLERANCE`` of the best mean wins.
+  held-out speed (low-passed like the fit's data, so noise does not hide the difference);
+  the fewest terms within ``SELECT_TOLERANCE`` of the best mean wins.
+- Every speed weighs the same (``_speed_weights``): on the grid a 0.1 mm/s press has ~100x
+  the samples of a 10 mm/s one, so unweighted the fit served the slow press, where the
+  rate force is nearly nil, and fitted the fast terms to nothing (one 18 s term came out).
+- Output and force are low-passed, zero phase, at ``SMOOTH_SHARE`` of the fit rate before
+  the block means (``_prepare``): the curve is a regression on the noisy output, and noise
+  in a regressor flattens it at both ends (errors in variables), ~0.1 N low at full scale
+  for 13 mV of noise; the same filter on the force keeps the two aligned.
+- The start of each unloading ramp, until the output has fallen by ``REVERSAL_SHARE`` of
+  its range, is left out: the output has a play (the bulge trails the probe by ~0.065 mm),
+  so after a reversal it stands still while the force drops; no static curve or rate term
+  can follow that, and those samples pulled the top of the curve down, which showed as a
+  constant error in every hold.
 """
 
 from __future__ import annotations
@@ -34,14 +47,22 @@ from tactile_sensor.sensing.rate_calibration import MAX_RATE_TERMS, RateCalibrat
 
 from .calibration_fit import fit_calibration
 from .errors import RateFitError
-from .rate_history import UNIFORM_RTOL, rate_force_history, static_force
-from .rate_record import LOADING, UNLOADING, RateRecord
+from .rate_history import (
+    UNIFORM_RTOL,
+    rate_force_history,
+    static_force,
+    zero_phase_low_pass,
+)
+from .rate_record import LOADING, OUTSIDE, UNLOADING, RateRecord
 
 MIN_TAU_PERIODS = 5
 SELECT_TOLERANCE = 0.05  # fewer terms win unless more cut the held-out RMSE by > 5 %
 AT_BOUND = 0.01  # a fitted time within 1 % of a bound sits on it (not resolved)
 NEGLIGIBLE_G = 1e-3  # a term this small does nothing; its time does not matter
 START_G = 0.02
+SMOOTH_SHARE = 0.1  # zero-phase low-pass cut-off / fit rate (20 Hz for 200 Hz)
+KNOT_MARGIN_SIGMAS = 3.0  # the curve reaches this many output-noise RMS past the data
+REVERSAL_SHARE = 0.05  # unloading samples before the output fell by this share are left out
 FIT_TOLERANCE = 1e-6  # relative change of cost / parameters that ends a fit
 ONE_SPEED = ("the rate terms cannot be fitted from one speed; record the `speeds` protocol "
              "(0.1, 1 and 10 mm/s).")
@@ -52,7 +73,7 @@ class TermCount:
     """Leave-one-speed-out scores of one number of terms."""
 
     terms: int
-    held_out_rmse_n: dict[str, float]  # speed key -> RMSE of that speed when held out
+    held_out_rmse_n: dict[str, float]  # speed key -> its RMSE held out (low-passed)
     static_rmse_n: dict[str, float]  # the same folds with a static curve fitted on the rest
     pinned_folds: int  # folds whose fit put a time on a bound (one speed alone may)
 
@@ -128,10 +149,12 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
                 f"{fit_rate_hz:g} Hz fit grid up to the longest press); request times in "
                 "that range or record longer presses and holds.")
         lo, hi = a, b
-    grid = _decimate(record, fit_rate_hz)
+    grid, noise_v = _prepare(record, fit_rate_hz)
+    margin_v = KNOT_MARGIN_SIGMAS * noise_v
     counts: dict[int, TermCount] = {}
     for n in ([terms] if terms is not None else range(1, MAX_RATE_TERMS + 1)):
-        counts[n] = _cross_validate(record, grid, speeds, n, (lo, hi), knots)
+        counts[n] = _cross_validate(record, grid, speeds, n, (lo, hi), knots, margin_v,
+                                    fit_rate_hz)
     # fewest terms within the tolerance of the best held-out error first, then the rest
     # by error; the first whose fit on all speeds puts no time on a bound wins
     best = min(c.mean_rmse_n for c in counts.values())
@@ -139,7 +162,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     order = near + sorted((n for n in counts if n not in near), key=lambda n:
                           counts[n].mean_rmse_n)
     for n in order:
-        cal, pinned = _fit(grid, speeds, n, (lo, hi), knots, source)
+        cal, pinned = _fit(grid, speeds, n, (lo, hi), knots, source, margin_v)
         if not pinned:
             break
     else:
@@ -165,18 +188,78 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
 
 # -- internals -----------------------------------------------------------------------------
 
+def _prepare(record: RateRecord, fit_rate_hz: float) -> tuple[RateRecord, float]:
+    """(the fit's grid: uniform, low-passed, reversal plays left out, block means; the RMS
+    the low-pass removed from the in-press output [V], its noise)."""
+    uniform = _uniform(record)
+    smooth = _smooth(uniform, fit_rate_hz)
+    inside = uniform.mask()
+    noise_v = _rmse(uniform.output_v[inside], smooth.output_v[inside]) if np.any(inside) else 0.0
+    return _decimate(_without_reversals(smooth), fit_rate_hz), noise_v
+
+
+def _uniform(record: RateRecord) -> RateRecord:
+    """The record itself when its times are uniform, else interpolated onto its median
+    period (labels of the nearest later sample)."""
+    period = float(np.median(np.diff(record.t_s)))
+    if np.allclose(np.diff(record.t_s), period, rtol=UNIFORM_RTOL, atol=0.0):
+        return record
+    t = np.arange(record.t_s[0], record.t_s[-1], period)
+    near = np.clip(np.searchsorted(record.t_s, t), 0, record.t_s.size - 1)
+    return RateRecord(t, np.interp(t, record.t_s, record.output_v),
+                      np.interp(t, record.t_s, record.force_n),
+                      record.speed_mm_s[near], record.phase[near])
+
+
+def _smooth(record: RateRecord, fit_rate_hz: float) -> RateRecord:
+    """Output and force through the same zero-phase low-pass at ``SMOOTH_SHARE`` x the fit
+    rate; unchanged when that is not below the record's Nyquist rate or the record is too
+    short to filter."""
+    period = float(record.t_s[1] - record.t_s[0])
+    cutoff = SMOOTH_SHARE * fit_rate_hz
+    output = zero_phase_low_pass(period, cutoff, record.output_v)
+    force = zero_phase_low_pass(period, cutoff, record.force_n)
+    if output is None or force is None:
+        return record
+    return RateRecord(record.t_s, output, force, record.speed_mm_s, record.phase)
+
+
+def _without_reversals(record: RateRecord) -> RateRecord:
+    """The record with the first samples of each unloading ramp labelled OUTSIDE, until
+    the output has fallen by ``REVERSAL_SHARE`` of the in-press output range."""
+    inside = record.mask()
+    if not np.any(inside):
+        return record
+    drop = REVERSAL_SHARE * float(np.ptp(record.output_v[inside]))
+    unloading = record.phase == UNLOADING
+    starts = np.flatnonzero(unloading & ~np.concatenate(([False], unloading[:-1])))
+    phase = record.phase.copy()
+    for start in starts.tolist():
+        after = np.flatnonzero(~unloading[start:])
+        stop = start + (int(after[0]) if after.size else unloading.size - start)
+        moved = np.flatnonzero(record.output_v[start:stop] <= record.output_v[start] - drop)
+        phase[start:start + (int(moved[0]) if moved.size else stop - start)] = OUTSIDE
+    return RateRecord(record.t_s, record.output_v, record.force_n, record.speed_mm_s, phase)
+
+
+def _speed_weights(record: RateRecord, speeds: list[float], score: np.ndarray) -> np.ndarray:
+    """Per scored sample, 1 / (that speed's scored samples), scaled to a mean of 1: each
+    speed counts the same, however long its presses last."""
+    labels = record.speed_mm_s[score]
+    weights = np.zeros(labels.size)
+    for s in speeds:
+        mine = labels == s
+        if np.any(mine):
+            weights[mine] = 1.0 / np.count_nonzero(mine)
+    return weights * (weights.size / weights.sum())
+
+
 def _decimate(record: RateRecord, fit_rate_hz: float) -> RateRecord:
     """The record on a uniform grid near ``fit_rate_hz``: block means of time, output and
     force, labels of each block's middle sample (a non-uniform record is first
     interpolated onto its median period)."""
+    record = _uniform(record)
     period = float(np.median(np.diff(record.t_s)))
-    dt = np.diff(record.t_s)
-    if not np.allclose(dt, period, rtol=UNIFORM_RTOL, atol=0.0):
-        t = np.arange(record.t_s[0], record.t_s[-1], period)
-        near = np.clip(np.searchsorted(record.t_s, t), 0, record.t_s.size - 1)
-        record = RateRecord(t, np.interp(t, record.t_s, record.output_v),
-                            np.interp(t, record.t_s, record.force_n),
-                            record.speed_mm_s[near], record.phase[near])
     q = max(1, round(1.0 / (fit_rate_hz * period)))
     if q == 1:
         return record
@@ -190,22 +273,39 @@ def _decimate(record: RateRecord, fit_rate_hz: float) -> RateRecord:
                       record.speed_mm_s[mid], record.phase[mid])
 
 
+def _fold_bounds(record: RateRecord, train: list[float], tau_bounds: tuple[float, float]
+                 ) -> tuple[float, float]:
+    """The times a fold's training speeds resolve: up to their own longest press (a fold
+    without the slow press would otherwise fit times only the slow press can show, and
+    score them on it), unless that leaves no range."""
+    phase = np.where(record.mask(train), record.phase, OUTSIDE).astype(np.int8)
+    longest = RateRecord(record.t_s, record.output_v, record.force_n, record.speed_mm_s,
+                         phase).longest_press_s()
+    hi = min(tau_bounds[1], longest)
+    return (tau_bounds[0], hi) if hi > 2 * tau_bounds[0] else tau_bounds
+
+
 def _cross_validate(record: RateRecord, grid: RateRecord, speeds: list[float], n: int,
-                    tau_bounds: tuple[float, float], knots: int) -> TermCount:
+                    tau_bounds: tuple[float, float], knots: int, margin_v: float,
+                    fit_rate_hz: float) -> TermCount:
+    """Each held-out speed scored on the low-passed record: the output's white noise, the
+    same for every term count, would otherwise swamp the differences between them."""
     held: dict[str, float] = {}
     static: dict[str, float] = {}
     pinned_folds = 0
+    scored = _smooth(_uniform(record), fit_rate_hz)
     for out in speeds:
         train = [s for s in speeds if s != out]
-        cal, pinned = _fit(grid, train, n, tau_bounds, knots, "fold")
+        cal, pinned = _fit(grid, train, n, _fold_bounds(record, train, tau_bounds), knots,
+                           "fold", margin_v)
         pinned_folds += int(pinned)
-        test = record.mask([out])
-        force = rate_force_history(cal, record.t_s, record.output_v)
-        held[speed_label(out)] = _rmse(force[test], record.force_n[test])
+        test = scored.mask([out])
+        force = rate_force_history(cal, scored.t_s, scored.output_v)
+        held[speed_label(out)] = _rmse(force[test], scored.force_n[test])
         curve = _static_competitor(record, train)
         static[speed_label(out)] = _rmse(
-            static_force(curve.output_v, curve.force_n, record.output_v[test]),
-            record.force_n[test])
+            static_force(curve.output_v, curve.force_n, scored.output_v[test]),
+            scored.force_n[test])
     return TermCount(n, held, static, pinned_folds)
 
 
@@ -220,7 +320,7 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float, float],
-         knots: int, source: str) -> tuple[RateCalibration, bool]:
+         knots: int, source: str, margin_v: float = 0.0) -> tuple[RateCalibration, bool]:
     """Least squares on ``speeds``' in-press samples of the grid; (calibration, whether a
     non-negligible term's time sits on a bound).
 
@@ -234,25 +334,29 @@ def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float,
     if not hi_x > lo_x:
         raise RateFitError("the module output does not change during the presses, so no "
                            "calibration can be fitted; check the reading topic and the sensor.")
-    knot_v = np.linspace(lo_x, hi_x, knots)
+    # the curve reaches ``margin_v`` beyond the (low-passed) outputs: the driver's noisy
+    # outputs past its ends would be clamped, biasing a hold at full scale low
+    knot_v = np.linspace(lo_x - margin_v, hi_x + margin_v, knots)
     hats = _hat_basis(knot_v, grid.output_v)
     # knots x samples, C order: lfilter along the last axis runs ~3x faster than strided
     hat_changes = np.ascontiguousarray(
         np.vstack((np.zeros((1, knots)), np.diff(hats, axis=0))).T)
     dt = float(grid.t_s[1] - grid.t_s[0])
     cumulative = np.tril(np.ones((knots, knots)))  # knot forces = f0 + running increments
-    measured = grid.force_n[score]
+    root_w = np.sqrt(_speed_weights(grid, speeds, score))
+    measured = grid.force_n[score] * root_w
     lower_u = np.concatenate(([-np.inf], np.zeros(knots - 1)))
     upper_u = np.full(knots, np.inf)
     ridge = 1e-12 * max(1.0, float(np.sum(hats[score] ** 2)))
 
-    hats_scored = hats[score]
+    hats_scored = hats[score] * root_w[:, None]
 
     def design(p: np.ndarray) -> np.ndarray:
         out = hats_scored.copy()
         for gi, ti in zip(p[:n].tolist(), np.exp(p[n:]).tolist(), strict=True):
             decay, gain = term_coefficients(ti, dt)
-            out += gi * lfilter([gain], [1.0, -decay], hat_changes)[:, score].T
+            response = lfilter([gain], [1.0, -decay], hat_changes)[:, score].T
+            out += gi * response * root_w[:, None]
         return out
 
     def solve(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

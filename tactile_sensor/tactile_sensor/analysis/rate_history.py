@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.signal import lfilter
+from scipy.signal import butter, filtfilt, lfilter
 
 from tactile_sensor.sensing.prony import PronySeries, term_coefficients
 from tactile_sensor.sensing.rate_calibration import RateCalibration
@@ -52,3 +52,21 @@ def rate_force_history(cal: RateCalibration, t_s: np.ndarray, output_v: np.ndarr
     fs = static_force(np.asarray(cal.static.output_v), np.asarray(cal.static.force_n),
                       output_v)
     return fs + unit_responses(t_s, fs, cal.tau_s) @ np.asarray(cal.g)
+
+
+LOW_PASS_ORDER = 2
+
+
+def zero_phase_low_pass(period_s: float, cutoff_hz: float, values: np.ndarray
+                        ) -> np.ndarray | None:
+    """``values`` (uniform, ``period_s`` apart) forwards and backwards through a Butterworth
+    low-pass at ``cutoff_hz``: no delay, so an estimate and its gauge filtered alike stay
+    aligned. None when the cut-off is not below the Nyquist rate or the record is too short
+    to filter."""
+    wn = 2.0 * cutoff_hz * period_s
+    if not (0.0 < wn < 1.0):
+        return None
+    b, a = butter(LOW_PASS_ORDER, wn)
+    if values.size <= 3 * max(a.size, b.size):
+        return None
+    return np.asarray(filtfilt(b, a, values))

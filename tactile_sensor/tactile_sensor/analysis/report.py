@@ -52,6 +52,11 @@ def rows(ch: _HasMetrics) -> list[tuple[str, str, str]]:
                 out.append((f"Force RMSE at {key} mm/s, {phase}",
                             f"static {_fmt(e['static_rmse_n'], 'N')}, rate-aware "
                             f"{_fmt(e['rate_rmse_n'], 'N')}", "not reported"))
+                if e.get("rate_model_rmse_n") is not None:
+                    out.append((f"Force model error at {key} mm/s, {phase} (low-passed)",
+                                f"static {_fmt(e['static_model_rmse_n'], 'N')}, rate-aware "
+                                f"{_fmt(e['rate_model_rmse_n'], 'N')} (noise removed "
+                                f"{_fmt(e['noise_rmse_n'], 'N')})", "not reported"))
         for key in sorted(cal.get("held_out_rmse_n") or {}, key=float):
             out.append((f"Force RMSE at {key} mm/s held out of the rate fit",
                         f"rate-aware {_fmt(cal['held_out_rmse_n'][key], 'N')}, static "

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
@@ -390,3 +391,42 @@ def write_array_bag(path: Path | str, signals: ShearSignals, storage: str = "sql
             for ts, row in zip(stamps.tolist(), matrix, strict=True):
                 writer.write(conn, ts, row.tobytes())
     return path
+
+
+TRUE_PRONY_G = (0.05, 0.04)  # the mock's (config/physics.yaml), as the default truth
+TRUE_PRONY_TAU_S = (0.1, 1.5)
+
+
+def rate_press_record(speeds_m_s: Sequence[float], hold_s: float = 2.0,
+                      g: Sequence[float] = TRUE_PRONY_G,
+                      tau_s: Sequence[float] = TRUE_PRONY_TAU_S,
+                      rate_hz: float = 1000.0, seed: int = 0, output_noise_v: float = 1e-3,
+                      force_noise_n: float = 0.01, play_m: float = 0.0) -> Any:
+    """A labelled ``RateRecord`` of one 3 mm press per speed with known rate terms: output
+    0.5 V x (play(d) / 3 mm)^0.9 plus noise, force the Prony series on 7 N x (d / 3 mm)^1.3
+    plus noise; the truth the rate fit's tests score against."""
+    from tactile_sensor.physics.viscoelastic import RateDependentForce
+    from tactile_sensor.sim.bench_world import play
+    from tactile_sensor.sim.profiles import LoadProfile
+
+    from .rate_record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
+
+    profile = LoadProfile(depth_m=3e-3, speeds_m_s=tuple(speeds_m_s), cycles=1, hold_s=hold_s,
+                          rest_s=1.0)
+    t = np.arange(0.0, profile.duration_s, 1.0 / rate_hz)
+    d = np.asarray(profile.indentation(t), dtype=float)
+    rng = np.random.default_rng(seed)
+    output = (0.5 * np.clip(play(d, play_m) / 3e-3, 0.0, None) ** 0.9
+              + rng.normal(0.0, output_noise_v, t.size))
+    force = RateDependentForce(g, tau_s).force_history(t, 7.0 * (d / 3e-3) ** 1.3)
+    force += rng.normal(0.0, force_noise_n, t.size)
+    knots_t, _ = profile.knots()
+    speed = np.full(t.size, np.nan)
+    phase = np.full(t.size, OUTSIDE, dtype=np.int8)
+    for i, s in enumerate(profile.speeds_m_s):
+        start, top, hold_end, bottom = knots_t[1 + 4 * i:5 + 4 * i]
+        speed[(t >= start) & (t < bottom)] = s * 1e3
+        phase[(t >= start) & (t < top)] = LOADING
+        phase[(t >= top) & (t < hold_end)] = HOLD
+        phase[(t >= hold_end) & (t < bottom)] = UNLOADING
+    return RateRecord(t, output, force, speed, phase)

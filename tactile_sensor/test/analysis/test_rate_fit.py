@@ -16,15 +16,13 @@ from tactile_sensor.analysis.rate_evaluation import phase_table, table_dict
 from tactile_sensor.analysis.rate_fit import fit_rate_calibration, resolvable_tau_range
 from tactile_sensor.analysis.rate_history import rate_force_history
 from tactile_sensor.analysis.rate_record import (
-    HOLD,
     LOADING,
     OUTSIDE,
     UNLOADING,
     RateRecord,
 )
-from tactile_sensor.physics.viscoelastic import RateDependentForce
+from tactile_sensor.analysis.synthetic import rate_press_record
 from tactile_sensor.sensing.rate_calibration import RateCalibration
-from tactile_sensor.sim.profiles import LoadProfile
 
 TRUE_G = (0.05, 0.04)
 TRUE_TAU_S = (0.1, 1.5)
@@ -33,24 +31,7 @@ SPEEDS_M_S = (0.3e-3, 1e-3, 10e-3)  # 0.3 not 0.1 mm/s: a third of the samples, 
 
 def synthetic(speeds_m_s=SPEEDS_M_S, hold_s=2.0, g=TRUE_G, tau_s=TRUE_TAU_S,
               rate_hz=1000.0, seed=0) -> RateRecord:
-    profile = LoadProfile(depth_m=3e-3, speeds_m_s=speeds_m_s, cycles=1, hold_s=hold_s,
-                          rest_s=1.0)
-    t = np.arange(0.0, profile.duration_s, 1.0 / rate_hz)
-    x = profile.indentation(t) / 3e-3
-    rng = np.random.default_rng(seed)
-    output = 0.5 * x ** 0.9 + rng.normal(0.0, 1e-3, t.size)
-    force = RateDependentForce(g, tau_s).force_history(t, 7.0 * x ** 1.3)
-    force += rng.normal(0.0, 0.01, t.size)
-    knots_t, _ = profile.knots()
-    speed = np.full(t.size, np.nan)
-    phase = np.full(t.size, OUTSIDE, dtype=np.int8)
-    for i, s in enumerate(profile.speeds_m_s):
-        start, top, hold_end, bottom = knots_t[1 + 4 * i:5 + 4 * i]
-        speed[(t >= start) & (t < bottom)] = s * 1e3
-        phase[(t >= start) & (t < top)] = LOADING
-        phase[(t >= top) & (t < hold_end)] = HOLD
-        phase[(t >= hold_end) & (t < bottom)] = UNLOADING
-    return RateRecord(t, output, force, speed, phase)
+    return rate_press_record(speeds_m_s, hold_s, g, tau_s, rate_hz, seed)
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,157 @@
+"""Calibration across indentation speeds (issue 21): static against rate-aware, held out.
+
+Usage (in the sourced workspace, ``DISTRO=jazzy . scripts/env.sh``):
+    python benchmarks/bench_rate_calibration.py [--keep DIR] [--speeds speeds:cycles=1]
+    python benchmarks/bench_rate_calibration.py --reuse DIR   # DIR/speeds and DIR/check
+
+Records the ``speeds`` protocol and ``rate_check`` (0.3, 3, 20 mm/s with 2 s holds)
+through ``tactile-sensor bringup bench`` on mock hardware (as ``scripts/demo.sh rate``),
+fits the rate-aware calibration on ``speeds`` and scores it on ``rate_check`` against a
+static curve fitted on rate_check's own 3 mm/s ramps (in-sample, so the static side is
+favoured). Goal, per speed and phase: rate-aware RMSE <= half the static one and <= 1.5 %
+of full scale. Printed against two measures: the per-sample RMSE (with the output's white
+noise, the same for both estimators) and the model error (the error low-passed at
+``rate_evaluation.MODEL_CUTOFF_HZ``, zero phase); PASS/FAIL for each. Uses ROS domain
+$ROS_DOMAIN_ID (default 171), discovery on this machine only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
+
+from tactile_sensor.analysis.characterise import Characterisation, Options, analyse_bag
+from tactile_sensor.analysis.rate_evaluation import (
+    GOAL_RATIO,
+    GOAL_SHARE_FS,
+    MODEL_CUTOFF_HZ,
+    PhaseError,
+    phase_table,
+)
+from tactile_sensor.analysis.rate_fit import RateFit, fit_rate_calibration
+from tactile_sensor.analysis.rate_record import record_from_segmentation
+from tactile_sensor.configurations import config_dir
+
+
+def record(protocol: str, bag: Path) -> float:
+    """One bench run on mock hardware into ``bag``; its wall time [s]."""
+    start = time.perf_counter()
+    subprocess.run(["tactile-sensor", "bringup", "bench", "--protocol", protocol,
+                    "--record", str(bag), "--port",
+                    f"adc_port=/tmp/tactile_sensor/bench_rate_adc_{os.getpid()}"],
+                   check=True)
+    return time.perf_counter() - start
+
+
+def true_terms() -> list[tuple[float, float]]:
+    """The simulation's (g, tau [s]) from config/physics.yaml."""
+    values = yaml.safe_load((config_dir() / "physics.yaml").read_text())["/**"][
+        "ros__parameters"]
+    return list(zip(values["prony_g"], values["prony_tau"], strict=True))
+
+
+def verdict(ok: bool) -> str:
+    return "PASS" if ok else "FAIL"
+
+
+def print_table(rows: list[PhaseError], full_scale_n: float) -> tuple[bool, bool]:
+    """The per-speed, per-phase table; (every row meets the goal per sample, on the model
+    error)."""
+    limit = GOAL_SHARE_FS * full_scale_n
+    print(f"full scale {full_scale_n:.3f} N; goal per row: rate-aware <= {GOAL_RATIO:g} x "
+          f"static and <= {100 * GOAL_SHARE_FS:g} % FS = {limit:.3f} N")
+    print(f"model error: RMSE of the error low-passed at {MODEL_CUTOFF_HZ:g} Hz (2nd-order "
+          "Butterworth, forwards and backwards); 'noise' is the RMS the low-pass removed from "
+          "the rate-aware estimate (the white-noise floor of the per-sample RMSE)")
+    head = (f"{'speed':>6} {'phase':<9} | {'per-sample RMSE [N]':^30} | "
+            f"{'model error [N]':^30} | {'noise':>5}")
+    print(head)
+    print(f"{'mm/s':>6} {'':<9} | {'static':>7} {'rate':>7} {'rate/st':>7} {'goal':>5} | "
+          f"{'static':>7} {'rate':>7} {'rate/st':>7} {'goal':>5} | {'[N]':>5}")
+    print("-" * len(head))
+    all_sample = all_model = True
+    for r in rows:
+        sample_ok, model_ok = r.meets_goal(full_scale_n, False), r.meets_goal(full_scale_n, True)
+        all_sample &= sample_ok
+        all_model &= model_ok
+        print(f"{r.speed_mm_s:>6.3g} {r.phase:<9} | {r.static_rmse_n:>7.3f} {r.rate_rmse_n:>7.3f} "
+              f"{r.rate_rmse_n / r.static_rmse_n:>7.2f} {verdict(sample_ok):>5} | "
+              f"{r.static_model_rmse_n:>7.3f} {r.rate_model_rmse_n:>7.3f} "
+              f"{r.rate_model_rmse_n / r.static_model_rmse_n:>7.2f} {verdict(model_ok):>5} | "
+              f"{r.noise_rmse_n:>5.3f}")
+    return all_sample, all_model
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--reuse", type=Path, help="score DIR/speeds and DIR/check; record nothing")
+    ap.add_argument("--keep", type=Path, help="record into DIR (kept) instead of a temporary one")
+    ap.add_argument("--speeds", default="speeds:cycles=1", help="the fit's protocol")
+    ap.add_argument("--terms", type=int, choices=(1, 2, 3),
+                    help="fit this many rate terms instead of choosing by held-out error")
+    args = ap.parse_args()
+    os.environ.setdefault("ROS_DOMAIN_ID", "171")
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    with tempfile.TemporaryDirectory(prefix="bench_rate_") as tmp:
+        run = args.reuse or args.keep or Path(tmp)
+        if args.reuse is None:
+            run.mkdir(parents=True, exist_ok=True)
+            for protocol, name in ((args.speeds, "speeds"), ("rate_check", "check")):
+                print(f"recorded {protocol} -> {run / name} in "
+                      f"{record(protocol, run / name):.1f} s", flush=True)
+        start = time.perf_counter()
+        fit_run = analyse_bag(str(run / "speeds"), Options(fit_calibration=True))
+        fit_s = time.perf_counter() - start
+        if fit_run.rate_fit is None or fit_run.fitted is None:
+            print("no rate terms fitted:", *fit_run.metrics["notes"], sep="\n  ")
+            return 1
+        check = analyse_bag(str(run / "check"), Options(calibration=fit_run.fitted))
+        fit = fit_run.rate_fit
+        if args.terms is not None:
+            sig = fit_run.signals
+            fit = fit_rate_calibration(
+                record_from_segmentation(sig.t_s, sig.output_v, sig.force_n,
+                                         fit_run.segmentation), "bench", terms=args.terms)
+        return report(fit_run, fit, check, fit_s)
+
+
+def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit_s: float
+           ) -> int:
+    assert check.static_reference is not None
+    print(f"fit on {fit_run.recording.path} in {fit_s:.0f} s (incl. reading): "
+          f"{fit.terms} term(s); leave-one-speed-out RMSE (low-passed) "
+          + ", ".join(f"{n}: {c.mean_rmse_n:.3f} N" for n, c in fit.counts.items()))
+    truth = true_terms()
+    print(f"{'term':>4} {'fitted g':>9} {'fitted tau [s]':>15} | {'true g':>7} "
+          f"{'true tau [s]':>13}")
+    for k in range(max(len(truth), fit.terms)):
+        mine = (f"{fit.calibration.terms[k].g:>9.4f} {fit.calibration.terms[k].tau_s:>15.4g}"
+                if k < fit.terms else f"{'-':>9} {'-':>15}")
+        true = f"{truth[k][0]:>7.4f} {truth[k][1]:>13.4g}" if k < len(truth) else ""
+        print(f"{k:>4} {mine} | {true}")
+    print(f"instant gain 1 + sum g: fitted {fit.calibration.instant_gain:.4f}, true "
+          f"{1 + sum(g for g, _ in truth):.4f}")
+    for note in fit.notes:
+        print("note:", note)
+    sig = check.signals
+    rec = record_from_segmentation(sig.t_s, sig.output_v, sig.force_n, check.segmentation)
+    rows = phase_table(rec, check.static_reference, fit.calibration)
+    print(f"held out: {check.recording.path} (static curve: its own "
+          f"{check.metrics['reference_speed_mm_s']} mm/s ramps)")
+    sample_ok, model_ok = print_table(rows, float(check.metrics["full_scale_n"]))
+    print(f"goal per-sample RMSE: {verdict(sample_ok)}; goal on the model error: "
+          f"{verdict(model_ok)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
