@@ -13,70 +13,21 @@ Run with ``scripts/env.sh`` sourced.
 
 from __future__ import annotations
 
-import json
 import math
 import os
-import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 SOURCE = Path(__file__).resolve().parents[1] / "tactile_sensor"
 sys.path.insert(0, str(SOURCE))
 
+from tactile_sensor.physics.loopback_cluster import loopback_cluster  # noqa: E402
 from tactile_sensor.physics.study import DesignRow, run_study  # noqa: E402
 from tactile_sensor.physics.study_spec import load_spec  # noqa: E402
 
 DEFAULT_SPEC = SOURCE / "config" / "studies" / "window_placement.yaml"
-START_LIMIT_S = 120.0
-
-
-def wait_for(condition: Callable[[], bool], what: str, procs: list[subprocess.Popen]) -> None:
-    end = time.monotonic() + START_LIMIT_S
-    while not condition():
-        if any(p.poll() is not None for p in procs):
-            raise SystemExit(f"a cluster process exited while waiting for {what}")
-        if time.monotonic() > end:
-            raise SystemExit(f"no {what} after {START_LIMIT_S:.0f} s")
-        time.sleep(0.1)
-
-
-def start_cluster(folder: Path) -> tuple[str, list[subprocess.Popen]]:
-    """A scheduler and two one-thread workers on 127.0.0.1, as the README starts them."""
-    from distributed import Client
-
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(SOURCE), os.environ.get("PYTHONPATH", "")]), "OMP_NUM_THREADS": "1",
-        "OPENBLAS_NUM_THREADS": "1"}
-    file = folder / "scheduler.json"
-    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
-                               "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                               "--scheduler-file", str(file)], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    wait_for(lambda: file.is_file() and file.stat().st_size > 0, "scheduler file", procs)
-    for name in ("w1", "w2"):
-        procs.append(subprocess.Popen(
-            [sys.executable, "-m", "distributed.cli.dask_worker", "--scheduler-file", str(file),
-             "--nthreads", "1", "--nworkers", "1", "--name", name, "--no-dashboard",
-             "--local-directory", str(folder / name)],
-            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-    address = json.loads(file.read_text())["address"]
-    with Client(address, timeout="60s") as client:
-        wait_for(lambda: len(client.scheduler_info()["workers"]) >= 2, "2 workers", procs)
-    return address, procs
-
-
-def stop(procs: list[subprocess.Popen]) -> None:
-    for p in reversed(procs):
-        p.terminate()
-    for p in reversed(procs):
-        try:
-            p.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
 
 
 def timed(label: str, **kwargs: object) -> tuple[float, list[DesignRow]]:
@@ -104,12 +55,9 @@ def main() -> int:
         root = Path(tmp)
         _, one = timed("1 local worker", spec=spec, workers=1, cache_dir=root / "one")
         _, two = timed("2 local workers", spec=spec, workers=2, cache_dir=root / "two")
-        address, procs = start_cluster(root)
-        try:
+        with loopback_cluster(root, workers=2) as address:
             _, remote = timed("loopback cluster (2)", spec=spec, scheduler=address,
                               cache_dir=root / "remote")
-        finally:
-            stop(procs)
     workers = {r.worker for r in remote if r.ok}
     agree = same(one, two) and same(one, remote)
     print(f"rows agree on every path: {agree}; loopback workers used: {len(workers)}")

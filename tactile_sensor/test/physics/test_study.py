@@ -5,10 +5,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +14,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tactile_sensor.physics import cli
+from tactile_sensor.physics.batch import BatchError
+from tactile_sensor.physics.loopback_cluster import loopback_cluster as start_loopback_cluster
 from tactile_sensor.physics.pareto import pareto_mask
 from tactile_sensor.physics.study import run_study
 from tactile_sensor.physics.study_report import write_results
@@ -209,51 +207,11 @@ def test_the_cli_writes_the_results_and_says_bad_specs_in_one_line(tmp_path, cap
 # -- a real cluster over loopback ------------------------------------------------------------
 
 
-def _wait(condition, what: str, procs: list[subprocess.Popen], limit_s: float = 120.0) -> None:
-    """Poll ``condition`` until true; fail at once if a cluster process died (the limit
-    only guards against a hang, it is not what the test waits for)."""
-    end = time.monotonic() + limit_s
-    while not condition():
-        dead = [p.args for p in procs if p.poll() is not None]
-        assert not dead, f"{dead} exited while waiting for {what}"
-        assert time.monotonic() < end, f"no {what} after {limit_s} s"
-        time.sleep(0.1)
-
-
 @pytest.fixture
 def loopback_cluster(tmp_path):
     """``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1 (CLI entry points)."""
-    from distributed import Client
-
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(SOURCE), os.environ.get("PYTHONPATH", "")]), "OMP_NUM_THREADS": "1",
-        "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-    file = tmp_path / "scheduler.json"
-    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler",
-                               "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-                               "--scheduler-file", str(file)], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    try:
-        _wait(lambda: file.is_file() and file.stat().st_size > 0, "scheduler file", procs)
-        for name in ("w1", "w2"):
-            procs.append(subprocess.Popen(
-                [sys.executable, "-m", "distributed.cli.dask_worker", "--scheduler-file",
-                 str(file), "--nthreads", "1", "--nworkers", "1", "--name", name,
-                 "--no-dashboard", "--local-directory", str(tmp_path / name)],
-                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        address = json.loads(file.read_text())["address"]
-        with Client(address, timeout="60s") as client:
-            _wait(lambda: len(client.scheduler_info()["workers"]) >= 2, "2 workers", procs)
+    with start_loopback_cluster(tmp_path, workers=2) as address:
         yield address
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in reversed(procs):
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
 
 
 def test_a_study_on_a_loopback_cluster_equals_a_local_run(loopback_cluster, tmp_path):
@@ -281,3 +239,16 @@ def test_an_unreachable_scheduler_is_one_sentence(tmp_path, capsys, monkeypatch)
     _, err = capsys.readouterr()
     assert code == 1 and "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in err
     assert err.count("\n") == 1
+
+
+def test_a_cluster_process_that_exits_is_one_sentence(tmp_path, monkeypatch):
+    """A scheduler that cannot start (here: an interpreter that exits at once) ends the wait
+    with a sentence naming what was awaited and the fix, not a hang."""
+    import types
+
+    from tactile_sensor.physics import loopback_cluster as module
+
+    monkeypatch.setattr(module, "sys", types.SimpleNamespace(executable="/bin/false"))
+    with pytest.raises(BatchError, match=r"exited while waiting for the scheduler file.*make "
+                                         r"setup"), start_loopback_cluster(tmp_path):
+        pass
