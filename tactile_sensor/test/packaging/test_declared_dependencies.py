@@ -21,6 +21,7 @@ PROVIDER = {
     "geometry_msgs": "geometry_msgs",
     "sensor_msgs": "sensor_msgs",
     "std_srvs": "std_srvs",
+    "builtin_interfaces": "builtin_interfaces",
     "diagnostic_msgs": "diagnostic_msgs",
     "lifecycle_msgs": "lifecycle_msgs",
     "rcl_interfaces": "rcl_interfaces",
