@@ -154,3 +154,14 @@ def test_a_single_module_model_latches_no_array_calibration(spawn, ros_domain):
         node.destroy_node()
     assert "/calibration_curve" in names and "/array_calibration" not in names
     assert "array" not in model.output()
+
+
+def test_rate_terms_from_a_physics_with_more_than_the_driver_takes_fail_configure(
+        spawn, ros_domain):
+    model = start_model(spawn, "-p", "calibration_rate_terms:=true",
+                        "-p", "prony_g:=[0.01, 0.01, 0.01, 0.01]",
+                        "-p", "prony_tau:=[0.1, 0.3, 1.0, 3.0]")
+    assert model.wait_for_output("configure transition failed", 30), model.output()
+    assert ("Parameter 'calibration_rate_terms' is true but the physics has 4 Prony terms "
+            "(prony_g); a rate-aware calibration takes 1 to 3") in model.output()
+    assert "Traceback" not in model.output()
