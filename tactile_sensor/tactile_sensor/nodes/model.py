@@ -170,12 +170,14 @@ class ModelNode(Node):
             f"output {curve.output_v[-1]:.3f} V ({curve.nodes} nodes, {curve.seconds:.1f} s)")
         try:
             static = Calibration.from_prediction_curve(curve)
-            calibration = RateCalibration(static, terms) if terms else static
-        except SensingError as exc:
+            calibration: Calibration | RateCalibration = static
+            if terms:
+                static.source = f"fem:{curve.digest}+prony"
+                calibration = RateCalibration(static, terms)
+        except (PhysicsError, SensingError) as exc:  # e.g. an output that never grows
             self.get_logger().error(f"no calibration curve: {exc}")
             return
-        if terms:
-            calibration.source = f"fem:{curve.digest}+prony"
+        if isinstance(calibration, RateCalibration):
             self.get_logger().info(f"calibration curve with the physics' rate terms, a "
                                    f"simulation's assumption: {calibration.describe()}")
         self._calibration = calibration

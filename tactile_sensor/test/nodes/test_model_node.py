@@ -165,3 +165,13 @@ def test_rate_terms_from_a_physics_with_more_than_the_driver_takes_fail_configur
     assert ("Parameter 'calibration_rate_terms' is true but the physics has 4 Prony terms "
             "(prony_g); a rate-aware calibration takes 1 to 3") in model.output()
     assert "Traceback" not in model.output()
+
+
+def test_an_output_that_never_grows_is_no_curve_in_one_sentence(spawn, ros_domain):
+    # 20 mm from the skin the photoreflector sits at its rail: the output stays 0.
+    model = start_model(spawn, "-p", "gap:=0.02", "-p", "steps:=10", "-p", "mesh_nx:=6",
+                        "-p", "mesh_ny:=6", "-p", "mesh_nz:=22")
+    assert model.wait_for_output("no calibration curve", 120), model.output()
+    assert ("no calibration curve: The predicted output does not grow with indentation"
+            in model.output())
+    assert "prediction ready" in model.output() and "Traceback" not in model.output()
