@@ -32,7 +32,7 @@ from tactile_sensor.hardware.adc_reader import (
     Sample,
 )
 from tactile_sensor.hardware.errors import HardwareError
-from tactile_sensor.nodes import array_calibration_msg
+from tactile_sensor.nodes import array_calibration_msg, calibration_curve_msg
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
@@ -49,7 +49,6 @@ from tactile_sensor.sensing.array_chain import (
     build_chain,
     parse_modules,
 )
-from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import Reading, SignalChain
 from tactile_sensor.sensing.chain_parameters import (
     RUNTIME_PARAMETERS,
@@ -377,14 +376,13 @@ class DriverNode(Node):
         if self._chain is None:
             return
         try:
-            calibration = Calibration.from_curve(list(msg.output), list(msg.force),
-                                                 msg.source or "model")
+            calibration = calibration_curve_msg.from_msg(msg)
         except SensingError as exc:
             self.get_logger().error(f"ignoring calibration curve: {exc}")
             return
         self._chain.set_calibration(calibration)
         self.get_logger().info(f"calibration from {calibration.source} "
-                               f"({len(msg.output)} points)")
+                               f"({len(msg.output)} points, {describe_model(calibration)})")
 
     def _on_array_calibration(self, msg: ArrayCalibrationMsg) -> None:
         chain = self._chain

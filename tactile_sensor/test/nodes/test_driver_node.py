@@ -17,17 +17,21 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
+from tactile_sensor.configurations import config_dir
 from tactile_sensor.hardware.adc_frame import crc16, encode_frame
+from tactile_sensor.nodes import calibration_curve_msg
 from tactile_sensor.nodes.ros_session import ros_session
+from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.rate_calibration import RateCalibration, RateTerm
 from tactile_sensor.sim import firmware_host
 from tactile_sensor.sim.firmware_host import PICO, UNO, HostFirmware
 from tactile_sensor.sim.profiles import parse_profile
 from tactile_sensor.sim.pty_link import PtyLink
-from tactile_sensor_interfaces.msg import TactileReading
+from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
 
 FULL_SCALE_N = 7.0
 DEPTH_M = 0.003
@@ -216,6 +220,48 @@ def test_a_rate_aware_file_runs_its_model_on_every_sample(spawn, ros, files, tmp
     assert peak - rise > 300, (rise, peak)
     excess = force[rise:peak] - static_force[rise:peak]
     assert np.median(excess) > 0.5, np.median(excess)
+
+
+def test_the_model_nodes_prony_terms_make_the_driver_rate_aware(spawn, ros, files):
+    """calibration_source: model and the model's calibration_rate_terms: the latched curve
+    carries physics' prony_g/prony_tau and /diagnostics name the rate-aware model; a curve
+    with unpaired rate terms before it is ignored with one sentence."""
+    driver = spawn("--ros-args", "-r", "__node:=driver", "-p", f"port:={files['link']}",
+                   "-p", "calibration_source:=model", "-p", "autostart:=true",
+                   module="tactile_sensor.nodes.driver")
+    assert driver.wait_for_output("active", PATIENCE_S), driver.output()
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                         reliability=ReliabilityPolicy.RELIABLE)
+    bad = ros.node.create_publisher(CalibrationCurve, "/calibration_curve", latched)
+    bad.publish(CalibrationCurve(output=[0.0, 0.5], force=[0.0, 7.0], source="test:unpaired",
+                                 rate_g=[0.05, 0.04], rate_tau=[0.1]))
+    assert driver.wait_for_output("ignoring calibration curve: test:unpaired: the curve has 2 "
+                                  "rate moduli (rate_g) but 1 relaxation times", PATIENCE_S), \
+        driver.output()
+    assert ros.wait_for(lambda: ros.diagnostics, PATIENCE_S)
+    assert _value(ros.diagnostics[-1][1], "calibration_model") == "none"
+    ros.node.destroy_publisher(bad)
+
+    curves: list[CalibrationCurve] = []
+    ros.node.create_subscription(CalibrationCurve, "/calibration_curve", curves.append, latched)
+    model = spawn("--ros-args", "-r", "__node:=model",
+                  "--params-file", str(config_dir() / "physics.yaml"),
+                  "-p", "calibration_rate_terms:=true", "-p", "autostart:=true",
+                  module="tactile_sensor.nodes.model")
+    physics = PhysicsParams()
+    assert ros.wait_for(lambda: any(m.source.endswith("+prony") for m in curves), 120), \
+        model.output()
+    curve = next(m for m in curves if m.source.endswith("+prony"))
+    assert curve.source == f"fem:{physics.digest()}+prony"
+    assert list(curve.rate_g) == list(physics.prony_g)
+    assert list(curve.rate_tau) == list(physics.prony_tau)
+    described = calibration_curve_msg.from_msg(curve).describe()
+    assert described == "rate-aware (2 term(s): g=0.05 tau=0.1 s, g=0.04 tau=1.5 s)"
+    assert ros.wait_for(lambda: _value(ros.diagnostics[-1][1], "calibration_model")
+                        == described, PATIENCE_S), driver.output()
+    assert f"calibration from {curve.source} ({len(curve.output)} points, {described})" \
+        in driver.output()
+    assert "simulation's assumption" in model.output()
 
 
 def test_tare_succeeds_at_rest_and_is_refused_while_pressing(spawn, ros, files):

@@ -154,3 +154,24 @@ def test_a_single_module_model_latches_no_array_calibration(spawn, ros_domain):
         node.destroy_node()
     assert "/calibration_curve" in names and "/array_calibration" not in names
     assert "array" not in model.output()
+
+
+def test_rate_terms_from_a_physics_with_more_than_the_driver_takes_fail_configure(
+        spawn, ros_domain):
+    model = start_model(spawn, "-p", "calibration_rate_terms:=true",
+                        "-p", "prony_g:=[0.01, 0.01, 0.01, 0.01]",
+                        "-p", "prony_tau:=[0.1, 0.3, 1.0, 3.0]")
+    assert model.wait_for_output("configure transition failed", 30), model.output()
+    assert ("Parameter 'calibration_rate_terms' is true but the physics has 4 Prony terms "
+            "(prony_g); a rate-aware calibration takes 1 to 3") in model.output()
+    assert "Traceback" not in model.output()
+
+
+def test_an_output_that_never_grows_is_no_curve_in_one_sentence(spawn, ros_domain):
+    # 20 mm from the skin the photoreflector sits at its rail: the output stays 0.
+    model = start_model(spawn, "-p", "gap:=0.02", "-p", "steps:=10", "-p", "mesh_nx:=6",
+                        "-p", "mesh_ny:=6", "-p", "mesh_nz:=22")
+    assert model.wait_for_output("no calibration curve", 120), model.output()
+    assert ("no calibration curve: The predicted output does not grow with indentation"
+            in model.output())
+    assert "prediction ready" in model.output() and "Traceback" not in model.output()

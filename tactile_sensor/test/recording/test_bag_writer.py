@@ -63,7 +63,8 @@ def curve_cdr() -> bytes:
         header=t["std_msgs/msg/Header"](
             stamp=t["builtin_interfaces/msg/Time"](sec=1, nanosec=0), frame_id=""),
         output=np.array([0.0, 0.1, 0.2]),
-        force=np.array([0.0, 1.0, 3.0]), source="test")
+        force=np.array([0.0, 1.0, 3.0]), source="test", rate_g=np.zeros(0),
+        rate_tau=np.zeros(0))
     return bytes(TYPESTORE.serialize_cdr(msg, CURVE))
 
 
