@@ -10,7 +10,6 @@ the true wrench of the hold is known.
 from __future__ import annotations
 
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -25,6 +24,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
 from tactile_sensor.nodes import array_calibration_msg
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
@@ -91,8 +91,7 @@ class Listener:
             100)
         self.executor = rclpy.executors.SingleThreadedExecutor()
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spin = BackgroundSpin(self.executor)
 
     @staticmethod
     def wait_for(predicate, timeout_s: float) -> bool:
@@ -111,8 +110,7 @@ class Listener:
         return future.result()
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1.0)
-        self.thread.join(timeout=2.0)
+        self.spin.stop()
         self.node.destroy_node()
 
 

@@ -23,6 +23,7 @@ from std_srvs.srv import Trigger
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.hardware.adc_frame import crc16, encode_frame
 from tactile_sensor.nodes import calibration_curve_msg
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.sensing.calibration import Calibration
@@ -79,8 +80,7 @@ class Listener:
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
         self.executor = rclpy.executors.SingleThreadedExecutor()
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spin = BackgroundSpin(self.executor)
 
     def _on_diag(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -105,8 +105,7 @@ class Listener:
         return future.result()
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1.0)
-        self.thread.join(timeout=2.0)
+        self.spin.stop()
         self.node.destroy_node()
 
 

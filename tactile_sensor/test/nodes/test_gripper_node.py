@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from rclpy.action import ActionClient, get_action_names_and_types
 from sensor_msgs.msg import JointState
 
 from tactile_sensor.configurations import config_dir
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import load_or_compute_curve
@@ -114,8 +114,7 @@ class Client:
             lambda m: self.diagnostics.extend(s for s in m.status if "XM430" in s.name), 100)
         self.executor = rclpy.executors.MultiThreadedExecutor(num_threads=2)
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spin = BackgroundSpin(self.executor)
         assert self.grasp.wait_for_server(timeout_sec=PATIENCE_S)
         assert self.release.wait_for_server(timeout_sec=PATIENCE_S)
 
@@ -135,8 +134,7 @@ class Client:
                "the fingers did not start moving")
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1)
-        self.thread.join(2)
+        self.spin.stop()
         self.node.destroy_node()
 
 

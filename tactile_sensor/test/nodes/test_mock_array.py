@@ -5,7 +5,6 @@ voltages quantised)."""
 
 from __future__ import annotations
 
-import threading
 import time
 from pathlib import Path
 
@@ -19,6 +18,7 @@ from std_srvs.srv import Trigger
 
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.hardware.adc_reader import AdcStreamReader
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.viscoelastic import RateDependentForce
@@ -82,8 +82,7 @@ class Listener:
         self.start = self.node.create_client(Trigger, "/bench/start")
         self.executor = rclpy.executors.SingleThreadedExecutor()
         self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
+        self.spin = BackgroundSpin(self.executor)
 
     def start_protocol(self) -> None:
         assert self.start.wait_for_service(timeout_sec=PATIENCE_S)
@@ -103,8 +102,7 @@ class Listener:
         return next((stamp for stamp, _, p in list(self.stage) if p[0] > 0), None)
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1)
-        self.thread.join(2)
+        self.spin.stop()
         self.node.destroy_node()
 
 
