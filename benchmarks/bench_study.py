@@ -13,6 +13,7 @@ Run with ``scripts/env.sh`` sourced.
 
 from __future__ import annotations
 
+import argparse
 import math
 import os
 import sys
@@ -25,7 +26,7 @@ sys.path.insert(0, str(SOURCE))
 
 from tactile_sensor.physics.loopback_cluster import loopback_cluster  # noqa: E402
 from tactile_sensor.physics.study import DesignRow, run_study  # noqa: E402
-from tactile_sensor.physics.study_spec import load_spec  # noqa: E402
+from tactile_sensor.physics.study_spec import StudySpecError, load_spec  # noqa: E402
 
 DEFAULT_SPEC = SOURCE / "config" / "studies" / "window_placement.yaml"
 
@@ -48,7 +49,14 @@ def same(a: list[DesignRow], b: list[DesignRow]) -> bool:
 
 
 def main() -> int:
-    spec = load_spec(Path(sys.argv[1]) if len(sys.argv) > 1 else DEFAULT_SPEC)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("spec", nargs="?", type=Path, default=DEFAULT_SPEC,
+                        help="study spec (default: config/studies/window_placement.yaml)")
+    try:
+        spec = load_spec(parser.parse_args().spec)
+    except StudySpecError as exc:
+        print(exc, file=sys.stderr)
+        return 2
     print(f"study '{spec.name}': {len(spec.designs()) + 1} designs (the paper's included), "
           f"{os.cpu_count()} cores", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
