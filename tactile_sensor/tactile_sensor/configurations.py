@@ -24,6 +24,9 @@ class NodeSpec:
     module: str  # python module holding the node class (for the in-process bringup)
     node_class: str
     config_files: tuple[str, ...]  # files under config/, applied in order
+    # files under config/ applied after config_files, with mock hardware only: the emulated
+    # devices are Python on the same host and answer later than real ones on a busy machine
+    mock_config_files: tuple[str, ...] = ()
     lifecycle: bool = True
     mock_only: bool = False  # started only with use_mock_hardware
     remappings: tuple[tuple[str, str], ...] = ()
@@ -75,7 +78,8 @@ GRIPPER = Configuration(
         _MODEL,
         replace(_DRIVER, config_files=(*SENSOR_FILES, "gripper.yaml")),
         NodeSpec("gripper", "gripper_node", "tactile_sensor.nodes.gripper", "GripperNode",
-                 ("gripper.yaml",), remappings=(("tactile_wrench", "driver/wrench"),),
+                 ("gripper.yaml",), mock_config_files=("gripper_mock.yaml",),
+                 remappings=(("tactile_wrench", "driver/wrench"),),
                  port_parameters=(("port", "servo_port"),)),
     ),
     ports={"adc_port": ("/tmp/tactile_sensor/gripper_adc",
@@ -113,3 +117,8 @@ def config_dir() -> Path:
         if candidate.is_dir():
             return candidate
     return source
+
+
+def config_files(spec: NodeSpec, use_mock: bool) -> tuple[str, ...]:
+    """The files a node loads, in order, with or without mock hardware."""
+    return spec.config_files + (spec.mock_config_files if use_mock else ())

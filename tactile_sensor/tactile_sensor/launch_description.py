@@ -28,7 +28,7 @@ from launch_ros.event_handlers import OnStateTransition
 from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
-from tactile_sensor.configurations import PACKAGE, Configuration, config_dir
+from tactile_sensor.configurations import PACKAGE, Configuration, config_dir, config_files
 
 DEVICE_POLL_S = 0.05  # how often the launch looks for the mock rig's device links
 
@@ -93,7 +93,7 @@ def _nodes(context: LaunchContext, configuration: Configuration,
     for spec in configuration.nodes:
         if spec.mock_only and not use_mock:
             continue
-        parameters: list[Any] = [str(config_dir() / f) for f in spec.config_files]
+        parameters: list[Any] = [str(config_dir() / f) for f in config_files(spec, use_mock)]
         if extra:
             parameters.append(str(Path(extra)))
         parameters.append({param: ports[arg] for param, arg in spec.port_parameters})

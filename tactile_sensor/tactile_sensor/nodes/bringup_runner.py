@@ -18,15 +18,16 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
-from tactile_sensor.configurations import Configuration, NodeSpec, config_dir
+from tactile_sensor.configurations import Configuration, NodeSpec, config_dir, config_files
 from tactile_sensor.nodes.bringup_protocols import run_protocol, say
 
 
-def node_arguments(spec: NodeSpec, extra_config: Path | None) -> list[str]:
+def node_arguments(spec: NodeSpec, extra_config: Path | None,
+                   use_mock: bool = True) -> list[str]:
     """The --ros-args a launch file would give this node (device ports go in as parameter
     overrides instead: a node-specific section of a file would beat a global ``-p``)."""
     args = ["--ros-args"]
-    for name in spec.config_files:
+    for name in config_files(spec, use_mock):
         args += ["--params-file", str(config_dir() / name)]
     if extra_config is not None:
         args += ["--params-file", str(extra_config)]
@@ -79,7 +80,7 @@ class BringupRunner:
                 overrides.append(Parameter("protocol.start_delay", value=-1.0))
             self.nodes[spec.name] = node_class(
                 spec.name, namespace=self.namespace,
-                cli_args=node_arguments(spec, self.extra_config),
+                cli_args=node_arguments(spec, self.extra_config, self.use_mock),
                 parameter_overrides=overrides)
 
     def _absolute(self, topic: str) -> str:

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tactile_sensor.configurations import CONFIGURATIONS, config_dir
+from tactile_sensor.configurations import CONFIGURATIONS, config_dir, config_files
 
 PACKAGE_DIR = Path(__file__).resolve().parents[2]
 LAUNCH_DIR = PACKAGE_DIR / "launch"
@@ -60,7 +60,8 @@ def test_every_executable_named_is_installed_where_ros2_run_looks():
 
 def test_every_file_loaded_exists_in_source_and_install():
     share = installed_prefix() / "share" / "tactile_sensor"
-    files = {f for c in CONFIGURATIONS.values() for spec in c.nodes for f in spec.config_files}
+    files = {f for c in CONFIGURATIONS.values() for spec in c.nodes
+             for f in config_files(spec, use_mock=True)}
     files.add("protocols.yaml")
     for name in files:
         assert (config_dir() / name).is_file(), name
@@ -104,7 +105,7 @@ def test_every_config_parameter_is_declared_by_its_node():
     for configuration in CONFIGURATIONS.values():
         for spec in configuration.nodes:
             declared = node_parameter_names(spec.module, spec.node_class)
-            for name in spec.config_files:
+            for name in config_files(spec, use_mock=True):
                 for key, params in _sections(config_dir() / name).items():
                     target = key.rsplit("/", 1)[-1]
                     if target not in ("**", spec.name):
@@ -120,7 +121,7 @@ def test_shared_sections_are_declared_by_some_node_of_the_configuration():
         declared = set().union(*(node_parameter_names(s.module, s.node_class)
                                  for s in configuration.nodes))
         for spec in configuration.nodes:
-            for name in spec.config_files:
+            for name in config_files(spec, use_mock=True):
                 shared = _sections(config_dir() / name).get("/**", {})
                 assert set(shared) <= declared, (name, set(shared) - declared)
 
@@ -134,3 +135,14 @@ def test_protocols_only_set_parameters_of_the_mock_rig():
             assert set(params) <= declared, (section, name, set(params) - declared)
     for name, params in table["gripper"].items():
         assert all(key.startswith("protocol.") for key in params or {}), name
+
+
+def test_mock_only_files_load_with_mock_hardware_only():
+    gripper = next(s for s in CONFIGURATIONS["gripper"].nodes if s.name == "gripper")
+    real, mock = config_files(gripper, use_mock=False), config_files(gripper, use_mock=True)
+    assert "gripper_mock.yaml" in mock and "gripper_mock.yaml" not in real
+    assert mock[:len(real)] == real  # after the real settings, so they win over them
+    patient = _sections(config_dir() / "gripper_mock.yaml")["/**/gripper"]
+    default = _sections(config_dir() / "gripper.yaml")["/**/gripper"]
+    for name in ("packet_timeout", "tactile_timeout"):
+        assert patient[name] > default[name], name
