@@ -20,14 +20,30 @@ from pathlib import Path
 import pytest
 
 SOURCE = Path(__file__).resolve().parents[1]
-_DOMAIN_BASE = int(os.environ.get("TACTILE_TEST_DOMAIN_BASE", str(os.getpid() % 50 + 20)))
+#: The highest ROS domain id: Fast DDS derives its ports from the id and refuses any above
+#: ("Calculated port number is too high. Probably the domainId is over 232"), and every
+#: node of that test then exits.
+MAX_DOMAIN_ID = 232
+
+
+def domain_ids(base: int) -> range:
+    """The block of domain ids a run starting at ``base`` hands out, one per test in turn:
+    100 ids, fewer where the block would pass MAX_DOMAIN_ID (a base of 222 gives 222-232)."""
+    if not 0 <= base <= MAX_DOMAIN_ID:
+        raise pytest.UsageError(f"TACTILE_TEST_DOMAIN_BASE={base} is not a ROS domain id; "
+                                f"give one from 0 to {MAX_DOMAIN_ID}.")
+    return range(base, min(base + 100, MAX_DOMAIN_ID + 1))
+
+
+_DOMAINS = domain_ids(int(os.environ.get("TACTILE_TEST_DOMAIN_BASE",
+                                         str(os.getpid() % 50 + 20))))
 _counter = iter(range(10_000))
 
 
 @pytest.fixture
 def ros_domain(monkeypatch: pytest.MonkeyPatch) -> int:
     """A ROS domain id unique to this test, set for the test process and its children."""
-    domain = _DOMAIN_BASE + next(_counter) % 100
+    domain = _DOMAINS[next(_counter) % len(_DOMAINS)]
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     return domain

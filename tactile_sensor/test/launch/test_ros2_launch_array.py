@@ -14,7 +14,8 @@ import pytest
 
 pytestmark = [pytest.mark.slow, pytest.mark.flaky(reruns=1, reruns_delay=1)]
 
-FAULTS = ("Traceback", "never retrieved", "context is invalid")
+# "process has died": ros2 launch's line for a node that ended by a signal or non-zero status
+FAULTS = ("Traceback", "never retrieved", "context is invalid", "process has died")
 
 
 def quiet(output: str) -> list[str]:

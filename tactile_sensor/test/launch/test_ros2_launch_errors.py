@@ -6,12 +6,18 @@ from __future__ import annotations
 
 import subprocess
 import time
+from pathlib import Path
 
 import pytest
+import yaml
 
 pytestmark = pytest.mark.flaky(reruns=1, reruns_delay=1)
 
-FAULTS = ("Traceback", "never retrieved", "context is invalid")
+# "process has died": ros2 launch's line for a node that ended by a signal or non-zero status
+FAULTS = ("Traceback", "never retrieved", "context is invalid", "process has died")
+#: The bench's protocols, in the order the launch file names them (config/protocols.yaml).
+BENCH_PROTOCOLS = ", ".join(yaml.safe_load(
+    (Path(__file__).resolve().parents[2] / "config" / "protocols.yaml").read_text())["bench"])
 
 
 def test_a_missing_adc_port_gives_one_error_line_and_the_driver_keeps_retrying(
@@ -36,8 +42,7 @@ def test_a_missing_adc_port_gives_one_error_line_and_the_driver_keeps_retrying(
 
 
 @pytest.mark.parametrize(("argument", "sentence"), [
-    ("protocol:=nonsense",
-     "Unknown protocol 'nonsense'; choose one of compression, repeatability, speeds, rest."),
+    ("protocol:=nonsense", f"Unknown protocol 'nonsense'; choose one of {BENCH_PROTOCOLS}."),
     ("config:=/no/such/extra.yaml",
      "config:=/no/such/extra.yaml does not exist; give the path of a ROS parameter YAML file."),
 ])
