@@ -9,10 +9,11 @@ message to this subscriber; MessageInfo.received_timestamp) and this Python call
 (adds rclpy's executor, which for any Python subscriber at 1 kHz is the slowest link).
 CPU = the driver process's user+system time over the window.
 
-The driver runs twice, side by side: with a static calibration file, then with the same
-curve and two rate terms (calibration across speeds: the Prony estimator on every sample).
+The driver runs with a static calibration file, then with the same curve and two rate
+terms (calibration across speeds: the Prony estimator on every sample), then (``all``)
+with those terms and play (two branches and the direction tracker, file version 3).
 
-    python benchmarks/bench_driver.py [--seconds 30] [--model static|rate|both]
+    python benchmarks/bench_driver.py [--seconds 30] [--model static|rate|play|both|all]
 """
 
 from __future__ import annotations
@@ -48,21 +49,24 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0)
     parser.add_argument("--rate", type=float, default=1000.0)
-    parser.add_argument("--model", choices=("static", "rate", "both"), default="both")
+    parser.add_argument("--model", choices=("static", "rate", "play", "both", "all"),
+                        default="both", help="both: static and rate; all: and play")
     args = parser.parse_args()
     os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    models = ("static", "rate") if args.model == "both" else (args.model,)
+    models = {"both": ("static", "rate"), "all": ("static", "rate", "play")}.get(
+        args.model, (args.model,))
     cpu = {}
     for model in models:
         result = measure(args, model)
         if result is None:
             return 1
         cpu[model] = result
-    if len(cpu) == 2:
-        print(f"driver CPU, rate-aware against static: {cpu['rate']:.1f} % vs "
-              f"{cpu['static']:.1f} % of one core ({100 * (cpu['rate'] / cpu['static'] - 1):+.1f} "
-              "%; goal: at most +10 %)")
+    for model, name in (("rate", "rate-aware"), ("play", "rate-aware with play")):
+        if "static" in cpu and model in cpu:
+            print(f"driver CPU, {name} against static: {cpu[model]:.1f} % vs "
+                  f"{cpu['static']:.1f} % of one core "
+                  f"({100 * (cpu[model] / cpu['static'] - 1):+.1f} %; goal: at most +10 %)")
     return 0
 
 
@@ -77,9 +81,12 @@ def measure(args: argparse.Namespace, model: str) -> float | None:
                                                "voltage_v": (3.0 - 0.5 * d / 0.003).tolist()}))
     calibration = {"format": "tactile_sensor/calibration", "version": 1, "source": "bench",
                    "output_v": (0.5 * d / 0.003).tolist(), "force_n": (7 * d / 0.003).tolist()}
-    if model == "rate":  # the simulation's own terms (config/physics.yaml)
+    if model in ("rate", "play"):  # the simulation's own terms (config/physics.yaml)
         calibration.update(version=2, rate_terms=[{"g": 0.05, "tau_s": 0.1},
                                                   {"g": 0.04, "tau_s": 1.5}])
+    if model == "play":  # a half-gap like the mock's play makes, a band like the fit's
+        calibration.update(version=3, play={"half_gap_n": (0.1 * d / 0.003).tolist(),
+                                            "band_v": 0.05, "smoothing_hz": 10.0})
     (tmp / "cal.json").write_text(json.dumps(calibration))
     py = sys.executable
     driver = subprocess.Popen(

@@ -25,6 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
@@ -52,11 +53,33 @@ def record(protocol: str, bag: Path) -> float:
     return time.perf_counter() - start
 
 
+def physics_values() -> dict:
+    return yaml.safe_load((config_dir() / "physics.yaml").read_text())["/**"]["ros__parameters"]
+
+
 def true_terms() -> list[tuple[float, float]]:
     """The simulation's (g, tau [s]) from config/physics.yaml."""
-    values = yaml.safe_load((config_dir() / "physics.yaml").read_text())["/**"][
-        "ros__parameters"]
+    values = physics_values()
     return list(zip(values["prony_g"], values["prony_tau"], strict=True))
+
+
+def true_half_gap(outputs_v: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """(output_play [m], half the loading-minus-unloading relaxed force [N] at each output)
+    of the simulation: the mock's output reads the indentation less the play while loading
+    and the indentation while unloading, on the FEM curve it serves (cached by the run)."""
+    from tactile_sensor.nodes.physics_parameters import physics_from_values
+    from tactile_sensor.physics.prediction import load_or_compute_curve
+
+    params = physics_from_values(physics_values())
+    try:
+        curve = load_or_compute_curve(params)
+    except Exception:  # the truth is a report's extra, not the measure
+        return None
+    d = np.interp(outputs_v, curve.output_v, curve.indentation_m)
+    w = params.output_play
+    force = np.interp(d + w, curve.indentation_m, curve.force_n) - np.interp(
+        d, curve.indentation_m, curve.force_n)
+    return w, 0.5 * force
 
 
 def verdict(ok: bool) -> str:
@@ -98,6 +121,9 @@ def main() -> int:
     ap.add_argument("--speeds", default="speeds:cycles=1", help="the fit's protocol")
     ap.add_argument("--terms", type=int, choices=(1, 2, 3),
                     help="fit this many rate terms instead of choosing by held-out error")
+    ap.add_argument("--play", choices=("auto", "on", "off"), default="auto",
+                    help="play compensation: chosen by held-out error (auto), always, never "
+                         "(off: the model before play compensation)")
     args = ap.parse_args()
     os.environ.setdefault("ROS_DOMAIN_ID", "171")
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -116,11 +142,12 @@ def main() -> int:
             return 1
         check = analyse_bag(str(run / "check"), Options(calibration=fit_run.fitted))
         fit = fit_run.rate_fit
-        if args.terms is not None:
+        if args.terms is not None or args.play != "auto":
             sig = fit_run.signals
             fit = fit_rate_calibration(
                 record_from_segmentation(sig.t_s, sig.output_v, sig.force_n,
-                                         fit_run.segmentation), "bench", terms=args.terms)
+                                         fit_run.segmentation), "bench", terms=args.terms,
+                play={"auto": None, "on": True, "off": False}[args.play])
         return report(fit_run, fit, check, fit_s)
 
 
@@ -140,6 +167,22 @@ def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit
         print(f"{k:>4} {mine} | {true}")
     print(f"instant gain 1 + sum g: fitted {fit.calibration.instant_gain:.4f}, true "
           f"{1 + sum(g for g, _ in truth):.4f}")
+    play = fit.calibration.play
+    other = ", ".join(f"{n}: {c.mean_rmse_n:.3f} N" for n, c in fit.other_counts.items())
+    if play is None:
+        print(f"play: none (held out with play: {other or 'not tried'})")
+    else:
+        print(f"play: band {1e3 * play.band_v:.1f} mV on the output smoothed at "
+              f"{play.smoothing_hz:g} Hz; held out without play: {other or 'not tried'}")
+        at = np.array([0.1, 0.2, 0.3, 0.4])
+        fitted = np.interp(at, fit.calibration.static.output_v, play.half_gap_n)
+        truth = true_half_gap(at)
+        print(f"{'output [V]':>10} {'fitted half-gap [N]':>20} {'true half-gap [N]':>18}")
+        for k, out in enumerate(at.tolist()):
+            true = f"{truth[1][k]:>18.3f}" if truth is not None else f"{'-':>18}"
+            print(f"{out:>10.2f} {fitted[k]:>20.3f} {true}")
+        if truth is not None:
+            print(f"(true: output_play {1e3 * truth[0]:.3f} mm on the FEM curve)")
     for note in fit.notes:
         print("note:", note)
     sig = check.signals

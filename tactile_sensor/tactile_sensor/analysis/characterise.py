@@ -225,7 +225,10 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
                        "in_sample": options.calibration is None, "by_speed": per_speed,
                        "rate_terms": ([{"g": t.g, "tau_s": t.tau_s}
                                        for t in evaluated.rate.terms]
-                                      if evaluated.rate is not None else None)}
+                                      if evaluated.rate is not None else None),
+                       "play": (evaluated.rate.play.to_dict()
+                                if evaluated.rate is not None
+                                and evaluated.rate.play is not None else None)}
         if evaluated.rate is not None and static_ref is not None:
             cal_metrics["by_speed_phase"] = table_dict(
                 phase_table(record, static_ref, evaluated.rate))

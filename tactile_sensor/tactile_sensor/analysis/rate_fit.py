@@ -29,6 +29,16 @@ Why this way:
   so after a reversal it stands still while the force drops; no static curve or rate term
   can follow that, and those samples pulled the top of the curve down, which showed as a
   constant error in every hold.
+- Play (``play``): the same play makes the relaxed force at one output differ by direction
+  (loading above unloading by ~K'(d) x play, in holds too), so the curve may have two
+  branches, curve ± half_gap (``sensing.rate_calibration.Play``). Both are fitted with the
+  terms in the same linear solve, each sample on the branch of its press phase (loading
+  and hold: loading; unloading: unloading; between presses: the last); a mild penalty on
+  the half-gap's change between knots fills knots one branch never reaches (the top of
+  the unloading one). The driver's direction tracker gets a band of ``BAND_SIGMAS`` x the
+  noise of the output smoothed at ``TRACKER_SMOOTHING_HZ``, measured on the record. Play
+  is kept only when it cuts the leave-one-speed-out error by more than
+  ``SELECT_TOLERANCE``; the held-out folds run the tracker as the driver would.
 """
 
 from __future__ import annotations
@@ -43,7 +53,12 @@ from scipy.signal import lfilter
 
 from tactile_sensor.sensing.calibration import Calibration as StaticCurve
 from tactile_sensor.sensing.prony import term_coefficients
-from tactile_sensor.sensing.rate_calibration import MAX_RATE_TERMS, RateCalibration, RateTerm
+from tactile_sensor.sensing.rate_calibration import (
+    MAX_RATE_TERMS,
+    Play,
+    RateCalibration,
+    RateTerm,
+)
 
 from .calibration_fit import fit_calibration
 from .errors import RateFitError
@@ -53,7 +68,7 @@ from .rate_history import (
     static_force,
     zero_phase_low_pass,
 )
-from .rate_record import LOADING, OUTSIDE, UNLOADING, RateRecord
+from .rate_record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
 
 MIN_TAU_PERIODS = 5
 SELECT_TOLERANCE = 0.05  # fewer terms win unless more cut the held-out RMSE by > 5 %
@@ -64,6 +79,11 @@ SMOOTH_SHARE = 0.1  # zero-phase low-pass cut-off / fit rate (20 Hz for 200 Hz)
 KNOT_MARGIN_SIGMAS = 3.0  # the curve reaches this many output-noise RMS past the data
 REVERSAL_SHARE = 0.05  # unloading samples before the output fell by this share are left out
 FIT_TOLERANCE = 1e-6  # relative change of cost / parameters that ends a fit
+TRACKER_SMOOTHING_HZ = 10.0  # the direction tracker's first-order low-pass
+BAND_SIGMAS = 8.0  # tracker band / noise of its smoothed output: noise flips it ~never
+MIN_BAND_V = 1e-6  # a noise-free record still gets a band (it must be > 0)
+GAP_SMOOTHING = 0.3  # penalty on half-gap changes between knots / mean data weight
+CURVE_SMOOTHING = 1e-3  # penalty on the curve's second differences / mean data weight
 ONE_SPEED = ("the rate terms cannot be fitted from one speed; record the `speeds` protocol "
              "(0.1, 1 and 10 mm/s).")
 
@@ -92,6 +112,7 @@ class RateFit:
     in_sample_rmse_n: float
     fit_rate_hz: float
     notes: list[str] = field(default_factory=list)
+    other_counts: dict[int, TermCount] = field(default_factory=dict)  # the rejected choice
 
     @property
     def terms(self) -> int:
@@ -100,6 +121,10 @@ class RateFit:
     @property
     def folds(self) -> TermCount:
         return self.counts[self.terms]
+
+    @property
+    def play(self) -> Play | None:
+        return self.calibration.play
 
     def metadata(self) -> dict[str, Any]:
         """What the calibration file's ``fit`` records about this fit."""
@@ -110,6 +135,9 @@ class RateFit:
             "fit_rate_hz": self.fit_rate_hz, "in_sample_rmse_n": self.in_sample_rmse_n,
             "held_out_rmse_n": {str(n): c.held_out_rmse_n for n, c in self.counts.items()},
             "static_held_out_rmse_n": self.folds.static_rmse_n,
+            "play": self.play is not None,
+            "other_play_held_out_rmse_n": {str(n): c.held_out_rmse_n
+                                           for n, c in self.other_counts.items()},
         }
 
 
@@ -125,9 +153,10 @@ def resolvable_tau_range(record: RateRecord, fit_rate_hz: float) -> tuple[float,
 
 def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = None,
                          tau_bounds_s: tuple[float, float] | None = None, knots: int = 16,
-                         fit_rate_hz: float = 200.0) -> RateFit:
+                         fit_rate_hz: float = 200.0, play: bool | None = None) -> RateFit:
     """The rate-aware calibration of ``record``; ``terms`` None chooses 1..3 by held-out
-    error. RateFitError for one speed only or times the record cannot resolve."""
+    error, ``play`` None with or without play likewise (False: never, today's model).
+    RateFitError for one speed only or times the record cannot resolve."""
     speeds = record.speeds()
     if len(speeds) < 2:
         raise RateFitError(ONE_SPEED)
@@ -149,12 +178,24 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
                 f"{fit_rate_hz:g} Hz fit grid up to the longest press); request times in "
                 "that range or record longer presses and holds.")
         lo, hi = a, b
-    grid, noise_v = _prepare(record, fit_rate_hz)
+    grid, noise_v, loading = _prepare(record, fit_rate_hz)
     margin_v = KNOT_MARGIN_SIGMAS * noise_v
-    counts: dict[int, TermCount] = {}
-    for n in ([terms] if terms is not None else range(1, MAX_RATE_TERMS + 1)):
-        counts[n] = _cross_validate(record, grid, speeds, n, (lo, hi), knots, margin_v,
-                                    fit_rate_hz)
+    split = _Split(loading, max(MIN_BAND_V, BAND_SIGMAS * _tracker_noise(record)),
+                   TRACKER_SMOOTHING_HZ)
+    choices = {False: None, True: split} if play is None else {play: split if play else None}
+    tried: dict[bool, dict[int, TermCount]] = {}
+    for key, how in choices.items():
+        tried[key] = {n: _cross_validate(record, grid, speeds, n, (lo, hi), knots, margin_v,
+                                         fit_rate_hz, how)
+                      for n in ([terms] if terms is not None
+                                else range(1, MAX_RATE_TERMS + 1))}
+    best_of = {key: min(c.mean_rmse_n for c in counts.values())
+               for key, counts in tried.items()}
+    use_play = (best_of[True] < best_of[False] * (1 - SELECT_TOLERANCE) if len(tried) == 2
+                else next(iter(tried)))
+    counts = tried[use_play]
+    other = tried.get(not use_play, {})
+    how = split if use_play else None
     # fewest terms within the tolerance of the best held-out error first, then the rest
     # by error; the first whose fit on all speeds puts no time on a bound wins
     best = min(c.mean_rmse_n for c in counts.values())
@@ -162,7 +203,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     order = near + sorted((n for n in counts if n not in near), key=lambda n:
                           counts[n].mean_rmse_n)
     for n in order:
-        cal, pinned = _fit(grid, speeds, n, (lo, hi), knots, source, margin_v)
+        cal, pinned = _fit(grid, speeds, n, (lo, hi), knots, source, margin_v, how)
         if not pinned:
             break
     else:
@@ -175,7 +216,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     if len(kept) < len(cal.terms):
         notes.append(f"{len(cal.terms) - len(kept)} rate term(s) with g < {NEGLIGIBLE_G:g} "
                      "were dropped (they change the force by less than 0.1 %).")
-        cal = RateCalibration(cal.static, kept)
+        cal = RateCalibration(cal.static, kept, cal.play)
     if counts[n].pinned_folds:
         notes.append(f"{counts[n].pinned_folds} of {len(speeds)} leave-one-speed-out fits put "
                      "a relaxation time on a bound (their training speeds alone do not "
@@ -183,19 +224,59 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     in_press = record.mask()
     force = rate_force_history(cal, record.t_s, record.output_v)
     rmse = float(np.sqrt(np.mean((force[in_press] - record.force_n[in_press]) ** 2)))
-    return RateFit(cal, (lo, hi), counts, rmse, fit_rate_hz, notes)
+    return RateFit(cal, (lo, hi), counts, rmse, fit_rate_hz, notes, other)
 
 
 # -- internals -----------------------------------------------------------------------------
 
-def _prepare(record: RateRecord, fit_rate_hz: float) -> tuple[RateRecord, float]:
+@dataclass(frozen=True)
+class _Split:
+    """How a fit splits the curve by direction: each grid sample's branch (True: loading)
+    and the driver's tracker settings."""
+
+    loading: np.ndarray
+    band_v: float
+    smoothing_hz: float
+
+
+def _prepare(record: RateRecord, fit_rate_hz: float
+             ) -> tuple[RateRecord, float, np.ndarray]:
     """(the fit's grid: uniform, low-passed, reversal plays left out, block means; the RMS
-    the low-pass removed from the in-press output [V], its noise)."""
+    the low-pass removed from the in-press output [V], its noise; each grid sample's
+    branch by its press phase, True for loading)."""
     uniform = _uniform(record)
     smooth = _smooth(uniform, fit_rate_hz)
     inside = uniform.mask()
     noise_v = _rmse(uniform.output_v[inside], smooth.output_v[inside]) if np.any(inside) else 0.0
-    return _decimate(_without_reversals(smooth), fit_rate_hz), noise_v
+    loading = _phase_branches(_decimate(smooth, fit_rate_hz).phase)
+    return _decimate(_without_reversals(smooth), fit_rate_hz), noise_v, loading
+
+
+def _phase_branches(phase: np.ndarray) -> np.ndarray:
+    """True on loading and hold samples, False on unloading, the last of those between
+    presses (True before the first)."""
+    code = np.where(np.isin(phase, (LOADING, HOLD)), 1, np.where(phase == UNLOADING, 0, -1))
+    known = np.flatnonzero(code >= 0)
+    if known.size == 0:
+        return np.ones(phase.size, dtype=bool)
+    last = np.maximum.accumulate(np.where(code >= 0, np.arange(phase.size), -1))
+    return np.where(last >= 0, code[np.maximum(last, 0)] == 1, True)
+
+
+def _tracker_noise(record: RateRecord) -> float:
+    """RMS noise [V] of the in-press output after the tracker's first-order smoothing:
+    the robust spread of what a zero-phase low-pass at a quarter of its cut-off leaves."""
+    uniform = _uniform(record)
+    period = float(uniform.t_s[1] - uniform.t_s[0])
+    alpha = -math.expm1(-2.0 * math.pi * TRACKER_SMOOTHING_HZ * period)
+    out = uniform.output_v
+    smooth = lfilter([alpha], [1.0, alpha - 1.0], out - out[0]) + out[0]
+    slow = zero_phase_low_pass(period, TRACKER_SMOOTHING_HZ / 4.0, smooth)
+    inside = uniform.mask()
+    if slow is None or not np.any(inside):
+        return 0.0
+    residual = (smooth - slow)[inside]
+    return float(1.4826 * np.median(np.abs(residual - np.median(residual))))
 
 
 def _uniform(record: RateRecord) -> RateRecord:
@@ -287,7 +368,7 @@ def _fold_bounds(record: RateRecord, train: list[float], tau_bounds: tuple[float
 
 def _cross_validate(record: RateRecord, grid: RateRecord, speeds: list[float], n: int,
                     tau_bounds: tuple[float, float], knots: int, margin_v: float,
-                    fit_rate_hz: float) -> TermCount:
+                    fit_rate_hz: float, split: _Split | None = None) -> TermCount:
     """Each held-out speed scored on the low-passed record: the output's white noise, the
     same for every term count, would otherwise swamp the differences between them."""
     held: dict[str, float] = {}
@@ -297,7 +378,7 @@ def _cross_validate(record: RateRecord, grid: RateRecord, speeds: list[float], n
     for out in speeds:
         train = [s for s in speeds if s != out]
         cal, pinned = _fit(grid, train, n, _fold_bounds(record, train, tau_bounds), knots,
-                           "fold", margin_v)
+                           "fold", margin_v, split)
         pinned_folds += int(pinned)
         test = scored.mask([out])
         force = rate_force_history(cal, scored.t_s, scored.output_v)
@@ -320,14 +401,16 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float, float],
-         knots: int, source: str, margin_v: float = 0.0) -> tuple[RateCalibration, bool]:
+         knots: int, source: str, margin_v: float = 0.0, split: _Split | None = None
+         ) -> tuple[RateCalibration, bool]:
     """Least squares on ``speeds``' in-press samples of the grid; (calibration, whether a
     non-negligible term's time sits on a bound).
 
     Variable projection: for given (g, tau) the force is linear in the curve's knot forces,
     F = (B + sum_i g_i L_i B) c with B the hat functions of the knots and L_i term i's
     filter, so the curve comes from a bounded linear solve (increments >= 0) inside a
-    nonlinear fit of 2n numbers only; ~20x faster than fitting all together."""
+    nonlinear fit of 2n numbers only; ~20x faster than fitting all together. With a
+    ``split`` B has each branch's hats on its own samples (2 x knots columns)."""
     score = grid.mask(speeds)
     x = grid.output_v[score]
     lo_x, hi_x = np.percentile(x, [0.5, 99.5])
@@ -338,16 +421,28 @@ def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float,
     # outputs past its ends would be clamped, biasing a hold at full scale low
     knot_v = np.linspace(lo_x - margin_v, hi_x + margin_v, knots)
     hats = _hat_basis(knot_v, grid.output_v)
-    # knots x samples, C order: lfilter along the last axis runs ~3x faster than strided
-    hat_changes = np.ascontiguousarray(
-        np.vstack((np.zeros((1, knots)), np.diff(hats, axis=0))).T)
-    dt = float(grid.t_s[1] - grid.t_s[0])
     cumulative = np.tril(np.ones((knots, knots)))  # knot forces = f0 + running increments
+    lower_u = np.concatenate(([-np.inf], np.zeros(knots - 1)))
+    # curvature: knots beyond the data (the margin, the top of the unloading branch)
+    # continue the curve's slope instead of staying where the bounded solve leaves them
+    penalty = math.sqrt(CURVE_SMOOTHING) * np.diff(np.eye(knots), 2, axis=0)
+    if split is not None:  # [loading | unloading] columns, each branch monotone
+        on = split.loading[:, None]
+        hats = np.hstack((hats * on, hats * ~on))
+        cumulative = np.kron(np.eye(2), cumulative)
+        lower_u = np.tile(lower_u, 2)
+        penalty = np.vstack((np.kron(np.eye(2), penalty), math.sqrt(GAP_SMOOTHING) * np.kron(
+            [[1.0, -1.0]], np.diff(np.eye(knots), axis=0))))  # and the gap's changes
+    columns = hats.shape[1]
+    # columns x samples, C order: lfilter along the last axis runs ~3x faster than strided
+    hat_changes = np.ascontiguousarray(
+        np.vstack((np.zeros((1, columns)), np.diff(hats, axis=0))).T)
+    dt = float(grid.t_s[1] - grid.t_s[0])
     root_w = np.sqrt(_speed_weights(grid, speeds, score))
     measured = grid.force_n[score] * root_w
-    lower_u = np.concatenate(([-np.inf], np.zeros(knots - 1)))
-    upper_u = np.full(knots, np.inf)
+    upper_u = np.full(columns, np.inf)
     ridge = 1e-12 * max(1.0, float(np.sum(hats[score] ** 2)))
+    smoothing = penalty.T @ penalty * (float(np.sum(root_w ** 2)) / knots)
 
     hats_scored = hats[score] * root_w[:, None]
 
@@ -364,7 +459,7 @@ def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float,
         # the same minimiser as on the samples x knots design, without a tall LAPACK call
         # (10-100x slower on a loaded 2-core machine with threaded BLAS)
         a = design(p)
-        gram = a.T @ a + ridge * np.eye(knots)
+        gram = a.T @ a + ridge * np.eye(columns) + smoothing
         r = np.linalg.cholesky(gram).T
         z = np.linalg.solve(r.T, a.T @ measured)
         u = lsq_linear(r @ cumulative, z, bounds=(lower_u, upper_u), method="bvls").x
@@ -385,6 +480,12 @@ def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float,
     u, _ = solve(best.x)
     force_knots = cumulative @ u
     g, log_tau = best.x[:n], best.x[n:]
+    play = None
+    if split is not None:
+        up = np.maximum.accumulate(force_knots[:knots])
+        down = np.maximum.accumulate(force_knots[knots:])
+        force_knots = 0.5 * (up + down)
+        play = Play(tuple((0.5 * (up - down)).tolist()), split.band_v, split.smoothing_hz)
     order = np.argsort(log_tau)
     terms = [RateTerm(float(g[i]), float(math.exp(log_tau[i]))) for i in order]
     pinned = any(t.g > NEGLIGIBLE_G and (math.log(t.tau_s) - lo_log < AT_BOUND
@@ -392,7 +493,7 @@ def _fit(grid: RateRecord, speeds: list[float], n: int, tau_bounds: tuple[float,
                  for t in terms)
     curve = StaticCurve.from_curve(knot_v.tolist(),
                                    np.maximum.accumulate(force_knots).tolist(), source)
-    return RateCalibration(curve, terms), pinned
+    return RateCalibration(curve, terms, play), pinned
 
 
 def _hat_basis(knot_v: np.ndarray, output_v: np.ndarray) -> np.ndarray:

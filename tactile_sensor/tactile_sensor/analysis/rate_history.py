@@ -15,7 +15,7 @@ import numpy as np
 from scipy.signal import butter, filtfilt, lfilter
 
 from tactile_sensor.sensing.prony import PronySeries, term_coefficients
-from tactile_sensor.sensing.rate_calibration import RateCalibration
+from tactile_sensor.sensing.rate_calibration import DirectionTracker, Play, RateCalibration
 
 UNIFORM_RTOL = 1e-6
 
@@ -46,11 +46,32 @@ def static_force(curve_output_v: np.ndarray, curve_force_n: np.ndarray,
     return np.interp(output_v, curve_output_v, curve_force_n)
 
 
+def loading_history(play: Play, t_s: np.ndarray, output_v: np.ndarray) -> np.ndarray:
+    """True where the driver's direction tracker (one, from rest) is on the loading branch:
+    the same class per sample, so the fit and the report see exactly what the driver does."""
+    tracker = DirectionTracker(play.band_v, play.smoothing_hz)
+    steps = np.concatenate(([0.0], np.diff(t_s))).tolist()
+    update = tracker.update
+    return np.fromiter((update(x, dt) for x, dt in zip(output_v.tolist(), steps, strict=True)),
+                       dtype=bool, count=output_v.size)
+
+
+def branch_static_force(cal: RateCalibration, t_s: np.ndarray, output_v: np.ndarray
+                        ) -> np.ndarray:
+    """F_s at every sample: the curve, or with play the branch the tracker picks."""
+    loading, unloading = cal.branches
+    fs = static_force(np.asarray(loading.output_v), np.asarray(loading.force_n), output_v)
+    if cal.play is None:
+        return fs
+    down = static_force(np.asarray(unloading.output_v), np.asarray(unloading.force_n),
+                        output_v)
+    return np.where(loading_history(cal.play, t_s, output_v), fs, down)
+
+
 def rate_force_history(cal: RateCalibration, t_s: np.ndarray, output_v: np.ndarray
                        ) -> np.ndarray:
     """The driver's rate-aware force at every sample of a record (one estimator from rest)."""
-    fs = static_force(np.asarray(cal.static.output_v), np.asarray(cal.static.force_n),
-                      output_v)
+    fs = branch_static_force(cal, t_s, output_v)
     return fs + unit_responses(t_s, fs, cal.tau_s) @ np.asarray(cal.g)
 
 

@@ -20,8 +20,9 @@ from typing import Any, Protocol
 from tactile_sensor.sensing.errors import CalibrationError
 
 FILE_FORMAT = "tactile_sensor/calibration"
-FILE_VERSION = 2  # the newest version this reader takes: 2 adds ``rate_terms``
+FILE_VERSION = 3  # the newest version this reader takes: 2 adds ``rate_terms``, 3 ``play``
 STATIC_FILE_VERSION = 1  # a curve without rate terms is written as 1: older readers take it
+RATE_FILE_VERSION = 2  # rate terms without play: version-2 readers take it
 
 
 class CurveLike(Protocol):
@@ -107,9 +108,9 @@ class Calibration:
             raise CalibrationError(f"{source}: 'format' must be \"{FILE_FORMAT}\"; this is not "
                                    "a calibration file.")
         check_version(data, source)
-        if data.get("rate_terms"):
-            raise CalibrationError(f"{source}: holds rate terms, which a static curve would "
-                                   "drop; load it with sensing.rate_calibration.load_file.")
+        if data.get("rate_terms") or data.get("play"):
+            raise CalibrationError(f"{source}: holds rate terms or play, which a static curve "
+                                   "would drop; load it with sensing.rate_calibration.load_file.")
         missing = [k for k in ("output_v", "force_n") if not isinstance(data.get(k), list)]
         if missing:
             raise CalibrationError(f"{source}: missing array(s) {', '.join(missing)}.")
@@ -145,7 +146,7 @@ class Calibration:
 
 
 def check_version(data: Mapping[str, Any], source: str) -> int:
-    """The file's version if this reader takes it (1 or 2), else one sentence: a newer file
+    """The file's version if this reader takes it (1 to 3), else one sentence: a newer file
     needs a newer tactile_sensor, refitting would not help."""
     version = data.get("version")
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:

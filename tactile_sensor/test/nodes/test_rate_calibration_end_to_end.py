@@ -32,7 +32,9 @@ def test_record_fit_record_with_the_fitted_file_and_analyse(spawn, ros_domain, t
     assert analyze_cli.main([str(speeds), "--out", str(fit), "--fit-calibration",
                              "--quiet"]) == 0
     calibration = json.loads((fit / "calibration.json").read_text())
-    assert calibration["version"] == 2
+    # the mock's output has a play (output_play), which the fit compensates: version 3
+    assert calibration["version"] == 3 and calibration["fit"]["play"] is True
+    assert len(calibration["play"]["half_gap_n"]) == len(calibration["output_v"])
     terms = calibration["rate_terms"]
     assert 1 <= len(terms) <= MAX_RATE_TERMS
     low, high = calibration["fit"]["tau_range_s"]
@@ -46,7 +48,7 @@ def test_record_fit_record_with_the_fitted_file_and_analyse(spawn, ros_domain, t
     check, out = tmp_path / "check", tmp_path / "check-analysis"
     log = record(spawn, tmp_path, "rate_check:hold=1.0,rest=0.5", check,
                  "--config", str(config))
-    assert "rate-aware" in log, log  # the driver says which model runs
+    assert "rate-aware" in log and "play: half-gap" in log, log  # the model it runs
     assert analyze_cli.main([str(check), "--out", str(out), "--calibration",
                              str(fit / "calibration.json"), "--quiet"]) == 0
     table = json.loads((out / "metrics.json").read_text())["calibration_error"]

@@ -146,7 +146,7 @@ V2 = {**RATE.to_dict(), "source": "x"}
 
 
 @pytest.mark.parametrize(("data", "match"), [
-    ({**V2, "version": 3}, "version 3 is newer than this tactile_sensor reads \\(up to 2\\); "
+    ({**V2, "version": 4}, "version 4 is newer than this tactile_sensor reads \\(up to 3\\); "
                            "update tactile_sensor"),
     ({**V2, "version": 0}, "not a version"),
     ({**V2, "version": "2"}, "not a version"),
