@@ -32,9 +32,15 @@ def test_record_fit_record_with_the_fitted_file_and_analyse(spawn, ros_domain, t
     assert analyze_cli.main([str(speeds), "--out", str(fit), "--fit-calibration",
                              "--quiet"]) == 0
     calibration = json.loads((fit / "calibration.json").read_text())
-    # the mock's output has a play (output_play), which the fit compensates: version 3
-    assert calibration["version"] == 3 and calibration["fit"]["play"] is True
-    assert len(calibration["play"]["half_gap_n"]) == len(calibration["output_v"])
+    # The mock's output has a play (output_play), which the fit compensates (version 3)
+    # when the held-out folds gain more than 5 % by it; close records may go either way, and
+    # the file must then say which (version 2, no play).
+    played = calibration["fit"]["play"]
+    if played:
+        assert calibration["version"] == 3
+        assert len(calibration["play"]["half_gap_n"]) == len(calibration["output_v"])
+    else:
+        assert calibration["version"] == 2 and "play" not in calibration
     terms = calibration["rate_terms"]
     assert 1 <= len(terms) <= MAX_RATE_TERMS
     low, high = calibration["fit"]["tau_range_s"]
@@ -48,7 +54,8 @@ def test_record_fit_record_with_the_fitted_file_and_analyse(spawn, ros_domain, t
     check, out = tmp_path / "check", tmp_path / "check-analysis"
     log = record(spawn, tmp_path, "rate_check:hold=1.0,rest=0.5", check,
                  "--config", str(config))
-    assert "rate-aware" in log and "play: half-gap" in log, log  # the model it runs
+    assert "rate-aware" in log, log  # the driver says which model it runs
+    assert ("play: half-gap" in log) == played, log
     assert analyze_cli.main([str(check), "--out", str(out), "--calibration",
                              str(fit / "calibration.json"), "--quiet"]) == 0
     table = json.loads((out / "metrics.json").read_text())["calibration_error"]
