@@ -550,6 +550,12 @@ class Soak:
         final = wait_until(drained)
         if final is None:
             raise RuntimeError("the bench driver did not report its final counts")
+        # The recorder can still be behind the driver on a busy machine, and stopping it then
+        # cut off what it had not yet taken (886 readings once). Its chunks reach the disk
+        # every 0.5 s: stop it once they hold every published reading, or once they stopped
+        # growing for 5 s (a real loss, which the goal then reports).
+        wait_until(RecorderCatchUp(self.bag, self.reading_topic,
+                                   int(final.values["readings_published"])), period_s=0.5)
         codes = {"recorder": p["recorder"].stop(signal.SIGINT, 60.0)}
         watch_stop.set()
         for name in ("gripper", "gripper_driver", "gripper_model", "bench_driver",
@@ -641,6 +647,34 @@ def _fault_line(f: FaultResult) -> str:
     det = "-" if f.detected_after_s is None else f"{f.detected_after_s:.2f} s"
     rec = "NOT RECOVERED" if f.recovered_after_s is None else f"{f.recovered_after_s:.2f} s"
     return f"detected after {det}, recovered after {rec} ({f.note})"
+
+
+class RecorderCatchUp:
+    """A wait condition: the recording's files on disk hold ``published`` messages on
+    ``topic``, or their count has not grown for ``still_s``. Split files other than the newest
+    are closed, so each is read once."""
+
+    def __init__(self, bag: Path, topic: str, published: int, still_s: float = 5.0) -> None:
+        self.bag, self.topic, self.published, self.still_s = bag, topic, published, still_s
+        self._closed: dict[Path, int] = {}
+        self._count, self._grew_at = -1, time.monotonic()
+
+    def _in_file(self, file: Path) -> int:
+        from tactile_sensor.recording.recovery import read_mcap
+
+        content = read_mcap(file)
+        wanted = {i for i, t in enumerate(content.topics) if t.name == self.topic}
+        return sum(1 for index, _, _ in content.messages if index in wanted)
+
+    def __call__(self) -> bool:
+        files = sorted(self.bag.glob("*.mcap"), key=lambda f: int(f.stem.rsplit("_", 1)[-1]))
+        for file in files[:-1]:
+            if file not in self._closed:
+                self._closed[file] = self._in_file(file)
+        count = sum(self._closed.values()) + (self._in_file(files[-1]) if files else 0)
+        if count > self._count:
+            self._count, self._grew_at = count, time.monotonic()
+        return count >= self.published or time.monotonic() - self._grew_at > self.still_s
 
 
 def count_bag(path: Path, topic: str) -> tuple[int, list[str], int]:
