@@ -21,6 +21,7 @@ from tactile_sensor_interfaces.action import Grasp, Release
 
 READY_TIMEOUT_S = 120.0  # a cold FEM sweep plus the driver's tare
 DRAIN_STALL_S = 30.0  # give up waiting for the streams once they have not advanced for this long
+TRACE_CATCH_UP_S = 10.0  # most the hold summary waits for the force stream to reach its end
 
 
 class RunningBringup(Protocol):
@@ -130,17 +131,31 @@ def _drain(runner: RunningBringup, bench: Any, driver: Any, limit_s: float) -> i
 
 
 class _ForceTrace:
+    """The driver's force with its sample stamps: the hold is a window of stamps, because
+    this in-process subscription can deliver late, and a window by arrival once mixed
+    samples from before the contact into the hold ("min 0.000 N" while the bag held >= 0.97 N)."""
+
     def __init__(self) -> None:
-        self.values: list[float] = []
+        self._samples: list[tuple[int, float]] = []  # (stamp [ns], force [N])
         self._lock = threading.Lock()
 
     def __call__(self, msg: WrenchStamped) -> None:
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         with self._lock:
-            self.values.append(msg.wrench.force.z)
+            self._samples.append((stamp, msg.wrench.force.z))
 
-    def since(self, index: int) -> list[float]:
+    @property
+    def values(self) -> list[float]:
         with self._lock:
-            return self.values[index:]
+            return [force for _, force in self._samples]
+
+    def newest_ns(self) -> int:
+        with self._lock:
+            return max((stamp for stamp, _ in self._samples[-100:]), default=0)
+
+    def between(self, start_ns: int, end_ns: int) -> list[float]:
+        with self._lock:
+            return [force for stamp, force in self._samples if start_ns <= stamp <= end_ns]
 
 
 def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
@@ -163,9 +178,13 @@ def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
     say(f"grasp result: contact={result.contact_detected} force={result.force:.3f} N "
         f"opening={result.opening * 1e3:.2f} mm ({result.message})")
     hold = float(p.get("protocol.hold", 2.0))
-    start = len(trace.values)
+    start_ns = node.get_clock().now().nanoseconds
+    end_ns = start_ns + int(hold * 1e9)
     runner.wait(hold)
-    held = trace.since(start)
+    deadline = runner.now() + TRACE_CATCH_UP_S  # until the trace has the hold's end
+    while trace.newest_ns() < end_ns and runner.now() < deadline and runner.wait(0.05):
+        pass
+    held = trace.between(start_ns, end_ns)
     if held:
         mean = sum(held) / len(held)
         say(f"hold {hold:.1f} s: force mean {mean:.3f} N, min {min(held):.3f} N, "
