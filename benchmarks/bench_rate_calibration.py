@@ -1,7 +1,7 @@
 """Calibration across indentation speeds (issue 21): static against rate-aware, held out.
 
 Usage (in the sourced workspace, ``DISTRO=jazzy . scripts/env.sh``):
-    python benchmarks/bench_rate_calibration.py [--keep DIR] [--speeds speeds:cycles=1]
+    python benchmarks/bench_rate_calibration.py [--keep DIR] [--speeds speeds:cycles=1,hold=2]
     python benchmarks/bench_rate_calibration.py --reuse DIR   # DIR/speeds and DIR/check
 
 Records the ``speeds`` protocol and ``rate_check`` (0.3, 3, 20 mm/s with 2 s holds)
@@ -118,7 +118,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reuse", type=Path, help="score DIR/speeds and DIR/check; record nothing")
     ap.add_argument("--keep", type=Path, help="record into DIR (kept) instead of a temporary one")
-    ap.add_argument("--speeds", default="speeds:cycles=1", help="the fit's protocol")
+    ap.add_argument("--speeds", default="speeds:cycles=1,hold=2",
+                    help="the fit's protocol (holds let it tell slow terms apart)")
     ap.add_argument("--terms", type=int, choices=(1, 2, 3),
                     help="fit this many rate terms instead of choosing by held-out error")
     ap.add_argument("--play", choices=("auto", "on", "off"), default="auto",

@@ -3,7 +3,7 @@
 # analyse the recording against the paper's figures.
 #   scripts/demo.sh bench [PROTOCOL]   (default compression)
 #   scripts/demo.sh gripper
-#   scripts/demo.sh rate [SPEEDS_PROTOCOL]   (default speeds:cycles=1)
+#   scripts/demo.sh rate [SPEEDS_PROTOCOL]   (default speeds:cycles=1,hold=2)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -32,7 +32,7 @@ case "$configuration" in
   rate)
     # Calibration across indentation speeds: fit the rate-aware model on 'speeds', then run
     # speeds it never saw (rate_check) with the fitted file in the driver, and compare.
-    speeds="${2:-speeds:cycles=1}"
+    speeds="${2:-speeds:cycles=1,hold=2}"
     echo "== bench '$speeds' on mock hardware -> $run/speeds"
     tactile-sensor bringup bench --protocol "$speeds" --record "$run/speeds" \
       --port "adc_port=/tmp/tactile_sensor/demo_adc_$$"

@@ -13,7 +13,11 @@ import pytest
 from tactile_sensor.analysis.calibration_fit import fit_calibration
 from tactile_sensor.analysis.errors import RateFitError
 from tactile_sensor.analysis.rate_evaluation import phase_table, table_dict
-from tactile_sensor.analysis.rate_fit import fit_rate_calibration, resolvable_tau_range
+from tactile_sensor.analysis.rate_fit import (
+    TermCount,
+    fit_rate_calibration,
+    resolvable_tau_range,
+)
 from tactile_sensor.analysis.rate_history import rate_force_history
 from tactile_sensor.analysis.rate_record import (
     LOADING,
@@ -95,6 +99,32 @@ def test_number_of_terms_is_chosen_by_held_out_error():
     assert fit.calibration.tau_s == pytest.approx((0.5,), rel=0.2)
     meta = fit.metadata()
     assert meta["terms"] == 1 and set(meta["held_out_rmse_n"]) == {"1", "2", "3"}
+
+
+def test_choices_are_scored_by_their_worst_phase_held_out(record, two_term_fit):
+    """The score is the goal's own measure: per held-out speed, the low-passed error of its
+    worst phase, as ``phase_table`` gives it for a fit on the other speeds."""
+    folds = two_term_fit.folds
+    assert set(folds.worst_phase_n) == set(folds.held_out_rmse_n)
+    assert folds.score_n == pytest.approx(np.mean(list(folds.worst_phase_n.values())))
+    held_out = 10e-3
+    keep = ~np.isin(record.speed_mm_s, [held_out * 1e3])
+    train = fit_rate_calibration(RateRecord(
+        record.t_s, record.output_v, record.force_n, np.where(keep, record.speed_mm_s, np.nan),
+        np.where(keep, record.phase, OUTSIDE).astype(np.int8)), "train", terms=2)
+    ramps = record.mask([0.3, 1.0]) & np.isin(record.phase, (LOADING, UNLOADING))
+    static = fit_calibration(record.output_v[ramps], record.force_n[ramps], "static")
+    errors = [r.rate_model_rmse_n for r in phase_table(record, static, train.calibration)
+              if r.speed_mm_s == held_out * 1e3]
+    assert len(errors) == 3 and max(errors) > 1.5 * min(errors)  # the phases differ
+    assert folds.worst_phase_n["10.0"] == pytest.approx(max(errors), rel=0.05)
+
+
+def test_a_count_without_phase_scores_falls_back_to_whole_presses():
+    count = TermCount(1, {"1.0": 0.1, "10.0": 0.3}, {}, 0)
+    assert count.score_n == pytest.approx(0.2)
+    assert TermCount(1, {"1.0": 0.1, "10.0": 0.3}, {}, 0,
+                     {"1.0": 0.2, "10.0": 0.4}).score_n == pytest.approx(0.3)
 
 
 def test_phase_table_reports_every_speed_and_phase(record, two_term_fit):
