@@ -156,8 +156,8 @@ def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit
            ) -> int:
     assert check.static_reference is not None
     print(f"fit on {fit_run.recording.path} in {fit_s:.0f} s (incl. reading): "
-          f"{fit.terms} term(s); leave-one-speed-out RMSE (low-passed) "
-          + ", ".join(f"{n}: {c.mean_rmse_n:.3f} N" for n, c in fit.counts.items()))
+          f"{fit.terms} term(s); leave-one-speed-out score (worst phase, 5 Hz) "
+          + ", ".join(f"{n}: {c.score_n:.3f} N" for n, c in fit.counts.items()))
     truth = true_terms()
     print(f"{'term':>4} {'fitted g':>9} {'fitted tau [s]':>15} | {'true g':>7} "
           f"{'true tau [s]':>13}")
@@ -169,7 +169,7 @@ def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit
     print(f"instant gain 1 + sum g: fitted {fit.calibration.instant_gain:.4f}, true "
           f"{1 + sum(g for g, _ in truth):.4f}")
     play = fit.calibration.play
-    other = ", ".join(f"{n}: {c.mean_rmse_n:.3f} N" for n, c in fit.other_counts.items())
+    other = ", ".join(f"{n}: {c.score_n:.3f} N" for n, c in fit.other_counts.items())
     if play is None:
         print(f"play: none (held out with play: {other or 'not tried'})")
     else:

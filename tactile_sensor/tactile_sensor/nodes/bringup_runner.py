@@ -19,6 +19,7 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 
 from tactile_sensor.configurations import Configuration, NodeSpec, config_dir, config_files
+from tactile_sensor.nodes.background_spin import settle_callbacks
 from tactile_sensor.nodes.bringup_protocols import run_protocol, say
 
 
@@ -34,6 +35,7 @@ def node_arguments(spec: NodeSpec, extra_config: Path | None,
     for source, target in spec.remappings:
         args += ["-r", f"{source}:={target}"]
     return args
+
 
 
 
@@ -142,6 +144,7 @@ class BringupRunner:
             if spinner is not None:  # stop waiting on entities before destroying them
                 spinning.clear()
                 spinner.join(timeout=2.0)
+                settle_callbacks(executor, timeout_s=2.0)
             self._lifecycle_down()
             executor.shutdown(timeout_sec=2.0)
             self._destroy_nodes()  # after the executor stopped waiting on them
