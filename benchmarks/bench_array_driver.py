@@ -34,6 +34,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor_interfaces.msg import TactileReading
@@ -126,7 +127,7 @@ def main() -> int:
             node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
             executor = SingleThreadedExecutor()
             executor.add_node(node)
-            threading.Thread(target=executor.spin, daemon=True).start()
+            spin = BackgroundSpin(executor)
             deadline = time.monotonic() + 60
             while min(counts.values()) < 2000 and time.monotonic() < deadline:
                 time.sleep(0.1)
@@ -145,7 +146,7 @@ def main() -> int:
             time.sleep(1.5)  # one more diagnostics period
             with lock:
                 end_lost = {k: dict(v) for k, v in lost.items()}
-            executor.shutdown()
+            spin.stop()
             node.destroy_node()
     finally:
         for procs in runs.values():

@@ -34,6 +34,7 @@ import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.msg import TactileReading
 
@@ -127,7 +128,7 @@ def measure(args: argparse.Namespace, model: str) -> float | None:
                                                     on_reading, 1000, raw=True)
             executor = SingleThreadedExecutor()
             executor.add_node(node)
-            threading.Thread(target=executor.spin, daemon=True).start()
+            spin = BackgroundSpin(executor)
             deadline = time.monotonic() + 30
             while len(latencies) < 2000 and time.monotonic() < deadline:
                 time.sleep(0.1)
@@ -141,7 +142,7 @@ def measure(args: argparse.Namespace, model: str) -> float | None:
             cpu1, t1 = cpu_seconds(driver.pid), time.monotonic()
             with lock:
                 both = np.array(latencies)
-            executor.shutdown()
+            spin.stop()
             node.destroy_node()
     finally:
         for proc in (mock, driver):

@@ -40,6 +40,7 @@ import threading
 import time
 from pathlib import Path
 
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -264,7 +265,7 @@ def measure(args, gripper, emulator, emu, rclpy, WrenchStamped, ActionClient,
 
     executor = MultiThreadedExecutor(num_threads=2)
     executor.add_node(client)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    spin = BackgroundSpin(executor)
     threading.Thread(target=publish_force, daemon=True).start()
     try:
         if not (grasp.wait_for_server(timeout_sec=30) and release.wait_for_server(
@@ -301,7 +302,7 @@ def measure(args, gripper, emulator, emu, rclpy, WrenchStamped, ActionClient,
         stop.set()
     finally:
         stop.set()
-        executor.shutdown(timeout_sec=1)
+        spin.stop()
         client.destroy_node()
     emulator.send_signal(signal.SIGTERM)
     emulator.wait(30)

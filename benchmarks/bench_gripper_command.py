@@ -25,17 +25,18 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -98,7 +99,7 @@ class Recorder:
             lambda m: self.opening.append((_stamp(m), m.position[0])), 1000)
         self.executor = rclpy.executors.MultiThreadedExecutor(num_threads=2)
         self.executor.add_node(self.node)
-        threading.Thread(target=self.executor.spin, daemon=True).start()
+        self.spin = BackgroundSpin(self.executor)
 
     def run(self, position: float, max_effort: float):  # type: ignore[no-untyped-def]
         goal = self.GripperCommand.Goal()
@@ -118,7 +119,7 @@ class Recorder:
         return sent, time.time(), answer.result
 
     def close(self) -> None:
-        self.executor.shutdown(timeout_sec=1)
+        self.spin.stop()
         self.node.destroy_node()
 
 
@@ -194,6 +195,11 @@ def main() -> int:
     ap.add_argument("--trials", type=int, default=3, help="closes per condition")
     ap.add_argument("--plot", type=Path, default=None, help="PNG of one close per condition")
     args = ap.parse_args()
+    if shutil.which("ros2") is None:
+        print("bench_gripper_command needs `ros2 launch`, which the PyPI-wheels setup lacks; "
+              "run it where a ROS 2 installation is sourced (or use "
+              "benchmarks/bench_gripper_cancel.py, which runs without it).", file=sys.stderr)
+        return 2
 
     import rclpy
 
