@@ -330,6 +330,9 @@ class BagRecorder:
         connections: dict[str, Connection] = {}
         counts = self._counts
         period = self._options.flush_period_s
+        # the writer's flush clock starts now: its first tick only starts it, so at the first
+        # deadline a message written at the start would still wait a second period (1.0 s)
+        writer.tick(time.monotonic())
         deadline = time.monotonic() + period
         stop = False
         while not stop:

@@ -223,6 +223,29 @@ def test_closing_after_an_exception_still_finishes_the_bag(tmp_path):
     bag.close()  # a second close is harmless
 
 
+def test_the_first_flush_is_one_period_after_opening(tmp_path, monkeypatch):
+    """The writer's flush clock starts when the bag opens: a message written at once is on
+    disk after one ``flush_period_s``, not two (its first tick only starts the clock)."""
+    from tactile_sensor.recording import rosbag2_writer
+
+    ticks: list[tuple[float, int]] = []  # (time, messages written by then)
+    original = rosbag2_writer.Rosbag2Writer.tick
+
+    def tick(self, now_s: float) -> None:
+        ticks.append((now_s, self._written))
+        original(self, now_s)
+
+    monkeypatch.setattr(rosbag2_writer.Rosbag2Writer, "tick", tick)
+    with BagRecorder(tmp_path / "bag", "mcap") as bag:
+        bag.add_topic("/driver/wrench", WRENCH)
+        bag.write("/driver/wrench", 1_000, wrench_cdr(0))
+        deadline = time.monotonic() + 60.0
+        while bag.kept < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert bag.kept == 1
+    assert ticks and ticks[0][1] == 0  # the clock started before the first message
+
+
 def test_register_package_finds_nothing_for_a_missing_package():
     assert register_package(default_typestore(), "no_such_interfaces_pkg") == 0
 
