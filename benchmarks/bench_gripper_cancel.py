@@ -195,11 +195,11 @@ def wait_future(future, timeout_s: float):  # type: ignore[no-untyped-def]
 def client_main(args: argparse.Namespace) -> int:
     import rclpy
     from geometry_msgs.msg import WrenchStamped
-    from rclpy.action import ActionClient
     from rclpy.executors import MultiThreadedExecutor
     from sensor_msgs.msg import JointState
 
     from tactile_sensor.configurations import config_dir
+    from tactile_sensor.nodes.action_client import RaceFreeActionClient as ActionClient
     from tactile_sensor_interfaces.action import Grasp, Release
 
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(

@@ -80,8 +80,9 @@ class Recorder:
         from action_msgs.msg import GoalStatus
         from control_msgs.action import GripperCommand
         from geometry_msgs.msg import WrenchStamped
-        from rclpy.action import ActionClient
         from sensor_msgs.msg import JointState
+
+        from tactile_sensor.nodes.action_client import RaceFreeActionClient as ActionClient
 
         self.GripperCommand = GripperCommand
         self.succeeded = GoalStatus.STATUS_SUCCEEDED

@@ -163,10 +163,10 @@ class Monitor:
     def __init__(self, t0: float) -> None:
         import rclpy
         from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.action import ActionClient
         from rclpy.executors import MultiThreadedExecutor
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
+        from tactile_sensor.nodes.action_client import RaceFreeActionClient as ActionClient
         from tactile_sensor_interfaces.action import Grasp, Release
         from tactile_sensor_interfaces.msg import CalibrationCurve
 

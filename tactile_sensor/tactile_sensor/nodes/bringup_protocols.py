@@ -17,6 +17,7 @@ from typing import Any, Protocol
 from geometry_msgs.msg import WrenchStamped
 from rclpy.action import ActionClient
 
+from tactile_sensor.nodes.action_client import RaceFreeActionClient
 from tactile_sensor_interfaces.action import Grasp, Release
 
 READY_TIMEOUT_S = 120.0  # a cold FEM sweep plus the driver's tare
@@ -163,8 +164,8 @@ def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
     p = runner.protocol
     trace = _ForceTrace()
     node.create_subscription(WrenchStamped, "driver/wrench", trace, 100)
-    grasp = ActionClient(node, Grasp, "~/grasp")
-    release = ActionClient(node, Release, "~/release")
+    grasp = RaceFreeActionClient(node, Grasp, "~/grasp")
+    release = RaceFreeActionClient(node, Release, "~/release")
     if not grasp.wait_for_server(timeout_sec=10.0):
         say("the gripper's ~/grasp action is not available")
         return 1

@@ -19,6 +19,7 @@ from rclpy.action import ActionClient, get_action_names_and_types
 from sensor_msgs.msg import JointState
 
 from tactile_sensor.configurations import config_dir
+from tactile_sensor.nodes.action_client import RaceFreeActionClient
 from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.params import PhysicsParams
@@ -95,8 +96,8 @@ class Rig:
 class Client:
     def __init__(self) -> None:
         self.node = rclpy.create_node("gripper_test_client")
-        self.grasp = ActionClient(self.node, Grasp, "/gripper/grasp")
-        self.release = ActionClient(self.node, Release, "/gripper/release")
+        self.grasp = RaceFreeActionClient(self.node, Grasp, "/gripper/grasp")
+        self.release = RaceFreeActionClient(self.node, Release, "/gripper/release")
         self.force: list[tuple[float, float]] = []  # (header stamp, force)
         self.truth: list[tuple[float, float]] = []
         self.opening: list[tuple[float, float]] = []
@@ -326,7 +327,7 @@ def test_without_control_msgs_the_gripper_starts_and_says_which_actions_are_miss
     with ros_session():
         node = rclpy.create_node("probe")
         try:
-            grasp = ActionClient(node, Grasp, "/gripper/grasp")
+            grasp = RaceFreeActionClient(node, Grasp, "/gripper/grasp")
             assert grasp.wait_for_server(timeout_sec=PATIENCE_S)
             names = {name for name, _ in get_action_names_and_types(node)}
             assert "/gripper/grasp" in names and "/gripper/gripper_cmd" not in names
