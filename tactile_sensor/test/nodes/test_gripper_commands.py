@@ -93,7 +93,7 @@ class Client:
             "release": RaceFreeActionClient(self.node, Release, "/gripper/release"),
             "gripper_cmd": RaceFreeActionClient(self.node, GripperCommand, "/gripper/gripper_cmd"),
             "parallel": RaceFreeActionClient(self.node, ParallelGripperCommand,
-                                     "/gripper/parallel_gripper_cmd"),
+                                             "/gripper/parallel_gripper_cmd"),
         }
         self.force: list[tuple[float, float]] = []
         self.joints: list[JointState] = []  # effort: the force the gripper heard (nan: none)
