@@ -78,16 +78,22 @@ def rate_force_history(cal: RateCalibration, t_s: np.ndarray, output_v: np.ndarr
 LOW_PASS_ORDER = 2
 
 
-def zero_phase_low_pass(period_s: float, cutoff_hz: float, values: np.ndarray
-                        ) -> np.ndarray | None:
-    """``values`` (uniform, ``period_s`` apart) forwards and backwards through a Butterworth
-    low-pass at ``cutoff_hz``: no delay, so an estimate and its gauge filtered alike stay
-    aligned. None when the cut-off is not below the Nyquist rate or the record is too short
-    to filter."""
+def zero_phase_low_pass(period_s: float, cutoff_hz: float, values: np.ndarray,
+                        long_pad: bool = False) -> np.ndarray | None:
+    """``values`` (uniform, ``period_s`` apart along the last axis) forwards and backwards
+    through a Butterworth low-pass at ``cutoff_hz``: no delay, so an estimate and its gauge
+    filtered alike stay aligned. None when the cut-off is not below the Nyquist rate or the
+    record is too short to filter. ``long_pad`` extends the ends by one cut-off period
+    (odd, so a ramp goes on as a ramp) instead of a few samples: a short run then has no
+    start-up transient."""
     wn = 2.0 * cutoff_hz * period_s
     if not (0.0 < wn < 1.0):
         return None
     b, a = butter(LOW_PASS_ORDER, wn)
-    if values.size <= 3 * max(a.size, b.size):
+    length = values.shape[-1]
+    if length <= 3 * max(a.size, b.size):
         return None
+    if long_pad:
+        pad = min(length - 1, max(3 * max(a.size, b.size), round(2.0 / wn)))
+        return np.asarray(filtfilt(b, a, values, padtype="odd", padlen=pad))
     return np.asarray(filtfilt(b, a, values))
