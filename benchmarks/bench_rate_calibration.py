@@ -136,7 +136,8 @@ def main() -> int:
                 print(f"recorded {protocol} -> {run / name} in "
                       f"{record(protocol, run / name):.1f} s", flush=True)
         start = time.perf_counter()
-        fit_run = analyse_bag(str(run / "speeds"), Options(fit_calibration=True))
+        fit_run = analyse_bag(str(run / "speeds"), Options(fit_calibration=True,
+                                                           fit_progress=fit_progress))
         fit_s = time.perf_counter() - start
         if fit_run.rate_fit is None or fit_run.fitted is None:
             print("no rate terms fitted:", *fit_run.metrics["notes"], sep="\n  ")
@@ -148,8 +149,13 @@ def main() -> int:
             fit = fit_rate_calibration(
                 record_from_segmentation(sig.t_s, sig.output_v, sig.force_n,
                                          fit_run.segmentation), "bench", terms=args.terms,
-                play={"auto": None, "on": True, "off": False}[args.play])
+                play={"auto": None, "on": True, "off": False}[args.play], progress=fit_progress)
         return report(fit_run, fit, check, fit_s)
+
+
+def fit_progress(fraction: float, what: str) -> None:
+    """The fit's progress, a line per fit: it takes a minute or more."""
+    print(f"fitting {100 * fraction:3.0f} %: {what}", flush=True)
 
 
 def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit_s: float

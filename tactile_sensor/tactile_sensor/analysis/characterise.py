@@ -16,7 +16,7 @@ from .calibration_fit import Calibration, fit_calibration
 from .errors import RateFitError, SegmentError, TopicError
 from .prediction import Prediction
 from .rate_evaluation import phase_table, table_dict
-from .rate_fit import RateFit, fit_rate_calibration
+from .rate_fit import FitProgress, RateFit, fit_rate_calibration
 from .rate_record import record_from_segmentation
 from .segmentation import GAP_SHARE, Segmentation, segment
 
@@ -68,6 +68,7 @@ class Options:
     fit_calibration: bool = False
     prediction: Prediction | None = None
     prediction_note: str = "no prediction requested"
+    fit_progress: FitProgress | None = None  # hears of each rate fit (they take a minute)
 
 
 @dataclass(frozen=True)
@@ -197,7 +198,8 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
         if len(seg.speed_groups) >= 2:
             try:
                 rate_fit = fit_rate_calibration(
-                    record, source=f"tactile-sensor analyze {recording.path}")
+                    record, source=f"tactile-sensor analyze {recording.path}",
+                    progress=options.fit_progress)
             except RateFitError as err:
                 notes.append(f"no rate terms fitted: {err} The static curve at "
                              f"{ref_key} mm/s was written instead.")

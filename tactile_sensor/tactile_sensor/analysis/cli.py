@@ -78,6 +78,24 @@ class _Progress:
               flush=True)
 
 
+class _FitProgress:
+    """The rate fit's progress on one stderr line (a new line every 10 % if not a tty)."""
+
+    def __init__(self) -> None:
+        self.tty = sys.stderr.isatty()
+        self.shown = -1
+
+    def __call__(self, fraction: float, what: str) -> None:
+        pct = int(100 * fraction)
+        if not self.tty and pct // 10 == self.shown // 10 and pct < 100:
+            return
+        self.shown = pct
+        end = "" if self.tty and pct < 100 else "\n"
+        prefix = "\r\033[K" if self.tty else ""
+        print(f"{prefix}fitting rate terms: {pct:3d}% ({what})", end=end, file=sys.stderr,
+              flush=True)
+
+
 def _prediction(arg: str, verbose: bool) -> tuple[Prediction | None, str]:
     if arg == "none":
         return None, "not requested (--prediction none)"
@@ -103,7 +121,8 @@ def run(args: argparse.Namespace) -> int:
                       reference_speed_mm_s=args.reference_speed,
                       noise_window=args.noise_window, calibration=calibration,
                       fit_calibration=args.fit_calibration, prediction=prediction,
-                      prediction_note=note)
+                      prediction_note=note,
+                      fit_progress=_FitProgress() if verbose else None)
     result = analyse(args.bag, options, _Progress(verbose),
                      lambda line: print(f"tactile-sensor analyze: {line}", file=sys.stderr))
     from .report import write_report

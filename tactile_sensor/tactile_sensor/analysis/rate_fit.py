@@ -70,6 +70,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -198,12 +199,17 @@ def resolvable_tau_range(record: RateRecord, fit_rate_hz: float) -> tuple[float,
             record.longest_press_s())
 
 
+FitProgress = Callable[[float, str], None]  # (fraction done, what was just fitted)
+
+
 def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = None,
                          tau_bounds_s: tuple[float, float] | None = None, knots: int = 16,
-                         fit_rate_hz: float = 200.0, play: bool | None = None) -> RateFit:
+                         fit_rate_hz: float = 200.0, play: bool | None = None,
+                         progress: FitProgress | None = None) -> RateFit:
     """The rate-aware calibration of ``record``; ``terms`` None chooses 1..3 by held-out
     error, ``play`` None with or without play likewise (False: never, today's model).
-    RateFitError for one speed only or times the record cannot resolve."""
+    RateFitError for one speed only or times the record cannot resolve. ``progress`` hears
+    of every fit (a minute or more on a `speeds` recording)."""
     speeds = record.speeds()
     if len(speeds) < 2:
         raise RateFitError(ONE_SPEED)
@@ -230,12 +236,22 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     split = _Split(loading, max(MIN_BAND_V, BAND_SIGMAS * _tracker_noise(record)),
                    TRACKER_SMOOTHING_HZ)
     choices = {False: None, True: split} if play is None else {play: split if play else None}
+    numbers = [terms] if terms is not None else list(range(1, MAX_RATE_TERMS + 1))
+    # every fold of every choice, then at most one fit on all speeds per number of terms
+    total = len(choices) * len(numbers) * len(speeds) + len(numbers)
+    done = 0
+
+    def step(what: str) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(min(1.0, done / total), what)
+
     tried: dict[bool, dict[int, TermCount]] = {}
     for key, how in choices.items():
         tried[key] = {n: _cross_validate(record, grid, runs, speeds, n, (lo, hi), knots,
-                                         margin_v, how)
-                      for n in ([terms] if terms is not None
-                                else range(1, MAX_RATE_TERMS + 1))}
+                                         margin_v, how, step)
+                      for n in numbers}
     best_of = {key: min(c.score_n for c in counts.values())
                for key, counts in tried.items()}
     use_play = (best_of[True] < best_of[False] * (1 - PLAY_TOLERANCE) if len(tried) == 2
@@ -250,6 +266,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     chosen: tuple[int, RateCalibration] | None = None
     for n in _count_order(counts):
         cal, pinned = _fit(grid, runs, speeds, n, (lo, hi), knots, source, margin_v, how)
+        step(f"{n} term(s) on all speeds")
         if pinned:
             continue
         if chosen is None:
@@ -263,6 +280,8 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
             f"({lo:.3g}..{hi:.3g} s), so the rate terms are not determined; record the "
             "`speeds` protocol with holds (e.g. --protocol speeds:hold=2).")
     n, cal = chosen
+    if progress is not None:
+        progress(1.0, f"{n} term(s) {'with' if how else 'without'} play chosen")
     notes = []
     kept = [t for t in cal.terms if t.g >= NEGLIGIBLE_G] or [max(cal.terms, key=lambda t: t.g)]
     if len(kept) < len(cal.terms):
@@ -440,7 +459,8 @@ def _fold_bounds(record: RateRecord, train: list[float], tau_bounds: tuple[float
 
 def _cross_validate(record: RateRecord, grid: RateRecord, runs: np.ndarray,
                     speeds: list[float], n: int, tau_bounds: tuple[float, float], knots: int,
-                    margin_v: float, split: _Split | None = None) -> TermCount:
+                    margin_v: float, split: _Split | None = None,
+                    step: Callable[[str], None] | None = None) -> TermCount:
     """Each held-out speed scored on the low-passed record (whole presses) and by its worst
     phase's model error (module docstring): the output's white noise, the same for every
     choice, would otherwise swamp the differences between them."""
@@ -455,6 +475,9 @@ def _cross_validate(record: RateRecord, grid: RateRecord, runs: np.ndarray,
         train = [s for s in speeds if s != out]
         cal, pinned = _fit(grid, runs, train, n, _fold_bounds(record, train, tau_bounds),
                            knots, "fold", margin_v, split)
+        if step is not None:
+            step(f"{n} term(s) {'with' if split else 'without'} play, "
+                 f"{speed_label(out)} mm/s held out")
         pinned_folds += int(pinned)
         test = scored.mask([out])
         force = rate_force_history(cal, scored.t_s, scored.output_v)

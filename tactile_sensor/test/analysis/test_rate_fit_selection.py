@@ -85,7 +85,13 @@ def test_a_fit_resolves_every_term_only_with_distinct_working_terms(terms, resol
 def test_a_two_term_truth_gives_its_two_terms():
     """A two-term truth with holds, terms chosen: two come out, near the truth."""
     rec = rate_press_record((0.3e-3, 1e-3, 10e-3), 2.0, (0.05, 0.04), (0.1, 1.5), 1000.0, 0)
-    fit = fit_rate_calibration(rec, "two-term", play=False)
+    heard: list[tuple[float, str]] = []
+    fit = fit_rate_calibration(rec, "two-term", play=False,
+                               progress=lambda f, what: heard.append((f, what)))
+    fractions = [f for f, _ in heard]
+    assert fractions == sorted(fractions) and fractions[-1] == 1.0 and len(heard) >= 10
+    assert heard[0][1] == "1 term(s) without play, 0.3 mm/s held out"
+    assert heard[-1][1] == "2 term(s) without play chosen"
     assert fit.terms == 2
     assert fit.calibration.tau_s == pytest.approx((0.1, 1.5), rel=0.3)
     assert fit.calibration.g == pytest.approx((0.05, 0.04), rel=0.25)
@@ -106,3 +112,15 @@ def counts(scores: dict[int, float]) -> dict[int, TermCount]:
 ])
 def test_held_out_scores_only_rule_counts_out(scores, order):
     assert _count_order(counts(scores)) == order
+
+
+def test_the_cli_shows_the_fit_progress_every_ten_percent(capsys):
+    from tactile_sensor.analysis.cli import _FitProgress
+
+    show = _FitProgress()
+    for k in range(1, 41):
+        show(k / 40, f"fold {k}")
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0] == "fitting rate terms:   2% (fold 1)"
+    assert lines[-1] == "fitting rate terms: 100% (fold 40)"
+    assert len(lines) == 11  # 2 %, then each new tenth, 100 %
