@@ -17,7 +17,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import StrEnum
 
 from tactile_sensor.control.actions import ActiveGoal, Fields, Snapshot
@@ -191,11 +191,30 @@ class GoalRunner:
             aborted = self._settle(link, settler, step, feedback)
             if aborted is not None:
                 return finish(step, False, aborted)
+            step = self._at_rest(link, step)
         if step.outcome is Outcome.HARDWARE_ERROR and servo.state is not None:
             self._on_hardware_error(servo.state.hardware_error)
         self.slot.release(token)
         failure = goal.failure(step)
         return finish(step, failure is None, failure or f"{step.outcome}: {step.message}")
+
+    def _at_rest(self, link: GoalLink, step: Step) -> Step:
+        """``step`` with the opening the fingers hold once they stop (the servo's Moving
+        flag; waited for at most the settle time): the settle's last correction may still
+        be under way when it ends, and the answer is to give where the fingers stay (under
+        CPU load a late correction once moved them 1.07 mm after the answer)."""
+        deadline = self._clock() + self.timing.settle_time_s
+        while self._clock() < deadline:
+            if link.cancel_requested() or self.slot.superseded(link.token):
+                break
+            state = self.servo.state
+            if state is None or state.hardware_error or not state.moving:
+                break
+            self.servo.await_sample(2 * self.timing.control_period_s)
+        state = self.servo.state
+        if state is None:
+            return step
+        return replace(step, opening_m=self.servo.config.geometry.opening_m(state.position_rad))
 
     def _settle(self, link: GoalLink, settler: ForceSettler, step: Step,
                 feedback: Callable[[Step], None]) -> str | None:

@@ -299,3 +299,19 @@ def test_the_slot_frees_only_for_its_own_goal():
     assert slot.abort_reason == "rebooting"
     slot.take_over("c")
     assert slot.abort_reason == PREEMPTED
+
+
+def test_the_answered_opening_is_where_the_fingers_stay():
+    """A fast close on a stiff skin misses the force, and the settle moves the fingers on;
+    its last correction may still be under way when the settle time ends. The answer
+    waits for the fingers to stop and gives the opening they hold, not the opening at
+    contact."""
+    with Rig(settle_time_s=0.03, stiffness=20000.0) as rig:
+        end = rig.run(accept_grasp, grasp(speed=0.05))
+        contact = rig.feedback[-1]["opening"]
+        while rig.client.velocity != 0.0:
+            rig.servo.await_sample(1.0)
+        held = GEOMETRY.opening_m(rig.client.position)
+    assert end.status is GoalStatus.SUCCEEDED
+    assert abs(held - contact) > 2e-5  # the settle moved them (0.06-0.4 mm measured)
+    assert end.result["opening"] == pytest.approx(held, abs=2e-5)
