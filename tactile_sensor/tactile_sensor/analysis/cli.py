@@ -55,14 +55,16 @@ def parser() -> argparse.ArgumentParser:
 
 
 class _Progress:
-    """Percent of messages read, on one stderr line (a new line every 10 % if not a tty)."""
+    """A percentage on one stderr line (a new line every 10 % if not a tty), for reading
+    the bag and for fitting rate terms; ``line`` formats ``pct`` and ``detail``."""
 
-    def __init__(self, enabled: bool) -> None:
+    def __init__(self, enabled: bool, line: str) -> None:
         self.enabled = enabled
+        self.line = line
         self.tty = sys.stderr.isatty()
         self.shown = -1
 
-    def __call__(self, fraction: float) -> None:
+    def __call__(self, fraction: float, detail: str = "") -> None:
         if not self.enabled:
             return
         pct = int(100 * fraction)
@@ -73,26 +75,8 @@ class _Progress:
             return
         self.shown = pct
         end = "" if self.tty and pct < 100 else "\n"
-        prefix = "\r" if self.tty else ""
-        print(f"{prefix}reading bag: {pct:3d}% of messages", end=end, file=sys.stderr,
-              flush=True)
-
-
-class _FitProgress:
-    """The rate fit's progress on one stderr line (a new line every 10 % if not a tty)."""
-
-    def __init__(self) -> None:
-        self.tty = sys.stderr.isatty()
-        self.shown = -1
-
-    def __call__(self, fraction: float, what: str) -> None:
-        pct = int(100 * fraction)
-        if not self.tty and pct // 10 == self.shown // 10 and pct < 100:
-            return
-        self.shown = pct
-        end = "" if self.tty and pct < 100 else "\n"
         prefix = "\r\033[K" if self.tty else ""
-        print(f"{prefix}fitting rate terms: {pct:3d}% ({what})", end=end, file=sys.stderr,
+        print(prefix + self.line.format(pct=pct, detail=detail), end=end, file=sys.stderr,
               flush=True)
 
 
@@ -122,8 +106,8 @@ def run(args: argparse.Namespace) -> int:
                       noise_window=args.noise_window, calibration=calibration,
                       fit_calibration=args.fit_calibration, prediction=prediction,
                       prediction_note=note,
-                      fit_progress=_FitProgress() if verbose else None)
-    result = analyse(args.bag, options, _Progress(verbose),
+                      fit_progress=_Progress(verbose, "fitting rate terms: {pct:3d}% ({detail})"))
+    result = analyse(args.bag, options, _Progress(verbose, "reading bag: {pct:3d}% of messages"),
                      lambda line: print(f"tactile-sensor analyze: {line}", file=sys.stderr))
     from .report import write_report
 

@@ -115,9 +115,9 @@ def test_held_out_scores_only_rule_counts_out(scores, order):
 
 
 def test_the_cli_shows_the_fit_progress_every_ten_percent(capsys):
-    from tactile_sensor.analysis.cli import _FitProgress
+    from tactile_sensor.analysis.cli import _Progress
 
-    show = _FitProgress()
+    show = _Progress(True, "fitting rate terms: {pct:3d}% ({detail})")
     for k in range(1, 41):
         show(k / 40, f"fold {k}")
     lines = capsys.readouterr().err.splitlines()
