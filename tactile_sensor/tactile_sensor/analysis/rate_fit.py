@@ -70,6 +70,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -573,18 +574,32 @@ def _fit(grid: RateRecord, runs: np.ndarray, speeds: list[float], n: int,
     ridge = 1e-12 * max(1.0, float(np.sum(hats[score] ** 2)))
     smoothing = penalty.T @ penalty * (float(np.sum(root_w ** 2)) / knots)
 
-
     def low_pass(columns_by_time: np.ndarray) -> np.ndarray:
         return _low_pass_runs(dt, runs, columns_by_time, score)[:, score].T
 
     hats_scored = low_pass(np.ascontiguousarray(hats.T)) * root_w[:, None]
 
+    # a term's filtered columns depend on its time only: the Jacobian's steps in g (and in
+    # the other terms' times) reuse them, which halves a fit's filtering (least recently
+    # used first out; the current point's times are used on every step, so they stay)
+    responses: OrderedDict[float, np.ndarray] = OrderedDict()
+
+    def response(tau_s: float) -> np.ndarray:
+        cached = responses.get(tau_s)
+        if cached is not None:
+            responses.move_to_end(tau_s)
+            return cached
+        decay, gain = term_coefficients(tau_s, dt)
+        cached = low_pass(lfilter([gain], [1.0, -decay], hat_changes)) * root_w[:, None]
+        responses[tau_s] = cached
+        if len(responses) > 2 * n + 1:
+            responses.popitem(last=False)
+        return cached
+
     def design(p: np.ndarray) -> np.ndarray:
         out = hats_scored.copy()
         for gi, ti in zip(p[:n].tolist(), np.exp(p[n:]).tolist(), strict=True):
-            decay, gain = term_coefficients(ti, dt)
-            response = low_pass(lfilter([gain], [1.0, -decay], hat_changes))
-            out += gi * response * root_w[:, None]
+            out += gi * response(ti)
         return out
 
     def solve(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
