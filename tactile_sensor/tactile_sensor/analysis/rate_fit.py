@@ -333,7 +333,7 @@ def _prepare(record: RateRecord, fit_rate_hz: float
     inside = uniform.mask()
     noise_v = _rmse(uniform.output_v[inside], smooth.output_v[inside]) if np.any(inside) else 0.0
     grid = _decimate(_without_reversals(smooth), fit_rate_hz)
-    q = uniform.t_s.size // grid.t_s.size
+    q = _block_size(uniform, fit_rate_hz)
     blocks_v = uniform.output_v[:grid.t_s.size * q].reshape(grid.t_s.size, q)
     phase = _decimate(smooth, fit_rate_hz).phase
     return grid, blocks_v, noise_v, _phase_branches(phase), _run_starts(phase)
@@ -445,8 +445,7 @@ def _decimate(record: RateRecord, fit_rate_hz: float) -> RateRecord:
     force, labels of each block's middle sample (a non-uniform record is first
     interpolated onto its median period)."""
     record = _uniform(record)
-    period = float(np.median(np.diff(record.t_s)))
-    q = max(1, round(1.0 / (fit_rate_hz * period)))
+    q = _block_size(record, fit_rate_hz)
     if q == 1:
         return record
     n = record.t_s.size // q * q
@@ -457,6 +456,11 @@ def _decimate(record: RateRecord, fit_rate_hz: float) -> RateRecord:
     mid = np.arange(q // 2, n, q)
     return RateRecord(mean(record.t_s), mean(record.output_v), mean(record.force_n),
                       record.speed_mm_s[mid], record.phase[mid])
+
+
+def _block_size(record: RateRecord, fit_rate_hz: float) -> int:
+    """Samples per grid block of a uniform record (``_decimate``)."""
+    return max(1, round(1.0 / (fit_rate_hz * float(np.median(np.diff(record.t_s))))))
 
 
 def _fold_bounds(record: RateRecord, train: list[float], tau_bounds: tuple[float, float]
