@@ -417,6 +417,14 @@ class Soak:
                      "bench_model")
         self._expect(lambda: "calibration from" in p["bench_driver"].log(),
                      "the bench driver got no calibration", "bench_driver")
+        # The recorder hears only what is published after its subscriptions match the
+        # driver's publishers: on a loaded machine that took 0.8 s past the driver's start,
+        # and the first ~800 readings were lost to it. The driver counts its matches.
+        self._expect(lambda: any(
+            int(r.values.get("reading_subscribers", 0)) >= 1
+            and int(r.values.get("wrench_subscribers", 0)) >= 1
+            for r in self.monitor.history(DRIVER_DIAG)),
+            "the recorder's subscriptions did not match the bench driver", "recorder")
         p["bench_adc"].start()
         self._expect(lambda: any(int(r.values.get("readings_published", 0)) > 0
                                  for r in self.monitor.history(DRIVER_DIAG)),

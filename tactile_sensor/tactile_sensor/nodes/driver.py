@@ -406,7 +406,10 @@ class DriverNode(Node):
         lost_now, warning = self._loss.update(stats)
         if warning is not None:
             self.get_logger().warning(warning)
-        health = adc_health(stats, self._adc, chain, rate, lost_now, self.published_readings)
+        subscribers = {"reading": self._reading_pub.get_subscription_count(),
+                       "wrench": self._wrench_pub.get_subscription_count()}
+        health = adc_health(stats, self._adc, chain, rate, lost_now, self.published_readings,
+                            subscribers)
         pub.publish(diagnostic_array(f"{self.get_fully_qualified_name()}: tactile ADC",
                                      str(self._values["port"]), health,
                                      self.get_clock().now().to_msg()))

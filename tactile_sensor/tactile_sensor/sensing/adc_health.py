@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from tactile_sensor.hardware.adc_reader import ConnectionState, ReaderStats
 from tactile_sensor.hardware.health import Health, Level
@@ -80,11 +80,14 @@ def _level_message(stats: ReaderStats, adc: AdcSettings | None,
 
 
 def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain | ArrayChain,
-               rate_hz: float, lost_now: int, readings_published: int) -> Health:
+               rate_hz: float, lost_now: int, readings_published: int,
+               subscribers: Mapping[str, int] | None = None) -> Health:
     """``adc``: the settings decided on the device's info frame (None before it came);
     ``rate_hz``: frames per second since the last report; ``lost_now``: frames lost since
     then; ``readings_published``: what left on ~/reading, so a monitor can count losses by
-    frame, not by rate."""
+    frame, not by rate; ``subscribers``: matched subscriptions per output (``reading``,
+    ``wrench``), so a recorder can be seen to listen before the first frame (a message
+    published before the match is not delivered to it)."""
     level, message = _level_message(stats, adc, chain, lost_now)
     usable = adc is not None and adc.usable
     values: dict[str, object] = {
@@ -103,6 +106,7 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         "adc_bits": chain.conversion.bits if usable else "none",
         "reference_voltage": f"{chain.conversion.vref_v:g}" if usable else "none",
     }
+    values.update({f"{name}_subscribers": n for name, n in (subscribers or {}).items()})
     if isinstance(chain, ArrayChain):
         baselines = chain.baselines_v or (None,) * len(chain.faces)
         values.update({f"baseline_v.{face}": "none" if b is None else f"{b:.4f}"

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import statistics
 import subprocess
 import time
 from pathlib import Path
@@ -42,6 +43,7 @@ JOINT = "finger_opening"
 # Upper bound of every wait on a condition (a wait ends as soon as its condition holds; a
 # busy machine may take long to get there). Never a fixed sleep in place of a condition.
 PATIENCE_S = 60.0
+HELD_STATES = 10  # joint states judged during a force hold
 MOVED_M = 2e-4  # the fingers have left where they rested (4 encoder pulses)
 
 
@@ -116,8 +118,7 @@ class Client:
 
     def _joint(self, msg: JointState) -> None:
         self.joints.append(msg)
-        stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        self.opening.append((stamp, msg.position[0]))
+        self.opening.append((_stamp_s(msg), msg.position[0]))
 
     def send(self, name: str, goal, accepted: bool = True):
         handle = _wait(self.actions[name].send_goal_async(goal))
@@ -140,6 +141,10 @@ class Client:
     def close(self) -> None:
         self.spin.stop()
         self.node.destroy_node()
+
+
+def _stamp_s(msg: JointState) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
 def _until(condition, timeout_s: float, what: str, poll_s: float = 0.01) -> None:
@@ -206,12 +211,20 @@ def test_both_control_msgs_interfaces_grip_the_rod_by_tactile_force_and_open(gri
     # (a state read after the result: the last one to arrive may be older). The hold
     # regulates force, not position, and the skin creeps under it (viscoelastic), so the
     # opening goes on closing by a fraction of a millimetre, the more the later the state is
-    # read: 0.21 mm once on a loaded machine, against 0.2 mm allowed then.
+    # read: 0.21 mm once on a loaded machine, against 0.2 mm allowed then. The force is
+    # regulated, so it is judged over several states: one state on a loaded machine read
+    # 1.69 N while the tactile feedback came late.
     answered_at = time.time()
-    _until(lambda: client.opening[-1][0] >= answered_at, PATIENCE_S, "no ~/joint_states")
-    held = client.joints[-1]
-    assert held.position[0] == pytest.approx(result.position, abs=5e-4)
-    assert held.effort[0] == pytest.approx(2.0, abs=0.3)
+    first = len(client.joints)
+
+    def states_in_hold() -> list[JointState]:
+        return [j for j in client.joints[first:] if _stamp_s(j) >= answered_at][:HELD_STATES]
+
+    _until(lambda: len(states_in_hold()) == HELD_STATES, PATIENCE_S,
+           "too few ~/joint_states in the hold")
+    held = states_in_hold()
+    assert held[0].position[0] == pytest.approx(result.position, abs=5e-4)
+    assert statistics.median(j.effort[0] for j in held) == pytest.approx(2.0, abs=0.3)
 
     status, result = client.run("gripper_cmd", command(0.03, 0.0))
     assert status == GoalStatus.STATUS_SUCCEEDED

@@ -77,7 +77,8 @@ def test_key_values_of_a_ready_stream():
     info = DeviceInfo(2, 1, 10, 3.3, 1000, "uno")
     chain = Tared(1.25, CALIBRATION)
     chain.set_conversion(AdcConversion(10, 3.3))  # as the driver does on the info frame
-    values = adc_health(stats(device_info=info), USABLE, chain, 998.04, 0, 997).values
+    values = adc_health(stats(device_info=info), USABLE, chain, 998.04, 0, 997,
+                        {"reading": 1, "wrench": 0}).values
     assert values["connection"] == "connected" and values["sample_rate_hz"] == "998.0"
     assert (values["frames"], values["frames_dropped"], values["crc_errors"]) == (
         "1000", "3", "1")
@@ -86,6 +87,7 @@ def test_key_values_of_a_ready_stream():
         "device", "10", "3.3")
     assert values["calibration_source"] == "test"
     assert values["readings_published"] == "997"
+    assert (values["reading_subscribers"], values["wrench_subscribers"]) == ("1", "0")
     assert all(isinstance(v, str) for v in values.values())
 
 
