@@ -49,6 +49,10 @@ BASE_PATHS=("$ROOT")
 if [ -z "${ROS_DISTRO:-}" ]; then
   python scripts/repair_cmake_exports.py >&2
   export AMENT_PREFIX_PATH="$VIRTUAL_ENV" CMAKE_PREFIX_PATH="$VIRTUAL_ENV"
+  # A workspace sourced in this shell (the other distribution's, say) would otherwise become
+  # this build's underlay: its setup.bash would source it, and the nodes would load its
+  # libraries (a Jazzy node died on Kilted's typesupport: undefined symbol in fastcdr).
+  unset COLCON_PREFIX_PATH PYTHONPATH LD_LIBRARY_PATH
   # control_msgs is on no registry: our own interface package of that name (the three
   # gripper interfaces, upstream's field definitions and type hashes) is built on the wheels
   # path only. wheels_overlay/COLCON_IGNORE keeps it out of every crawl of the source tree,

@@ -26,7 +26,6 @@ from std_srvs.srv import Trigger
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo
 from tactile_sensor.hardware.adc_reader import (
-    DEFAULT_BACKLOG,
     AdcStreamReader,
     ConnectionState,
     Sample,
@@ -34,10 +33,10 @@ from tactile_sensor.hardware.adc_reader import (
 from tactile_sensor.hardware.errors import HardwareError
 from tactile_sensor.nodes import array_calibration_msg, calibration_curve_msg
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
+from tactile_sensor.nodes.driver_parameters import SPEC_BY_NAME, SPECS
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
-    ParamSpec,
     declare_parameters,
     read_parameters,
 )
@@ -59,7 +58,6 @@ from tactile_sensor.sensing.chain_parameters import (
 )
 from tactile_sensor.sensing.device_clock import DeviceClock
 from tactile_sensor.sensing.errors import SensingError, TareError
-from tactile_sensor.sensing.filters import FILTERS
 from tactile_sensor.sensing.rate_calibration import describe_model
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
@@ -73,73 +71,6 @@ SAMPLE_QUEUE_DEPTH = 10_000
 CALIBRATION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                              reliability=ReliabilityPolicy.RELIABLE)
 
-def _modules_problem(text: str) -> str | None:
-    try:
-        parse_modules(text)
-    except SensingError as exc:
-        return str(exc)
-    return None
-
-
-SPECS = [
-    ParamSpec("port", "/dev/ttyACM0", "serial device of the ADC (path or pyserial URL)"),
-    ParamSpec("baud_rate", 1_000_000, "serial baud rate [bit/s] the firmware uses",
-              minimum=50, maximum=12_000_000),
-    ParamSpec("channel", 0, "ADC channel wired to the photoreflector", minimum=0, maximum=7),
-    ParamSpec("modules", "", "module array as CHANNEL:FACE pairs, e.g. '0:front,1:back,2:left,"
-              "3:right' (faces front +y, back -y, left -x, right +x): ~/wrench then carries "
-              "force x, y and z from an array calibration; empty = one module on 'channel'",
-              check=_modules_problem),
-    ParamSpec("adc_bits", 0, "ADC resolution [bit]; 0 = as the device states (protocol 2); "
-              "a value the device contradicts is an error", minimum=0, maximum=16),
-    ParamSpec("reference_voltage", 0.0, "ADC reference voltage [V] (full scale); 0 = as the "
-              "device states (protocol 2); a value the device contradicts is an error",
-              minimum=0.0, maximum=50.0),
-    ParamSpec("sample_rate", 1000.0, "nominal device sample rate [Hz] the filters and tare "
-              "window are designed for", minimum=0.0, exclusive_minimum=True,
-              maximum=100_000.0),
-    ParamSpec("filter_type", "savgol", "filter on every sample", choices=tuple(FILTERS)),
-    ParamSpec("filter.window", 0, "window [samples] of savgol / moving_average; 0 = the "
-              "filter's default (40 / 9)", minimum=0, maximum=100_000),
-    ParamSpec("filter.cutoff_hz", 50.0, "butterworth cutoff [Hz]", minimum=0.0,
-              exclusive_minimum=True),
-    ParamSpec("filter.order", 2, "butterworth order", minimum=1, maximum=8),
-    ParamSpec("filter.min_cutoff_hz", 10.0, "one_euro minimum cutoff [Hz]", minimum=0.0,
-              exclusive_minimum=True),
-    ParamSpec("filter.beta", 0.5, "one_euro speed coefficient [1/V]", minimum=0.0),
-    ParamSpec("filter.d_cutoff_hz", 1.0, "one_euro derivative cutoff [Hz]", minimum=0.0,
-              exclusive_minimum=True),
-    ParamSpec("publish_rate", 0.0, "rate [Hz] of ~/wrench and ~/reading; 0 = every sample "
-              "(the filter always sees every sample)", minimum=0.0, maximum=100_000.0),
-    ParamSpec("frame_id", "tactile_sensor", "frame of the wrench; +z is the skin normal "
-              "pointing into the sensor"),
-    ParamSpec("calibration_source", "model", "where output->force comes from: 'model' "
-              "(latched curve on calibration_curve; with modules, the latched "
-              "array_calibration) or 'file'", choices=("model", "file")),
-    ParamSpec("calibration_file", "", "calibration JSON written by 'tactile-sensor "
-              "analyze --fit-calibration', with modules an array calibration written by "
-              "'tactile-sensor model array-calibration --calibration' (calibration_source: "
-              "file)"),
-    ParamSpec("contact_on_force", 0.5, "contact when the force rises above this [N]",
-              minimum=0.0, exclusive_minimum=True),
-    ParamSpec("contact_off_force", 0.3, "contact ends when the force falls below this [N]",
-              minimum=0.0),
-    ParamSpec("contact_debounce", 0.01, "a contact change must persist this long [s]",
-              minimum=0.0, maximum=10.0),
-    ParamSpec("tare_window", 0.5, "tare averages this much signal at rest [s]",
-              minimum=0.0, exclusive_minimum=True, maximum=60.0),
-    ParamSpec("tare_max_spread", 0.05, "tare is refused if the voltage spread in the window "
-              "exceeds this [V] (not at rest)", minimum=0.0, exclusive_minimum=True),
-    ParamSpec("auto_tare", True, "tare by itself on the first window found at rest"),
-    ParamSpec("reader_backlog", DEFAULT_BACKLOG, "samples read from the port but not yet "
-              "processed that the driver may hold while starved of CPU; beyond it new ones "
-              "are dropped and counted (diagnostics 'frames_overflowed')", minimum=1,
-              maximum=10_000_000),
-    ParamSpec("diagnostics_period", 1.0, "period of /diagnostics [s] (also sent at once on "
-              "a connection change)", minimum=0.05, maximum=60.0),
-]
-
-SPEC_BY_NAME = {spec.name: spec for spec in SPECS}
 
 
 class DriverNode(Node):

@@ -49,62 +49,14 @@ from tactile_sensor.hardware.errors import DynamixelError
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.hardware.xm430_health import xm430_health
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
+from tactile_sensor.nodes.gripper_parameters import SPECS
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
-    ParamSpec,
     declare_parameters,
     read_parameters,
 )
 from tactile_sensor_interfaces.action import Grasp, Release
-
-SPECS = [
-    ParamSpec("port", "/dev/ttyUSB0", "serial device of the Dynamixel bus (U2D2)"),
-    ParamSpec("baud_rate", 1_000_000, "Dynamixel bus baud rate [bit/s]", minimum=9600,
-              maximum=4_500_000),
-    ParamSpec("servo_id", 1, "Dynamixel id of the XM430", minimum=0, maximum=252),
-    ParamSpec("geometry.pitch_radius", 0.014, "pinion pitch radius [m] (servo angle -> "
-              "finger travel)", minimum=0.0, exclusive_minimum=True, maximum=0.2),
-    ParamSpec("geometry.open_opening", 0.060, "finger opening at the open limit [m]",
-              minimum=0.0, exclusive_minimum=True, maximum=1.0),
-    ParamSpec("geometry.closed_opening", 0.002, "finger opening at the closed limit [m]",
-              minimum=0.0, maximum=1.0),
-    ParamSpec("current_limit", 1.0, "servo current limit and holding current cap [A]",
-              minimum=0.0, exclusive_minimum=True, maximum=3.2),
-    ParamSpec("closing_current", 0.6, "goal current while closing and holding [A] (<= "
-              "current_limit)", minimum=0.0, exclusive_minimum=True, maximum=3.2),
-    ParamSpec("default_closing_speed", 0.01, "finger speed when a goal gives 0 [m/s]",
-              minimum=0.0, exclusive_minimum=True, maximum=0.2),
-    ParamSpec("release_speed", 0.02, "finger speed while releasing [m/s]", minimum=0.0,
-              exclusive_minimum=True, maximum=0.2),
-    ParamSpec("default_timeout", 10.0, "grasp/release timeout when a goal gives 0 [s]",
-              minimum=0.0, exclusive_minimum=True),
-    ParamSpec("control_rate", 100.0, "servo sync-read and control loop rate [Hz]",
-              minimum=1.0, maximum=1000.0),
-    ParamSpec("tactile_timeout", 0.2, "abort a grasp when the tactile force is older "
-              "than this [s]", minimum=0.0, exclusive_minimum=True),
-    ParamSpec("feedback_rate", 50.0, "action feedback rate [Hz]", minimum=1.0,
-              maximum=1000.0),
-    ParamSpec("auto_reboot", False, "reboot the servo by itself after a hardware error"),
-    ParamSpec("settle_time", 1.0, "after contact, regulate the force onto the target for "
-              "at most this long [s] (0 = hold where contact was detected)", minimum=0.0,
-              maximum=10.0),
-    ParamSpec("skin_stiffness", 2500.0, "fingertip skin stiffness the settling step assumes "
-              "[N/m] (FEM: ~7 N over 3 mm)", minimum=1.0),
-    ParamSpec("packet_timeout", 0.05, "wait this long for a status packet [s]", minimum=0.001,
-              maximum=1.0),
-    ParamSpec("comm_retries", 2, "retries of a transaction that timed out or arrived "
-              "damaged before the servo counts as unreachable", minimum=0, maximum=10),
-    ParamSpec("joint_name", "finger_opening", "name of the finger-opening joint in "
-              "~/joint_states, the URDF and ParallelGripperCommand goals"),
-    ParamSpec("goal_tolerance", 0.0005, "a GripperCommand within this of its target "
-              "position has reached it [m]", minimum=0.0, exclusive_minimum=True,
-              maximum=0.01),
-    ParamSpec("stall_timeout", 0.2, "a GripperCommand at rest short of its target this "
-              "long has stalled [s]", minimum=0.0, exclusive_minimum=True, maximum=10.0),
-    ParamSpec("allow_stalling", True, "a stalled GripperCommand (tactile force limit or "
-              "current limit) succeeds; false: it aborts"),
-]
 
 #: The actions served, as ``~/<name>``: message type and the goal's meaning
 #: (control/actions.py). A new interface is one more entry.
