@@ -24,12 +24,12 @@ Why this way:
   the fastest speed out cannot fit a term only that speed resolves, so a fast term scores
   no better held out even where it is true. Of the counts within ``SELECT_TOLERANCE`` of
   the best mean, the most terms whose fit on all speeds resolves every term (each g at
-  least ``MIN_TERM_SHARE`` of their sum, no time on a bound, times ``MIN_TAU_RATIO``
-  apart) wins; with the
-  fewest, two of three mock pairs kept one ~1.5 s term and missed 20 mm/s. A score over
-  whole presses let the holds, most of a press's samples, decide, and kept play out
-  although it halved the unloading error (0.120 against 0.117 N whole, 0.13 against
-  0.115 N worst phase, on a `speeds` recording with holds).
+  least ``MIN_TERM_SHARE`` of their sum, no time on a bound but the record's fastest,
+  times ``MIN_TAU_RATIO`` apart) wins; with the fewest, two of three mock pairs kept one
+  ~1.5 s term and missed 20 mm/s. A score over whole presses let the holds, most of a
+  press's samples, decide, and kept play out although it halved the unloading error
+  (0.120 against 0.117 N whole, 0.13 against 0.115 N worst phase, on a `speeds` recording
+  with holds).
 - Every speed weighs the same (``_speed_weights``): on the grid a 0.1 mm/s press has ~100x
   the samples of a 10 mm/s one, so unweighted the fit served the slow press, where the
   rate force is nearly nil, and fitted the fast terms to nothing (one 18 s term came out).
@@ -241,6 +241,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
                 f"grid and {SEGMENT_CUTOFF_HZ:g} Hz low-pass up to the longest press); request "
                 "times in that range or record longer presses and holds.")
         lo, hi = a, b
+    floor_s = resolvable_tau_range(record, fit_rate_hz)[0] if tau_bounds_s is None else 0.0
     grid, blocks_v, noise_v, loading, runs = _prepare(record, fit_rate_hz)
     margin_v = KNOT_MARGIN_SIGMAS * noise_v
     split = _Split(loading, max(MIN_BAND_V, BAND_SIGMAS * _tracker_noise(record)),
@@ -260,7 +261,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     tried: dict[bool, dict[int, TermCount]] = {}
     for key, how in choices.items():
         tried[key] = {n: _cross_validate(record, grid, blocks_v, runs, speeds, n, (lo, hi),
-                                         knots, margin_v, how, step)
+                                         knots, margin_v, how, step, floor_s)
                       for n in numbers}
     best_of = {key: min(c.score_n for c in counts.values())
                for key, counts in tried.items()}
@@ -273,10 +274,11 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     # holds that speed out lacks it), so they only rule counts out: of the counts within
     # the tolerance of the best held-out error, the most terms whose fit on all speeds
     # resolves every term wins, then the rest by error; never a fit with a time on a bound
+    # (but the fastest the record resolves: that term is at most as fast, see _fit)
     chosen: tuple[int, RateCalibration] | None = None
     for n in _count_order(counts):
         cal, pinned = _fit(grid, blocks_v, runs, speeds, n, (lo, hi), knots, source,
-                           margin_v, how)
+                           margin_v, how, floor_s)
         step(f"{n} term(s) on all speeds")
         if pinned:
             continue
@@ -299,6 +301,11 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
         notes.append(f"{len(cal.terms) - len(kept)} rate term(s) with g < {NEGLIGIBLE_G:g} "
                      "were dropped (they change the force by less than 0.1 %).")
         cal = RateCalibration(cal.static, kept, cal.play)
+    fastest = min(cal.terms, key=lambda t: t.tau_s)
+    if floor_s and math.log(fastest.tau_s / floor_s) < AT_BOUND:
+        notes.append(f"the fastest term's time sits on the fastest this recording resolves "
+                     f"({floor_s * 1e3:.0f} ms), so it is at most that; on ramps only its "
+                     f"g x tau ({fastest.g * fastest.tau_s * 1e3:.2f} ms) shows.")
     if counts[n].pinned_folds:
         notes.append(f"{counts[n].pinned_folds} of {len(speeds)} leave-one-speed-out fits put "
                      "a relaxation time on a bound (their training speeds alone do not "
@@ -479,7 +486,8 @@ def _cross_validate(record: RateRecord, grid: RateRecord, blocks_v: np.ndarray,
                     runs: np.ndarray, speeds: list[float], n: int,
                     tau_bounds: tuple[float, float], knots: int, margin_v: float,
                     split: _Split | None = None,
-                    step: Callable[[str], None] | None = None) -> TermCount:
+                    step: Callable[[str], None] | None = None,
+                    floor_s: float = 0.0) -> TermCount:
     """Each held-out speed scored on the low-passed record (whole presses) and by its worst
     phase's model error (module docstring): the output's white noise, the same for every
     choice, would otherwise swamp the differences between them."""
@@ -494,7 +502,7 @@ def _cross_validate(record: RateRecord, grid: RateRecord, blocks_v: np.ndarray,
         train = [s for s in speeds if s != out]
         cal, pinned = _fit(grid, blocks_v, runs, train, n,
                            _fold_bounds(record, train, tau_bounds), knots, "fold", margin_v,
-                           split)
+                           split, floor_s)
         if step is not None:
             step(f"{n} term(s) {'with' if split else 'without'} play, "
                  f"{speed_label(out)} mm/s held out")
@@ -550,9 +558,13 @@ def _rms(x: np.ndarray) -> float:
 
 def _fit(grid: RateRecord, blocks_v: np.ndarray, runs: np.ndarray, speeds: list[float],
          n: int, tau_bounds: tuple[float, float], knots: int, source: str,
-         margin_v: float = 0.0, split: _Split | None = None) -> tuple[RateCalibration, bool]:
+         margin_v: float = 0.0, split: _Split | None = None, floor_s: float = 0.0
+         ) -> tuple[RateCalibration, bool]:
     """Least squares on ``speeds``' in-press samples of the grid; (calibration, whether a
-    non-negligible term's time sits on a bound). The model's force is the driver's, from
+    non-negligible term's time sits on a bound). The lower bound counts only above
+    ``floor_s``, the fastest time the record resolves: a term there is a term at most that
+    fast, whose g x tau is what a ramp shows (pair 5 of the mock's recordings: 0.13 @ 40 ms
+    for the simulation's 0.05 @ 0.1 s, the same 5 ms). The model's force is the driver's, from
     the output as recorded (``blocks_v``: the curve's hats per sample, averaged per grid
     block), and goes through the low-pass the force went through (per phase run, starting
     at ``runs``), so both are compared alike.
@@ -657,9 +669,10 @@ def _fit(grid: RateRecord, blocks_v: np.ndarray, runs: np.ndarray, speeds: list[
         play = Play(tuple((0.5 * (up - down)).tolist()), split.band_v, split.smoothing_hz)
     order = np.argsort(log_tau)
     terms = [RateTerm(float(g[i]), float(math.exp(log_tau[i]))) for i in order]
-    pinned = any(t.g > NEGLIGIBLE_G and (math.log(t.tau_s) - lo_log < AT_BOUND
-                                         or hi_log - math.log(t.tau_s) < AT_BOUND)
-                 for t in terms)
+    floor_counts = tau_bounds[0] > floor_s * (1 + AT_BOUND)
+    pinned = any(t.g > NEGLIGIBLE_G and (
+        (floor_counts and math.log(t.tau_s) - lo_log < AT_BOUND)
+        or hi_log - math.log(t.tau_s) < AT_BOUND) for t in terms)
     curve = StaticCurve.from_curve(knot_v.tolist(),
                                    np.maximum.accumulate(force_knots).tolist(), source)
     return RateCalibration(curve, terms, play), pinned

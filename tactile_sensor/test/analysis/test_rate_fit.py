@@ -172,6 +172,20 @@ def test_times_pinned_to_a_bound_are_refused(record):
         fit_rate_calibration(record, "x", terms=1, tau_bounds_s=(5.0, 20.0))
 
 
+def test_a_term_faster_than_the_record_resolves_is_kept_at_the_fastest_it_resolves():
+    """A true 20 ms term lies below the 40 ms the fit resolves: it lands on that floor and
+    is kept (once refused, the two-term fit could not be had at all), said in a note. On
+    ramps such a term shows only as g x tau, which the fit recovers."""
+    rec = synthetic(tau_s=(0.02, TRUE_TAU_S[1]))
+    floor, _ = resolvable_tau_range(rec, 200.0)
+    fit = fit_rate_calibration(rec, "x", terms=2)
+    fast, slow = fit.calibration.terms
+    assert fast.tau_s == pytest.approx(floor, rel=0.02)
+    assert fast.g * fast.tau_s == pytest.approx(TRUE_G[0] * 0.02, rel=0.5)
+    assert slow.tau_s == pytest.approx(TRUE_TAU_S[1], rel=0.3)
+    assert any("so it is at most that" in note for note in fit.notes), fit.notes
+
+
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({"terms": 4}, "1 to 3, got 4"),
     ({"terms": 0}, "1 to 3, got 0"),
