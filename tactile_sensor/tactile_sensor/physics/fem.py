@@ -470,7 +470,9 @@ class SkinModel:
         rows = np.repeat(loc, 24, axis=1).ravel()
         cols = np.tile(loc, (1, 24)).ravel()
         keep = (rows >= 0) & (cols >= 0)
-        key = rows[keep] * nfree + cols[keep]
+        # int32 keys where they fit: np.unique sorts them ~1.6x faster than int64
+        kind = np.int32 if nfree * nfree < 2**31 else np.int64
+        key = rows[keep].astype(kind) * kind(nfree) + cols[keep].astype(kind)
         uniq, inverse = np.unique(key, return_inverse=True)
         self._scatter = np.full(rows.size, uniq.size, dtype=np.int64)
         self._scatter[keep] = inverse
