@@ -175,17 +175,15 @@ def _mirror(axis: np.ndarray, full: bool) -> np.ndarray:
 
 
 def _cofactor(f: np.ndarray) -> np.ndarray:
-    """cof F = J F^-T of component-first (3, 3, ...) arrays."""
+    """cof F = J F^-T of component-first (3, 3, ...) arrays (in place, as the stress)."""
     cof = np.empty_like(f)
-    cof[0, 0] = f[1, 1] * f[2, 2] - f[1, 2] * f[2, 1]
-    cof[0, 1] = f[1, 2] * f[2, 0] - f[1, 0] * f[2, 2]
-    cof[0, 2] = f[1, 0] * f[2, 1] - f[1, 1] * f[2, 0]
-    cof[1, 0] = f[0, 2] * f[2, 1] - f[0, 1] * f[2, 2]
-    cof[1, 1] = f[0, 0] * f[2, 2] - f[0, 2] * f[2, 0]
-    cof[1, 2] = f[0, 1] * f[2, 0] - f[0, 0] * f[2, 1]
-    cof[2, 0] = f[0, 1] * f[1, 2] - f[0, 2] * f[1, 1]
-    cof[2, 1] = f[0, 2] * f[1, 0] - f[0, 0] * f[1, 2]
-    cof[2, 2] = f[0, 0] * f[1, 1] - f[0, 1] * f[1, 0]
+    tmp = np.empty_like(f[0, 0])
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            np.multiply(f[i1, j1], f[i2, j2], out=cof[i, j])
+            cof[i, j] -= np.multiply(f[i1, j2], f[i2, j1], out=tmp)
     return cof
 
 
