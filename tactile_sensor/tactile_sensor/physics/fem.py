@@ -912,6 +912,10 @@ class _GradientOperator:
         self._ref_kq = np.ascontiguousarray(ref.transpose(1, 2, 0).reshape(8, 3 * nq))
         self._ref_qa = [np.ascontiguousarray(ref[:, :, k]) for k in range(3)]  # (q, a)
         self._w_hinv = np.ascontiguousarray(w[None] * (1.0 / h).T[:, :, None])  # (K, e, q)
+        hinv = 1.0 / h
+        # w / (h_K h_L) as (e, 1, 1, q, K, L), the stiffness's layout
+        self._w_hh = (w[:, :, None, None] * hinv[:, None, :, None]
+                      * hinv[:, None, None, :])[:, None, None]
         # pairs[(q, K, L), (a, b)] = ref[q, a, K] ref[q, b, L]
         self._pairs = np.einsum("qaK,qbL->qKLab", ref, ref).reshape(nq * 9, 64)
         self._hinv = 1.0 / h
@@ -955,15 +959,14 @@ class _GradientOperator:
         with a constant (72 x 64) matrix of reference-gradient products per (i, k) pair.
         """
         ne, nq = self._shape
-        Aw = A * self._w
         if not self._box:
-            ke = np.einsum("eqaK,iKkLeq,eqbL->eaibk", self._dndx, Aw, self._dndx,
+            ke = np.einsum("eqaK,iKkLeq,eqbL->eaibk", self._dndx, A * self._w, self._dndx,
                            optimize=True)
             return ke.reshape(ne, 24, 24)
-        hi = self._hinv.T                                             # (K, e)
-        Aw = Aw * hi[None, :, None, None, :, None] * hi[None, None, None, :, :, None]
-        X = Aw.transpose(4, 0, 2, 5, 1, 3).reshape(ne * 9, nq * 9)    # (e i k, q K L)
-        ke = (X @ self._pairs).reshape(ne, 3, 3, 8, 8)                # (e, i, k, a, b)
+        # weights and scalings in one pass that also lays A out for the GEMM
+        X = np.empty((ne, 3, 3, nq, 3, 3), dtype=np.result_type(A, self._w))
+        np.multiply(A.transpose(4, 0, 2, 5, 1, 3), self._w_hh, out=X)  # (e, i, k, q, K, L)
+        ke = (X.reshape(ne * 9, nq * 9) @ self._pairs).reshape(ne, 3, 3, 8, 8)  # (e,i,k,a,b)
         return ke.transpose(0, 3, 1, 4, 2).reshape(ne, 24, 24)
 
 
