@@ -229,6 +229,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     if not 2 <= knots <= 200:
         raise RateFitError(f"the static curve needs 2 to 200 knots, got {knots}; pass e.g. 16.")
     lo, hi = resolvable_tau_range(record, fit_rate_hz)
+    floor_s = lo  # a term on it is kept (_fit), unless the caller set the bounds
     if not hi > 2 * lo:
         raise RateFitError(f"the longest press lasts {hi:.3g} s, too short to resolve any "
                            f"relaxation time above {lo:.3g} s; record whole presses with holds.")
@@ -240,8 +241,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
                 f"recording resolves ({lo:.3g}..{hi:.3g} s: from the fit's {fit_rate_hz:g} Hz "
                 f"grid and {SEGMENT_CUTOFF_HZ:g} Hz low-pass up to the longest press); request "
                 "times in that range or record longer presses and holds.")
-        lo, hi = a, b
-    floor_s = resolvable_tau_range(record, fit_rate_hz)[0] if tau_bounds_s is None else 0.0
+        lo, hi, floor_s = a, b, 0.0
     grid, blocks_v, noise_v, loading, runs = _prepare(record, fit_rate_hz)
     margin_v = KNOT_MARGIN_SIGMAS * noise_v
     split = _Split(loading, max(MIN_BAND_V, BAND_SIGMAS * _tracker_noise(record)),
