@@ -911,14 +911,14 @@ class _GradientOperator:
         # per residual on the default mesh)
         self._ref_kq = np.ascontiguousarray(ref.transpose(1, 2, 0).reshape(8, 3 * nq))
         self._ref_qa = [np.ascontiguousarray(ref[:, :, k]) for k in range(3)]  # (q, a)
-        self._w_hinv = np.ascontiguousarray(w[None] * (1.0 / h).T[:, :, None])  # (K, e, q)
         hinv = 1.0 / h
+        self._w_hinv = np.ascontiguousarray(w[None] * hinv.T[:, :, None])     # (K, e, q)
         # w / (h_K h_L) as (e, 1, 1, q, K, L), the stiffness's layout
         self._w_hh = (w[:, :, None, None] * hinv[:, None, :, None]
                       * hinv[:, None, None, :])[:, None, None]
         # pairs[(q, K, L), (a, b)] = ref[q, a, K] ref[q, b, L]
         self._pairs = np.einsum("qaK,qbL->qKLab", ref, ref).reshape(nq * 9, 64)
-        self._hinv = 1.0 / h
+        self._hinv = hinv
         self._shape = (ne, nq)
 
     def deformation(self, ue: np.ndarray) -> np.ndarray:
@@ -926,7 +926,7 @@ class _GradientOperator:
         ne, nq = self._shape
         ue = ue.reshape(ne, 8, 3)
         if self._box:
-            F = np.empty((3, 3, ne, nq))
+            F = np.empty((3, 3, ne, nq), dtype=np.result_type(ue, self._ref_kq))
             for i in range(3):
                 g = (ue[:, :, i] @ self._ref_kq).reshape(ne, 3, nq)      # (e, K, q)
                 for k in range(3):
@@ -942,7 +942,7 @@ class _GradientOperator:
         """Element nodal forces fe[e, a, i] = sum_q w dN_a/dX_K P_iK."""
         ne = self._shape[0]
         if self._box:
-            fe = np.empty((ne, 8, 3))
+            fe = np.empty((ne, 8, 3), dtype=np.result_type(P, self._w_hinv))
             for i in range(3):
                 S = P[i] * self._w_hinv                                   # (K, e, q)
                 acc = S[0] @ self._ref_qa[0]
