@@ -11,8 +11,11 @@ static curve fitted on rate_check's own 3 mm/s ramps (in-sample, so the static s
 favoured). Goal, per speed and phase: rate-aware RMSE <= half the static one and <= 1.5 %
 of full scale. Printed against two measures: the per-sample RMSE (with the output's white
 noise, the same for both estimators) and the model error (the error low-passed at
-``rate_evaluation.MODEL_CUTOFF_HZ``, zero phase); PASS/FAIL for each. Uses ROS domain
-$ROS_DOMAIN_ID (default 171), discovery on this machine only.
+``rate_evaluation.MODEL_CUTOFF_HZ``, zero phase); PASS/FAIL for each. Beside them, the
+floors on the same recording: the simulation's exact model, with the play's state from the
+stage and from the driver's tracker (``analysis/rate_floor.py``; ``bench_rate_floor.py``
+gives their spread over noise seeds). Uses ROS domain $ROS_DOMAIN_ID (default 171),
+discovery on this machine only.
 """
 
 from __future__ import annotations
@@ -36,11 +39,14 @@ from tactile_sensor.analysis.rate_evaluation import (
     GOAL_SHARE_FS,
     MODEL_CUTOFF_HZ,
     PhaseError,
+    phase_errors,
     phase_table,
 )
-from tactile_sensor.analysis.rate_fit import RateFit, fit_rate_calibration
-from tactile_sensor.analysis.rate_record import record_from_segmentation
+from tactile_sensor.analysis.rate_fit import RateFit, fit_rate_calibration, tracker_band_v
+from tactile_sensor.analysis.rate_floor import exact_force, stage_play_lag, tracker_play_lag
+from tactile_sensor.analysis.rate_record import RateRecord, record_from_segmentation
 from tactile_sensor.configurations import config_dir
+from tactile_sensor.sim.skin_response import TabulatedSkin
 
 
 def record(protocol: str, bag: Path) -> float:
@@ -86,32 +92,65 @@ def verdict(ok: bool) -> str:
     return "PASS" if ok else "FAIL"
 
 
-def print_table(rows: list[PhaseError], full_scale_n: float) -> tuple[bool, bool]:
+def print_table(rows: list[PhaseError], full_scale_n: float,
+                exact: tuple[list[PhaseError], list[PhaseError]] | None = None
+                ) -> tuple[bool, bool]:
     """The per-speed, per-phase table; (every row meets the goal per sample, on the model
-    error)."""
+    error). ``exact``: the exact model's rows on the same recording (its floors)."""
     limit = GOAL_SHARE_FS * full_scale_n
     print(f"full scale {full_scale_n:.3f} N; goal per row: rate-aware <= {GOAL_RATIO:g} x "
           f"static and <= {100 * GOAL_SHARE_FS:g} % FS = {limit:.3f} N")
     print(f"model error: RMSE of the error low-passed at {MODEL_CUTOFF_HZ:g} Hz (2nd-order "
           "Butterworth, forwards and backwards); 'noise' is the RMS the low-pass removed from "
           "the rate-aware estimate (the white-noise floor of the per-sample RMSE)")
+    if exact is not None:
+        print("exact: the simulation's own model (FEM skin inverted, true Prony terms) on this "
+              "recording's output, with the play's state from the stage ('stage': what the "
+              "noise and the driver's filter leave) or from the driver's direction tracker "
+              "('output': what an estimator reading the output alone is left with); model "
+              "error and goal (analysis/rate_floor.py)")
+    extra = " | exact: stage     output" if exact else ""
     head = (f"{'speed':>6} {'phase':<9} | {'per-sample RMSE [N]':^30} | "
-            f"{'model error [N]':^30} | {'noise':>5}")
+            f"{'model error [N]':^30} | {'noise':>5}" + extra)
     print(head)
     print(f"{'mm/s':>6} {'':<9} | {'static':>7} {'rate':>7} {'rate/st':>7} {'goal':>5} | "
           f"{'static':>7} {'rate':>7} {'rate/st':>7} {'goal':>5} | {'[N]':>5}")
     print("-" * len(head))
     all_sample = all_model = True
-    for r in rows:
+    for k, r in enumerate(rows):
         sample_ok, model_ok = r.meets_goal(full_scale_n, False), r.meets_goal(full_scale_n, True)
         all_sample &= sample_ok
         all_model &= model_ok
+        floors = ""
+        for table in exact or ():
+            e = table[k].rate_model_rmse_n
+            ok = e <= min(GOAL_RATIO * r.static_model_rmse_n, limit)
+            floors += f" {e:>5.3f} {verdict(ok):>4}"
         print(f"{r.speed_mm_s:>6.3g} {r.phase:<9} | {r.static_rmse_n:>7.3f} {r.rate_rmse_n:>7.3f} "
               f"{r.rate_rmse_n / r.static_rmse_n:>7.2f} {verdict(sample_ok):>5} | "
               f"{r.static_model_rmse_n:>7.3f} {r.rate_model_rmse_n:>7.3f} "
               f"{r.rate_model_rmse_n / r.static_model_rmse_n:>7.2f} {verdict(model_ok):>5} | "
-              f"{r.noise_rmse_n:>5.3f}")
+              f"{r.noise_rmse_n:>5.3f}" + (f" |{floors}" if floors else ""))
     return all_sample, all_model
+
+
+def exact_rows(check: Characterisation, rec: RateRecord
+               ) -> tuple[list[PhaseError], list[PhaseError]] | None:
+    """The exact model's rows on the held-out recording, with the play's state from the
+    stage and from the driver's tracker; None without the FEM curve."""
+    from tactile_sensor.nodes.physics_parameters import physics_from_values
+    from tactile_sensor.physics.prediction import load_or_compute_curve
+
+    params = physics_from_values(physics_values())
+    try:
+        skin = TabulatedSkin.from_prediction_curve(load_or_compute_curve(params))
+    except Exception:  # the floor is a report's extra, not the measure
+        return None
+    sig = check.signals
+    lags = (stage_play_lag(params, sig.indentation_m),
+            tracker_play_lag(params, sig.t_s, sig.output_v, tracker_band_v(rec)))
+    stage, tracked = (exact_force(skin, params, sig.t_s, sig.output_v, lag) for lag in lags)
+    return phase_errors(rec, stage, stage), phase_errors(rec, tracked, tracked)
 
 
 def main() -> int:
@@ -197,7 +236,8 @@ def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit
     rows = phase_table(rec, check.static_reference, fit.calibration)
     print(f"held out: {check.recording.path} (static curve: its own "
           f"{check.metrics['reference_speed_mm_s']} mm/s ramps)")
-    sample_ok, model_ok = print_table(rows, float(check.metrics["full_scale_n"]))
+    sample_ok, model_ok = print_table(rows, float(check.metrics["full_scale_n"]),
+                                      exact_rows(check, rec))
     print(f"goal per-sample RMSE: {verdict(sample_ok)}; goal on the model error: "
           f"{verdict(model_ok)}")
     return 0

@@ -58,7 +58,13 @@ def phase_table(record: RateRecord, static: CurveLike, rate: RateCalibration
     record from its start, as the driver's would."""
     static_f = static_force(np.asarray(static.output_v, float), np.asarray(static.force_n, float),
                             record.output_v)
-    rate_f = rate_force_history(rate, record.t_s, record.output_v)
+    return phase_errors(record, static_f, rate_force_history(rate, record.t_s, record.output_v))
+
+
+def phase_errors(record: RateRecord, static_f: np.ndarray, rate_f: np.ndarray
+                 ) -> list[PhaseError]:
+    """``phase_table`` for estimates already run over the record: any model, exact ones
+    included, scored the same way."""
     period = float(np.median(np.diff(record.t_s)))
     smooth = [zero_phase_low_pass(period, MODEL_CUTOFF_HZ, x)
               for x in (static_f, rate_f, record.force_n)]

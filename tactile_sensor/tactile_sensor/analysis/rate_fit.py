@@ -244,8 +244,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
         lo, hi, floor_s = a, b, 0.0
     grid, blocks_v, noise_v, loading, runs = _prepare(record, fit_rate_hz)
     margin_v = KNOT_MARGIN_SIGMAS * noise_v
-    split = _Split(loading, max(MIN_BAND_V, BAND_SIGMAS * _tracker_noise(record)),
-                   TRACKER_SMOOTHING_HZ)
+    split = _Split(loading, tracker_band_v(record), TRACKER_SMOOTHING_HZ)
     choices = {False: None, True: split} if play is None else {play: split if play else None}
     numbers = [terms] if terms is not None else list(range(1, MAX_RATE_TERMS + 1))
     # every fold of every choice, then at most one fit on all speeds per number of terms
@@ -355,6 +354,12 @@ def _phase_branches(phase: np.ndarray) -> np.ndarray:
         return np.ones(phase.size, dtype=bool)
     last = np.maximum.accumulate(np.where(code >= 0, np.arange(phase.size), -1))
     return np.where(last >= 0, code[np.maximum(last, 0)] == 1, True)
+
+
+def tracker_band_v(record: RateRecord) -> float:
+    """The direction tracker's band [V] for this record's noise: ``BAND_SIGMAS`` x the
+    noise of its smoothed output (at least ``MIN_BAND_V``)."""
+    return max(MIN_BAND_V, BAND_SIGMAS * _tracker_noise(record))
 
 
 def _tracker_noise(record: RateRecord) -> float:

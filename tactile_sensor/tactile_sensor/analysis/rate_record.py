@@ -7,6 +7,7 @@ reports, samples by speed and phase (loading, hold, unloading).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,6 +61,25 @@ class RateRecord:
         if starts.size == 0:
             return 0.0
         return float(np.max(self.t_s[stops] - self.t_s[starts]))
+
+
+def labels_from_knots(t_s: np.ndarray, knots_t_s: np.ndarray, speeds_m_s: Sequence[float]
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Speed [mm/s] and phase of each sample of a simulated one-press-per-speed run, from
+    its profile's corner times (rest, then start, top, hold end, bottom per press): the
+    labels a segmentation would give, without its detection error."""
+    if knots_t_s.size < 1 + 4 * len(speeds_m_s):
+        raise SegmentError(f"{knots_t_s.size} corner times cannot hold {len(speeds_m_s)} "
+                           "press(es) of four corners each after a rest.")
+    speed = np.full(t_s.shape, np.nan)
+    phase = np.full(t_s.shape, OUTSIDE, dtype=np.int8)
+    for i, s in enumerate(speeds_m_s):
+        start, top, hold_end, bottom = knots_t_s[1 + 4 * i:5 + 4 * i]
+        speed[(t_s >= start) & (t_s < bottom)] = s * 1e3
+        phase[(t_s >= start) & (t_s < top)] = LOADING
+        phase[(t_s >= top) & (t_s < hold_end)] = HOLD
+        phase[(t_s >= hold_end) & (t_s < bottom)] = UNLOADING
+    return speed, phase
 
 
 def record_from_segmentation(t_s: np.ndarray, output_v: np.ndarray, force_n: np.ndarray,

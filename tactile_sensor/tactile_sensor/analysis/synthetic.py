@@ -409,7 +409,7 @@ def rate_press_record(speeds_m_s: Sequence[float], hold_s: float = 2.0,
     from tactile_sensor.sim.bench_world import play
     from tactile_sensor.sim.profiles import LoadProfile
 
-    from .rate_record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
+    from .rate_record import RateRecord, labels_from_knots
 
     profile = LoadProfile(depth_m=3e-3, speeds_m_s=tuple(speeds_m_s), cycles=1, hold_s=hold_s,
                           rest_s=1.0)
@@ -420,13 +420,5 @@ def rate_press_record(speeds_m_s: Sequence[float], hold_s: float = 2.0,
               + rng.normal(0.0, output_noise_v, t.size))
     force = RateDependentForce(g, tau_s).force_history(t, 7.0 * (d / 3e-3) ** 1.3)
     force += rng.normal(0.0, force_noise_n, t.size)
-    knots_t, _ = profile.knots()
-    speed = np.full(t.size, np.nan)
-    phase = np.full(t.size, OUTSIDE, dtype=np.int8)
-    for i, s in enumerate(profile.speeds_m_s):
-        start, top, hold_end, bottom = knots_t[1 + 4 * i:5 + 4 * i]
-        speed[(t >= start) & (t < bottom)] = s * 1e3
-        phase[(t >= start) & (t < top)] = LOADING
-        phase[(t >= top) & (t < hold_end)] = HOLD
-        phase[(t >= hold_end) & (t < bottom)] = UNLOADING
+    speed, phase = labels_from_knots(t, profile.knots()[0], profile.speeds_m_s)
     return RateRecord(t, output, force, speed, phase)

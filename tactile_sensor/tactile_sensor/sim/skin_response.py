@@ -73,6 +73,12 @@ class TabulatedSkin:
     def max_indentation_m(self) -> float:
         return float(self._d[-1])
 
+    def table(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64],
+                             npt.NDArray[np.float64]]:
+        """Copies of the tabulated indentations [m], forces [N] and voltages [V]: what an
+        exact inverse of the skin needs."""
+        return self._d.copy(), self._f.copy(), self._v.copy()
+
     def force_n(self, indentation_m: ArrayLike) -> Any:
         if isinstance(indentation_m, float | int):
             d = max(0.0, float(indentation_m))
