@@ -36,6 +36,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
 from tactile_sensor.analysis.calibration_fit import Calibration, fit_calibration
+from tactile_sensor.analysis.errors import RateFitError
 from tactile_sensor.analysis.rate_evaluation import (
     GOAL_RATIO,
     GOAL_SHARE_FS,
@@ -158,6 +159,7 @@ def main() -> int:
     exact: list[np.ndarray] = []
     output_only: list[np.ndarray] = []
     fitted: list[np.ndarray] = []
+    fitted_seeds: list[int] = []
     names: list[str] = []
     full_scale: list[float] = []
     start = time.perf_counter()
@@ -174,10 +176,15 @@ def main() -> int:
         full_scale.append(held.full_scale_n)
         if seed < args.fit:
             t0 = time.perf_counter()
-            fit = fit_rate_calibration(run(train, TRAIN_SEED_OFFSET + seed).record,
-                                       "bench_rate_floor")
+            try:
+                fit = fit_rate_calibration(run(train, TRAIN_SEED_OFFSET + seed).record,
+                                           "bench_rate_floor")
+            except RateFitError as exc:
+                print(f"seed {seed}: no fit ({exc})", flush=True)
+                continue
             rows_fit = phase_table(held.record, curve, fit.calibration)
             fitted.append(score(rows_fit, held.full_scale_n))
+            fitted_seeds.append(seed)
             print(f"seed {seed}: fitted {fit.calibration.describe()} in "
                   f"{time.perf_counter() - t0:.0f} s; rows met {int(fitted[-1][:, 2].sum())}/9 "
                   f"(exact {int(exact[-1][:, 2].sum())}/9)", flush=True)
@@ -192,8 +199,8 @@ def main() -> int:
             output_only)
     summary("fitted model", names, fitted)
     if fitted:
-        same = np.stack(exact[:len(fitted)])
-        alone = np.stack(output_only[:len(fitted)])
+        same = np.stack([exact[k] for k in fitted_seeds])
+        alone = np.stack([output_only[k] for k in fitted_seeds])
         print(f"on the same {len(fitted)} run(s), rows met: exact {same[:, :, 2].sum():.0f}, "
               f"exact from the output {alone[:, :, 2].sum():.0f}, fitted "
               f"{np.stack(fitted)[:, :, 2].sum():.0f} of {same[:, :, 2].size}")
