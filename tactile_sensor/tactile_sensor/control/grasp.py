@@ -323,10 +323,13 @@ class ForceSettler:
     """After contact, nudge the fingers until the tactile force sits at the target.
 
     Sensing and bus delays let the fingers travel on after the force crossed the target
-    (a few tenths of a newton at 10 mm/s). Each tick moves the goal by the force error
-    divided by the skin's stiffness at the pinion (half of it, so the loop cannot
-    oscillate with one tick of delay), until the error stays within ``tolerance`` of the
-    target for ``settled_ticks`` ticks.
+    (a few tenths of a newton at 10 mm/s). Each correction moves the goal by the force
+    error divided by the skin's stiffness at the pinion; half of it, so a skin up to
+    twice as stiff as ``skin_stiffness_n_per_m`` still converges without ringing. The
+    runner judges each correction only on forces stamped after it took effect, so a late
+    tactile force cannot make the loop correct twice for one error. Settled once the
+    error stays within ``tolerance`` of the target for ``settled_ticks`` readings; inside
+    it the fingers hold still.
     """
 
     geometry: GripperGeometry
@@ -337,15 +340,15 @@ class ForceSettler:
     _inside: int = 0
 
     def command(self, force_n: float, servo: ServoReading, current_a: float,
-                velocity_rad_s: float) -> tuple[ServoCommand, bool]:
-        """(goal for this tick, settled?)."""
+                velocity_rad_s: float) -> tuple[ServoCommand | None, bool]:
+        """(goal for this tick, or None to hold still; settled?)."""
         error = force_n - self.target_force_n
         if abs(error) <= self.tolerance * self.target_force_n:
             self._inside += 1
-        else:
-            self._inside = 0
+            return None, self._inside >= self.settled_ticks
+        self._inside = 0
         # both fingers press the object: the gap closes 2 r per radian
         step_rad = 0.5 * error / (self.skin_stiffness_n_per_m * 2.0
                                   * self.geometry.pitch_radius_m)
         goal = servo.position_rad - step_rad
-        return ServoCommand(goal, velocity_rad_s, current_a), self._inside >= self.settled_ticks
+        return ServoCommand(goal, velocity_rad_s, current_a), False

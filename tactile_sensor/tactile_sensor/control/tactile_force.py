@@ -2,11 +2,14 @@
 
 Grasps and moves act on the newest force and its stamp (staleness is judged from it); the
 force settler acts on the mean of all forces since its previous tick, so it follows the
-force rather than its noise. The subscription thread adds, the goal's thread reads.
+force rather than its noise, and only on forces stamped after its last correction took
+effect (``count_after``): a force that arrives late still describes where the fingers
+were. The subscription thread adds, the goal's thread reads.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 
 
@@ -16,17 +19,29 @@ class TactileForce:
         #: (force [N], its stamp [s]) of the newest message; None before the first.
         self.latest: tuple[float, float] | None = None
         self._sum_n, self._count = 0.0, 0
+        self._after_s = -math.inf
 
     def add(self, force_n: float, stamp_s: float, sum_n: float | None = None,
-            count: int = 1) -> None:
-        """The newest force, and the ``count`` forces (summing to ``sum_n``; default: this
-        one alone) that arrived with it."""
+            count: int = 1, first_stamp_s: float | None = None) -> None:
+        """The newest force, and the ``count`` forces (summing to ``sum_n``, the oldest
+        stamped ``first_stamp_s``; default: this one alone) that arrived with it."""
         if count < 1:
             raise ValueError(f"count = {count} must be >= 1: the newest force is one of them")
         self.latest = (force_n, stamp_s)
         with self._lock:
+            if stamp_s <= self._after_s:
+                return
+            if first_stamp_s is not None and first_stamp_s <= self._after_s:
+                sum_n, count = None, 1  # the batch straddles the gate: its newest force alone
             self._sum_n += force_n if sum_n is None else sum_n
             self._count += count
+
+    def count_after(self, stamp_s: float) -> None:
+        """From now on the mean takes only forces stamped after ``stamp_s`` [s]; what it
+        held is dropped."""
+        with self._lock:
+            self._after_s = stamp_s
+            self._sum_n, self._count = 0.0, 0
 
     def mean_since_last_call(self) -> float | None:
         """Mean of the forces added since the previous call [N]; None when none came."""

@@ -245,7 +245,7 @@ class GripperNode(Node):
         # At 1 kHz one executor round per message costs more than the message: take what
         # else is already waiting and keep only the newest.
         sub = self._force_sub
-        total, count = msg.wrench.force.z, 1
+        total, count, first = msg.wrench.force.z, 1, msg.header.stamp
         if sub is not None:
             with sub.handle:
                 for _ in range(256):
@@ -256,7 +256,8 @@ class GripperNode(Node):
                     total += msg.wrench.force.z
                     count += 1
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-        self._forces.add(msg.wrench.force.z, stamp, total, count)
+        self._forces.add(msg.wrench.force.z, stamp, total, count,
+                         first.sec + first.nanosec * 1e-9)
 
     # -- actions -----------------------------------------------------------------------------
     def _action_server(self, name: str, action_type: Any, accept: Any) -> ActionServer:

@@ -173,8 +173,9 @@ def test_force_settler_converges_on_a_linear_skin():
     settler = ForceSettler(geometry, target_force_n=1.5)
     for _ in range(40):
         command, settled = settler.command(force(servo.position_rad), servo, 0.6, 6.0)
-        servo.position_rad = command.goal_position_rad
         if settled:
             break
+        if command is not None:
+            servo.position_rad = command.goal_position_rad
     assert settled
     assert force(servo.position_rad) == pytest.approx(1.5, rel=0.05)

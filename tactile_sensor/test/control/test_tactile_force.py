@@ -34,3 +34,27 @@ def test_a_single_force_counts_alone():
 def test_an_empty_batch_is_refused():
     with pytest.raises(ValueError, match="count"):
         TactileForce().add(1.0, 0.0, 0.0, 0)
+
+
+def test_after_a_gate_only_forces_stamped_later_count():
+    """The settler judges a correction on forces taken after it took effect: late ones
+    still describe where the fingers were."""
+    tactile = TactileForce()
+    tactile.add(9.0, 1.0)
+    tactile.count_after(2.0)
+    assert tactile.mean_since_last_call() is None  # what it held is dropped
+    tactile.add(7.0, 1.5)  # arrived now, taken before the gate
+    tactile.add(8.0, 2.0)  # taken at the gate itself
+    assert tactile.mean_since_last_call() is None
+    assert tactile.latest == (8.0, 2.0)  # the newest still counts for staleness
+    tactile.add(3.0, 2.5)
+    tactile.add(5.0, 3.0, sum_n=9.0, count=2, first_stamp_s=2.8)
+    assert tactile.mean_since_last_call() == 4.0
+
+
+@given(st.lists(forces, min_size=2, max_size=20))
+def test_a_batch_straddling_the_gate_counts_its_newest_force_alone(batch):
+    tactile = TactileForce()
+    tactile.count_after(2.0)
+    tactile.add(batch[-1], 3.0, sum(batch), len(batch), first_stamp_s=1.0)
+    assert tactile.mean_since_last_call() == batch[-1]
