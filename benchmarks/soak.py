@@ -73,6 +73,7 @@ BENCH_NS, GRIPPER_NS = "/soak_bench", "/soak_gripper"
 ADC_RATE_HZ = 1000.0
 SAMPLE_PERIOD_S = 5.0
 WAIT_S = 90.0  # the most any condition may take before it counts as failed
+TEARDOWN_S = 20.0  # this process's own ROS teardown, after the figures are written
 FRAME_BYTES = 11  # one-channel frame (docs/serial-frame.md)
 # What a cable pull can swallow: the device's host buffer and the pseudo-terminal's.
 LINK_CAPACITY_FRAMES = (65536 + 20000) // FRAME_BYTES
@@ -232,14 +233,24 @@ class Monitor:
         result = sent.result().get_result_async()
         return result.result().result if wait_until(result.done, timeout_s) else None
 
-    def close(self) -> None:
+    def close(self, timeout_s: float = TEARDOWN_S) -> bool:
+        """Stop spinning and tear the node down; False when the teardown did not end in
+        ``timeout_s``. Once, on Kilted, Fast DDS 3.2 deadlocked destroying a publisher
+        (its event thread and a receive thread each waiting on the other), and the
+        benchmark hung after its run; the caller then exits without waiting for it."""
         import rclpy
 
-        self.spinning.clear()
-        self.thread.join(5.0)
-        self.executor.shutdown(timeout_sec=2.0)
-        self.node.destroy_node()
-        rclpy.try_shutdown()
+        def teardown() -> None:
+            self.spinning.clear()
+            self.thread.join(5.0)
+            self.executor.shutdown(timeout_sec=2.0)
+            self.node.destroy_node()
+            rclpy.try_shutdown()
+
+        worker = threading.Thread(target=teardown, daemon=True)
+        worker.start()
+        worker.join(timeout_s)
+        return not worker.is_alive()
 
 
 DRIVER_DIAG = f"{BENCH_NS}/driver: tactile ADC"
@@ -642,13 +653,14 @@ class Soak:
             "goals": [asdict(g) for g in goals],
         }
 
-    def close(self) -> None:
+    def close(self) -> bool:
+        """Stop everything; False when this process's own ROS teardown hung."""
         self.grasps.stop.set()
         self.sampler.stop.set()
         for proc in self.procs.values():
             if proc.alive():
                 proc.stop(signal.SIGKILL, 10.0)
-        self.monitor.close()
+        return self.monitor.close()
 
 
 def _fault_line(f: FaultResult) -> str:
@@ -766,17 +778,24 @@ def main(argv: list[str] | None = None) -> int:
         else:
             folder = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="soak_")))
         soak = Soak(folder, args.minutes, split_s, schedule, args.bring_up_timeout)
+        code = 1
         try:
             report = soak.run()
+            # the figures first: nothing after the run may cost them
+            print_report(report)
+            if args.json is not None:
+                args.json.write_text(json.dumps(report, indent=2, default=str))
+            code = 0 if all(g["passed"] for g in report["goals"]) else 1
         except RuntimeError as exc:  # a node did not come up or report: say which, where
             say(f"soak: {exc}")
-            return 1
         finally:
-            soak.close()
-    print_report(report)
-    if args.json is not None:
-        args.json.write_text(json.dumps(report, indent=2, default=str))
-    return 0 if all(g["passed"] for g in report["goals"]) else 1
+            if not soak.close():
+                say(f"soak: this process's ROS teardown did not end within {TEARDOWN_S:g} s "
+                    "(a DDS deadlock); exiting without it, the figures above are complete.")
+                sys.stdout.flush()
+                sys.stderr.flush()
+                os._exit(code)
+    return code
 
 
 if __name__ == "__main__":

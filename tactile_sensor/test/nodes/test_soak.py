@@ -75,3 +75,47 @@ def test_a_node_that_does_not_come_up_is_named_and_everything_stops(
     assert "recorder.log ends" in run.output()
     assert not (tmp_path / "work" / "soak.json").exists()
     assert own_processes() == []  # the nodes it had started are gone with it
+
+
+def test_a_hung_ros_teardown_after_the_run_keeps_the_figures_and_exits(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    """Once, on Kilted, Fast DDS deadlocked as the benchmark destroyed its own node after a
+    complete run, and the process never ended. The figures are written before the teardown,
+    and a teardown that does not end makes the process exit with the run's status."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("soak_benchmark", SOAK)
+    assert spec is not None and spec.loader is not None
+    soak = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, soak)  # its dataclasses look it up there
+    spec.loader.exec_module(soak)
+    events: list[str] = []
+
+    class HungTeardown:
+        def __init__(self, *args: object) -> None:
+            pass
+
+        def run(self) -> dict:
+            return {"goals": [{"name": "g", "passed": False}]}
+
+        def close(self) -> bool:
+            events.append("close")
+            return False
+
+    class Exited(Exception):
+        pass
+
+    def exit_now(code: int) -> None:
+        events.append(f"exit {code}")
+        raise Exited
+
+    monkeypatch.setattr(soak, "Soak", HungTeardown)
+    monkeypatch.setattr(soak, "print_report", lambda report: events.append("report"))
+    monkeypatch.setattr(soak.os, "_exit", exit_now)
+    report_path = tmp_path / "soak.json"
+    with pytest.raises(Exited):
+        soak.main(["--minutes", "2", "--json", str(report_path), "--keep",
+                   str(tmp_path / "work")])
+    assert events == ["report", "close", "exit 1"]  # a failed goal: status 1
+    assert json.loads(report_path.read_text())["goals"][0]["passed"] is False
+    assert "ROS teardown did not end" in capsys.readouterr().out
