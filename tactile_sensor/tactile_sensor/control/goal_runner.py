@@ -28,6 +28,9 @@ from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError, ServoHardwareError
 
 PREEMPTED = "preempted by a newer goal"
+REBOOTING = "the servo is being rebooted"
+REBOOTED = ("the servo was rebooted while this goal ran, and the reboot's hold replaced its "
+            "command; send the goal again")
 
 
 class GoalSlot:
@@ -111,6 +114,18 @@ class GoalRunner:
         velocity = (geometry.opening_rate_m_s(state.velocity_rad_s)
                     if state is not None else math.nan)
         return Snapshot(step, force[0] if force else math.nan, velocity)
+
+    def reboot(self, current_limit_a: float) -> None:
+        """Reboot the servo (clears a latched hardware error) and hold where the fingers
+        are. The goal running when it starts ends aborted, and so does one started while it
+        runs: the reboot's hold overwrites its command, and it would wait for a move that
+        never comes (a release once ran into its 10 s timeout that way). Raises the
+        servo's DynamixelError."""
+        self.slot.abort_active(REBOOTING)
+        try:
+            self.servo.reboot(current_limit_a)
+        finally:
+            self.slot.abort_active(REBOOTED)
 
     def stop(self, token: object) -> None:
         """A cancel's stop, unless the goal lost the fingers already; failures are logged."""

@@ -310,11 +310,11 @@ class GripperNode(Node):
 
     # -- recovery ----------------------------------------------------------------------------
     def _reboot(self) -> tuple[bool, str]:
-        servo = self._servo
-        if servo is None:
+        runner = self._runner
+        if runner is None:
             return False, "the gripper is not configured"
         try:
-            servo.reboot(self._values["current_limit"])
+            runner.reboot(self._values["current_limit"])
         except DynamixelError as exc:
             self.get_logger().error(f"reboot failed: {exc}")
             return False, str(exc)
@@ -324,7 +324,6 @@ class GripperNode(Node):
 
     def _on_reboot(self, request: Trigger.Request, response: Trigger.Response
                    ) -> Trigger.Response:
-        self._slot.abort_active("the servo is being rebooted")
         response.success, response.message = self._reboot()
         return response
 

@@ -19,6 +19,8 @@ from tactile_sensor.control.actions import (
 )
 from tactile_sensor.control.goal_runner import (
     PREEMPTED,
+    REBOOTED,
+    REBOOTING,
     GoalLink,
     GoalRunner,
     GoalSlot,
@@ -340,3 +342,35 @@ def test_a_late_tactile_force_still_settles_on_the_target(delay_s):
         held = rig.true_force(rig.client.position)
     assert end.status is GoalStatus.SUCCEEDED, end.message
     assert abs(held - 2.0) <= 0.05 * 2.0 + 1e-6
+
+
+def test_a_reboot_ends_the_running_goal_and_one_started_during_it():
+    """The reboot's hold overwrites whatever a goal commanded meanwhile; a release started
+    during an automatic reboot once waited for a move that never came until its 10 s
+    timeout. Both goals now end aborted, with a reason that says to send them again."""
+    with Rig() as rig:
+        entered, go_on = threading.Event(), threading.Event()
+        plain_reboot = rig.client.reboot
+
+        def slow_reboot(wait_s: float = 2.0) -> None:
+            entered.set()
+            go_on.wait(10.0)
+            plain_reboot(wait_s)
+
+        rig.client.reboot = slow_reboot
+        first, first_out = closing(rig)
+        rebooting, _ = in_thread(lambda: rig.runner.reboot(0.6))
+        assert entered.wait(10.0)
+        first.join()
+        rig.feedback.clear()
+        second, second_out = in_thread(
+            lambda: rig.run(accept_release, SimpleNamespace(opening=0.050), "second"))
+        while not rig.feedback:  # the release runs, its command written
+            rig.servo.await_sample(1.0)
+        go_on.set()
+        rebooting.join()
+        second.join()
+    assert first_out["end"].status is GoalStatus.ABORTED
+    assert first_out["end"].message == REBOOTING
+    assert second_out["end"].status is GoalStatus.ABORTED
+    assert second_out["end"].message == REBOOTED
