@@ -771,6 +771,10 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"soak: --minutes {args.minutes:g}: {exc}", file=sys.stderr)
         return 2
+    if args.keep is not None and args.keep.exists():
+        print(f"soak: --keep {args.keep} already exists; give a new folder (the soak writes its "
+              "bag and logs there and would mix them with another run's).", file=sys.stderr)
+        return 2
     with contextlib.ExitStack() as stack:
         if args.keep is not None:
             args.keep.mkdir(parents=True, exist_ok=False)

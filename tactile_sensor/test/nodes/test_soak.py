@@ -64,6 +64,18 @@ def test_a_run_too_short_for_every_fault_is_refused_before_anything_starts(
     assert not (tmp_path / "work").exists()
 
 
+def test_an_existing_keep_folder_is_refused_before_anything_starts(tmp_path: Path) -> None:
+    (tmp_path / "work").mkdir()
+    (tmp_path / "work" / "earlier.log").write_text("another run's\n")
+    done = subprocess.run([sys.executable, str(SOAK), "--minutes", "2",
+                           "--keep", str(tmp_path / "work")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "already exists; give a new folder" in done.stderr
+    assert "Traceback" not in done.stderr
+    assert [p.name for p in (tmp_path / "work").iterdir()] == ["earlier.log"]
+
+
 @pytest.mark.ros
 def test_a_node_that_does_not_come_up_is_named_and_everything_stops(
         spawn, ros_domain, own_processes, tmp_path: Path) -> None:
