@@ -1,0 +1,79 @@
+"""Where benchmarks keep what they measure: one JSON file per benchmark in
+``benchmarks/results/``, committed, so that the next change compares with this one and
+``make bench-report`` renders every figure with the command, commit, machine and date.
+
+A figure is a name, a value, its unit and, where one exists, the goal it is judged
+against. Absolute times carry from one machine to another poorly, so each file names the
+machine (cores, CPU model) it was measured on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import os
+import platform
+import shlex
+import subprocess
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One measured number: ``value`` in ``unit``, with the goal it answers, if any."""
+
+    name: str
+    value: float | int | str | None
+    unit: str = ""
+    goal: str = ""
+
+
+def machine() -> dict[str, object]:
+    """Cores and CPU model: absolute figures only compare on the same kind of machine."""
+    model = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"cores": os.cpu_count(), "cpu_model": model, "python": platform.python_version(),
+            "ros_distro": os.environ.get("DISTRO") or os.environ.get("ROS_DISTRO", "")}
+
+
+def commit() -> str:
+    """The checked-out commit, marked ``-dirty`` when the tree has uncommitted changes."""
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True,
+                              text=True, check=False).stdout.strip()
+    rev = git("rev-parse", "--short", "HEAD") or "unknown"
+    return f"{rev}-dirty" if git("status", "--porcelain", "--untracked-files=no") else rev
+
+
+def write_results(name: str, figures: list[Figure], *, notes: str = "",
+                  argv: list[str] | None = None, directory: Path | None = None) -> Path:
+    """Write ``benchmarks/results/<name>.json`` (replacing the last run's) and return it."""
+    argv = sys.argv if argv is None else argv
+    script = Path(argv[0])
+    with contextlib.suppress(ValueError):
+        script = script.resolve().relative_to(ROOT)
+    record = {
+        "benchmark": name,
+        "command": shlex.join(["python", str(script), *argv[1:]]),
+        "commit": commit(),
+        "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "machine": machine(),
+        "notes": notes,
+        "figures": [asdict(f) for f in figures],
+    }
+    out = (directory or RESULTS) / f"{name}.json"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(record, indent=2) + "\n")
+    return out
