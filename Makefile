@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test lint firmware demo demo-gripper demo-rate bench clean
+.PHONY: help setup build test test-fast lint firmware demo demo-gripper demo-rate bench clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -15,8 +15,11 @@ setup:  ## venv + pinned ROS 2 wheels of DISTRO + colcon build (idempotent)
 
 build: setup  ## alias of setup
 
-test:  ## setup if needed, ruff, pytest with ROS isolated per run
+test:  ## setup if needed, ruff, the whole suite with ROS isolated per run (what CI runs)
 	@bash scripts/test.sh
+
+test-fast:  ## ruff and every test that starts no process (a few minutes; before each commit)
+	@TACTILE_TEST_FAST=1 bash scripts/test.sh -m "not slow"
 
 firmware:  ## cross-compile the ADC sketch for Uno, Mega, Leonardo (avr-g++, -Werror), print sizes
 	@bash firmware/build-avr.sh

@@ -16,6 +16,13 @@ export TACTILE_TEST_DOMAIN_BASE="$base" ROS_DOMAIN_ID="$base"
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export MPLBACKEND=Agg
 export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
-echo "[test] pytest on ROS 2 $DISTRO (ROS_DOMAIN_ID base $base, localhost discovery)" >&2
+# Tests that start processes mostly wait (DDS discovery, protocols at device pace), so two
+# pytest-xdist workers overlap their waits; each worker takes whole files (module fixtures
+# are built once) and its own share of the domain ids (conftest.py: worker_domains).
+workers=${TACTILE_TEST_WORKERS:-2}
+xdist=()
+[ "$workers" -gt 1 ] && xdist=(-n "$workers" --dist loadfile)
+echo "[test] pytest on ROS 2 $DISTRO (ROS_DOMAIN_ID base $base, localhost discovery," \
+  "$workers worker(s))" >&2
 # A rerun attempt's failure is printed too, so a flaky test shows why it failed.
-exec python -m pytest --rerun-show-tracebacks "$@"
+exec python -m pytest "${xdist[@]}" --rerun-show-tracebacks "$@"

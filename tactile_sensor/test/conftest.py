@@ -8,6 +8,7 @@ never answer another. Child processes inherit the environment of ``make test`` (
 from __future__ import annotations
 
 import importlib.util
+import multiprocessing.process
 import os
 import shutil
 import signal
@@ -35,8 +36,29 @@ def domain_ids(base: int) -> range:
     return range(base, min(base + 100, MAX_DOMAIN_ID + 1))
 
 
-_DOMAINS = domain_ids(int(os.environ.get("TACTILE_TEST_DOMAIN_BASE",
-                                         str(os.getpid() % 50 + 20))))
+def worker_domains(ids: range, worker: str, workers: int) -> tuple[int, range]:
+    """This pytest-xdist worker's share of the run's ids: (its own default domain, the ids
+    its tests take in turn). Workers take every ``workers``-th id, so no two share one, and
+    each keeps its first id as the domain of the tests that start nodes in-process without
+    the ``ros_domain`` fixture (without it, two workers' in-process nodes would meet in the
+    run's base domain). Without xdist (``worker`` empty) the whole block is one worker's."""
+    index = int(worker.removeprefix("gw")) if worker.startswith("gw") else 0
+    if not 0 <= index < max(workers, 1):
+        raise pytest.UsageError(f"pytest-xdist worker {worker!r} is not one of {workers}.")
+    share = ids[index::max(workers, 1)]
+    if len(share) < 2:
+        raise pytest.UsageError(
+            f"{len(ids)} ROS domain ids cannot give each of {workers} pytest-xdist workers two; "
+            f"run fewer workers (-n) or a lower TACTILE_TEST_DOMAIN_BASE.")
+    return share[0], share[1:]
+
+
+_WORKER_DOMAIN, _DOMAINS = worker_domains(
+    domain_ids(int(os.environ.get("TACTILE_TEST_DOMAIN_BASE", str(os.getpid() % 50 + 20)))),
+    os.environ.get("PYTEST_XDIST_WORKER", ""),
+    int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ["ROS_DOMAIN_ID"] = str(_WORKER_DOMAIN)
 _counter = iter(range(10_000))
 
 
@@ -191,6 +213,50 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
         if missing and _needs_ros2_tools(item):
             item.add_marker(pytest.mark.skip(reason=f"ros2 launch/CLI test: {missing}"))
+        if _starts_processes(item):
+            item.add_marker(pytest.mark.slow)
+    # Files with slow tests first: pytest-xdist hands out whole files in this order, so the
+    # long ones start early and the short ones fill the gaps instead of one long file
+    # running alone at the end.
+    slow_files = {item.path for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: item.path not in slow_files)
+
+
+#: Fixtures that start processes: a test using one is slow by definition.
+PROCESS_FIXTURES = frozenset({"spawn", "ros2", "lifecycle_states", "own_processes"})
+
+
+def _starts_processes(item: pytest.Item) -> bool:
+    return (bool(PROCESS_FIXTURES & set(getattr(item, "fixturenames", ())))
+            or any(part in str(item.path) for part in ("/test/nodes/", "/test/launch/")))
+
+
+#: ``make test-fast`` sets this: the contributor's loop runs only tests that start no
+#: process (tests marked ``slow`` are deselected), and a test that starts one anyway fails
+#: with a sentence saying to mark it, so the fast loop stays fast as tests are added.
+FAST_LOOP = os.environ.get("TACTILE_TEST_FAST") == "1"
+_running: list[str] = [""]
+
+
+class ProcessInFastLoop(RuntimeError):
+    """A test that ``make test-fast`` runs started a process."""
+
+
+def _refuse_process(*_args: object, **_kwargs: object) -> None:
+    raise ProcessInFastLoop(
+        f"{_running[0] or 'a fixture'} starts a process, which 'make test-fast' does not run: "
+        "mark the test (or its module) pytest.mark.slow so that only 'make test' runs it.")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if FAST_LOOP:
+        subprocess.Popen.__init__ = _refuse_process  # type: ignore[method-assign]
+        multiprocessing.process.BaseProcess.start = _refuse_process  # type: ignore[method-assign]
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    _running[0] = item.nodeid
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:

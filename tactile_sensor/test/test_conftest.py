@@ -18,7 +18,8 @@ def _harness() -> ModuleType:  # conftest.py is not importable by name under --i
 
 
 harness = _harness()
-MAX_DOMAIN_ID, domain_ids = harness.MAX_DOMAIN_ID, harness.domain_ids
+MAX_DOMAIN_ID, domain_ids, worker_domains = (harness.MAX_DOMAIN_ID, harness.domain_ids,
+                                              harness.worker_domains)
 
 
 @pytest.mark.parametrize(("base", "first", "last"), [
@@ -37,3 +38,21 @@ def test_every_domain_id_handed_out_is_one_dds_accepts(base: int, first: int, la
 def test_a_base_outside_the_domain_ids_is_refused_in_one_sentence(base: int):
     with pytest.raises(pytest.UsageError, match=f"TACTILE_TEST_DOMAIN_BASE={base} is not"):
         domain_ids(base)
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3, 4])
+def test_xdist_workers_never_share_a_domain_id(workers: int):
+    shares = [worker_domains(domain_ids(20), f"gw{i}", workers) for i in range(workers)]
+    every = [own for own, _ in shares] + [i for _, ids in shares for i in ids]
+    assert len(every) == len(set(every)) == 100
+    assert all(len(ids) >= 20 for _, ids in shares)
+
+
+def test_without_xdist_the_whole_block_is_one_workers():
+    own, ids = worker_domains(domain_ids(20), "", 1)
+    assert own == 20 and (ids[0], ids[-1]) == (21, 119)
+
+
+def test_more_workers_than_domain_ids_is_refused_in_one_sentence():
+    with pytest.raises(pytest.UsageError, match="cannot give each of 8 pytest-xdist workers two"):
+        worker_domains(domain_ids(225), "gw0", 8)

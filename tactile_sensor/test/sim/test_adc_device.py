@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -75,19 +76,25 @@ def test_quiet_device_streams_the_source_exactly_at_its_rate(tmp_path):
     assert elapsed > 0.25  # paced in real time, not as fast as possible
 
 
-def raw_stream(path, seconds):
-    """Everything the device sent for ``seconds``, parsed (no reader in between)."""
-    parser, out = FrameParser(), []
+def raw_stream(path, frames, timeout_s=60.0):
+    """Everything the device sent until ``frames`` data frames arrived, parsed (no reader in
+    between). Counted in frames, the device's own time, never in wall-clock seconds: a busy
+    host reads fewer frames per second, not a different stream."""
+    parser, out, received = FrameParser(), [], 0
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
     try:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
+        deadline = time.monotonic() + timeout_s
+        while received < frames and time.monotonic() < deadline:
             try:
-                out += parser.feed(os.read(fd, 65536))
+                items = parser.feed(os.read(fd, 65536))
             except BlockingIOError:
                 time.sleep(0.01)
+                continue
+            out += items
+            received += sum(isinstance(i, Frame) for i in items)
     finally:
         os.close(fd)
+    assert received >= frames, f"{received} of {frames} frames within {timeout_s} s"
     return out
 
 
@@ -95,11 +102,17 @@ def test_version_2_states_its_adc_four_times_a_second(tmp_path):
     path = tmp_path / "adc"
     with MockAdcDevice(path, lambda t: 1.0, noise=QUIET, adc_bits=10, vref_v=3.3,
                        channels=2, rate_hz=500.0):
-        items = raw_stream(path, 1.1)
+        items = raw_stream(path, 550)  # 1.1 s of device time
     infos = [i for i in items if isinstance(i, DeviceInfo)]
     frames = [i for i in items if isinstance(i, Frame)]
     assert set(infos) == {DeviceInfo(2, 2, 10, 3.3, 2000, "mock")}
-    assert 4 <= len(infos) <= 5
+    # Every 0.25 s of device time = every 125th sample at 500 Hz, just before that sample,
+    # whatever the host's pace.
+    for before, item in itertools.pairwise(items):
+        assert isinstance(before, DeviceInfo) == (isinstance(item, Frame)
+                                                  and item.seq % 125 == 0), (before, item)
+    assert len(infos) >= (frames[-1].seq - frames[0].seq) // 125
+    assert len(infos) >= 4
     assert {f.version for f in frames} == {2}
     assert frames[-1].counts == (310, 310)  # round(1.0 V / 3.3 V * 1023)
 
@@ -107,7 +120,7 @@ def test_version_2_states_its_adc_four_times_a_second(tmp_path):
 def test_version_1_states_nothing(tmp_path):
     path = tmp_path / "adc"
     with MockAdcDevice(path, lambda t: 1.0, noise=QUIET, protocol=1):
-        items = raw_stream(path, 0.6)
+        items = raw_stream(path, 600)
     assert items and all(isinstance(i, Frame) and i.version == 1 for i in items)
 
 
