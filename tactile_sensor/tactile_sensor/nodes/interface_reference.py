@@ -308,7 +308,7 @@ def _default(spec: ParamSpec) -> str:
 def _endpoint_table(title: str, endpoints: Sequence[Endpoint], node: NodeInterface) -> list[str]:
     if not endpoints:
         return []
-    lines = [f"### {title}", "", "| name | type | what |", "| --- | --- | --- |"]
+    lines = [f"## {title}", "", "| name | type | what |", "| --- | --- | --- |"]
     for e in endpoints:
         when = (f" (only: {', '.join(sorted(e.variants))})"
                 if e.variants is not None and len(node.variants) > 1 else "")
@@ -338,7 +338,7 @@ def render(node: NodeInterface) -> str:
     lines += _endpoint_table("Subscribed topics", node.subscriptions, node)
     lines += _endpoint_table("Services", node.services, node)
     lines += _endpoint_table("Actions", node.actions, node)
-    lines += ["### Parameters", "",
+    lines += ["## Parameters", "",
               "| name | type | default | range | unit | applied | description |",
               "| --- | --- | --- | --- | --- | --- | --- |"]
     for spec in node.parameters:
