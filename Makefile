@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test test-fast lint firmware demo demo-gripper demo-rate bench clean
+.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate bench clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -20,6 +20,11 @@ test:  ## setup if needed, ruff, the whole suite with ROS isolated per run (what
 
 test-fast:  ## ruff and every test that starts no process (a few minutes; before each commit)
 	@TACTILE_TEST_FAST=1 bash scripts/test.sh -m "not slow"
+
+docs: setup  ## the ROS interface reference from the code, then docs/ to HTML (build/docs/html), warnings as errors
+	@. scripts/env.sh && python -m tactile_sensor.nodes.interface_reference docs/reference >/dev/null \
+		&& sphinx-build -W --keep-going -q -b html docs build/docs/html \
+		&& echo "docs: build/docs/html/index.html"
 
 firmware:  ## cross-compile the ADC sketch for Uno, Mega, Leonardo (avr-g++, -Werror), print sizes
 	@bash firmware/build-avr.sh
@@ -40,4 +45,4 @@ bench: setup  ## every benchmark in benchmarks/, printing its figures
 	@. scripts/env.sh && for b in benchmarks/bench_*.py; do echo "== $$b"; python "$$b" || exit 1; done
 
 clean:  ## remove the build products of DISTRO (keeps its venv)
-	rm -rf build/$(DISTRO) install/$(DISTRO) log/$(DISTRO) .cache demo-out
+	rm -rf build/$(DISTRO) install/$(DISTRO) log/$(DISTRO) build/docs .cache demo-out

@@ -18,13 +18,18 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import Node, TransitionCallbackReturn
 
 from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
+from tactile_sensor.nodes.parameters import ParamSpec
 from tactile_sensor.nodes.ros_session import ros_session
+
+#: Declared by every lifecycle node's executable (not by the node class, which a launch file
+#: or the in-process bringup drives through its transitions).
+AUTOSTART = ParamSpec("autostart", False, "configure and activate at start-up (for ros2 run)")
 
 
 def declare_autostart(node: Node) -> bool:
     return bool(node.declare_parameter(
-        "autostart", False,
-        ParameterDescriptor(description="configure and activate at start-up (for ros2 run)"),
+        AUTOSTART.name, AUTOSTART.default,
+        ParameterDescriptor(description=AUTOSTART.description),
     ).value)
 
 

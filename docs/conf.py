@@ -1,0 +1,22 @@
+"""Sphinx configuration of the tactile_sensor documentation: MyST Markdown pages.
+
+``make docs`` builds this folder with warnings as errors; on a robot rosdoc2 builds the same
+folder (``tactile_sensor/rosdoc2.yaml`` points its Sphinx builder here). rosdoc2 runs this
+file from a folder of its own, so nothing here depends on this file's location.
+"""
+
+project = "tactile_sensor"
+author = "tactile_sensor maintainers"
+copyright = "tactile_sensor maintainers"
+
+extensions = ["myst_parser"]
+source_suffix = {".md": "markdown"}
+root_doc = "index"
+exclude_patterns = ["_build"]
+
+# Section links such as [text](gripper.md#cancel-stopping-in-one-write).
+myst_heading_anchors = 3
+myst_enable_extensions = ["colon_fence"]
+
+html_theme = "sphinx_rtd_theme"  # the theme docs.ros.org's rosdoc2 pages use
+html_title = "tactile_sensor"
