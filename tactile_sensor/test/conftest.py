@@ -248,10 +248,17 @@ def _refuse_process(*_args: object, **_kwargs: object) -> None:
         "mark the test (or its module) pytest.mark.slow so that only 'make test' runs it.")
 
 
-def pytest_configure(config: pytest.Config) -> None:
-    if FAST_LOOP:
-        subprocess.Popen.__init__ = _refuse_process  # type: ignore[method-assign]
-        multiprocessing.process.BaseProcess.start = _refuse_process  # type: ignore[method-assign]
+@pytest.fixture(scope="session", autouse=True)
+def _fast_loop_starts_no_process() -> Iterator[None]:
+    """Set up before any module's fixtures, so that those are checked too."""
+    if not FAST_LOOP:
+        yield
+        return
+    saved = subprocess.Popen.__init__, multiprocessing.process.BaseProcess.start
+    subprocess.Popen.__init__ = _refuse_process  # type: ignore[method-assign,assignment]
+    multiprocessing.process.BaseProcess.start = _refuse_process  # type: ignore[method-assign]
+    yield
+    subprocess.Popen.__init__, multiprocessing.process.BaseProcess.start = saved
 
 
 @pytest.hookimpl(tryfirst=True)
