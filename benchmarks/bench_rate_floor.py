@@ -35,6 +35,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from results import Figure, write_results
+
 from tactile_sensor.analysis.calibration_fit import Calibration, fit_calibration
 from tactile_sensor.analysis.errors import RateFitError
 from tactile_sensor.analysis.rate_evaluation import (
@@ -77,9 +79,9 @@ def score(rows: list[PhaseError], full_scale_n: float) -> np.ndarray:
                       float(r.meets_goal(full_scale_n, True))) for r in rows])
 
 
-def summary(label: str, names: list[str], runs: list[np.ndarray]) -> None:
+def summary(label: str, names: list[str], runs: list[np.ndarray]) -> list[Figure]:
     if not runs:
-        return
+        return []
     a = np.stack(runs)  # (runs, rows, 3)
     print(f"\n{label}: {len(runs)} run(s)")
     print(f"{'row':<19} {'rate-aware [N] median (5-95 %)':>31} {'static [N]':>11} "
@@ -92,6 +94,9 @@ def summary(label: str, names: list[str], runs: list[np.ndarray]) -> None:
     print(f"rows meeting the goal: {a[:, :, 2].sum():.0f} of {a[:, :, 2].size} "
           f"({100 * a[:, :, 2].mean():.1f} %); runs meeting it in every row: {every} of "
           f"{len(runs)}")
+    return [Figure(f"{label}: rows meeting the goal", 100 * float(a[:, :, 2].mean()),
+                   f"% of {a[:, :, 2].size}"),
+            Figure(f"{label}: runs meeting it in every row", every, f"of {len(runs)}")]
 
 
 def plot(path: Path, names: list[str], exact: list[np.ndarray],
@@ -194,10 +199,10 @@ def main() -> int:
     limit = GOAL_SHARE_FS * float(np.median(full_scale))
     print(f"\nfull scale {np.median(full_scale):.3f} N: goal per row rate-aware <= "
           f"{GOAL_RATIO:g} x static and <= {limit:.3f} N (model error, {MODEL_CUTOFF_HZ:g} Hz)")
-    summary("exact model (noise and filter only)", names, exact)
-    summary("exact model, play state from the output (the driver's tracker)", names,
-            output_only)
-    summary("fitted model", names, fitted)
+    figures = summary("exact model (noise and filter only)", names, exact)
+    figures += summary("exact model, play state from the output (the driver's tracker)", names,
+                       output_only)
+    figures += summary("fitted model", names, fitted)
     if fitted:
         same = np.stack([exact[k] for k in fitted_seeds])
         alone = np.stack([output_only[k] for k in fitted_seeds])
@@ -207,6 +212,10 @@ def main() -> int:
     path = args.plot or Path(tempfile.mkdtemp(prefix="bench_rate_floor_")) / "floor.png"
     plot(path, names, exact, output_only, fitted, limit)
     print(f"figure: {path}")
+    write_results("rate_floor", figures, notes=f"{args.seeds} noise seeds of rate_check "
+                  f"offline, {len(fitted)} fitted; filter {args.filter}; goal per row: "
+                  f"rate-aware model error <= {GOAL_RATIO:g} x static and <= "
+                  f"{100 * GOAL_SHARE_FS:g} % of full scale ({limit:.3f} N).")
     return 0
 
 
