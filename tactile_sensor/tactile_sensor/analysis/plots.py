@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from .array import AXES, ArrayAnalysis
 from .characterise import Characterisation
@@ -103,6 +104,7 @@ def cycles_over_time(ch: Characterisation, path: Path) -> Path:
     ax_f.set_ylabel("force [N]")
     peaks = ch.repeatability.peaks_v
     ax2.plot(np.arange(1, peaks.size + 1), peaks, "o-", ms=3)
+    ax2.xaxis.set_major_locator(MaxNLocator(integer=True))  # no cycle 1.25
     ax2.set(xlabel="cycle", ylabel="peak output [V]")
     return _save(fig, path)
 
@@ -173,9 +175,10 @@ def force_estimates(ch: Characterisation, path: Path) -> Path:
         pad = (b - a) // 10
         idx = _thin(np.arange(max(0, a - pad), min(sig.t_s.size, b + pad)))
         t = sig.t_s[idx] - sig.t_s[a]
-        ax.plot(t, sig.force_n[idx], lw=1.2, color="tab:gray", label="gauge")
-        ax.plot(t, static_n[idx], lw=0.8, color="tab:blue", label="static curve")
-        ax.plot(t, rate_n[idx], lw=0.8, color="tab:red", label="rate-aware")
+        # the gauge drawn last: under the noisy estimates the reference cannot be seen
+        ax.plot(t, static_n[idx], lw=0.8, color="tab:blue", alpha=0.8, label="static curve")
+        ax.plot(t, rate_n[idx], lw=0.8, color="tab:red", alpha=0.8, label="rate-aware")
+        ax.plot(t, sig.force_n[idx], lw=1.4, color="black", zorder=3, label="gauge")
         ax.set(xlabel="time [s]", ylabel="force [N]", title=f"{key} mm/s")
     axes[0][0].legend(loc="upper right", fontsize=8)
     fig.suptitle("Force at each indentation speed: gauge, static and rate-aware estimates")
