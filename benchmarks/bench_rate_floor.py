@@ -106,7 +106,7 @@ def plot(path: Path, names: list[str], exact: list[np.ndarray],
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(9, 4.5))
+    fig, ax = plt.subplots(figsize=(10.5, 4.5))
     x = np.arange(len(names))
     for runs, dx, colour, label in ((exact, -0.2, "tab:blue", "exact model"),
                                     (output_only, 0.0, "tab:green", "exact, output only"),
@@ -121,10 +121,10 @@ def plot(path: Path, names: list[str], exact: list[np.ndarray],
     ax.scatter(x, GOAL_RATIO * static, marker="_", s=400, color="k",
                label=f"{GOAL_RATIO:g} x static (median)")
     ax.axhline(limit_n, color="tab:red", ls="--", label=f"{100 * GOAL_SHARE_FS:g} % FS")
-    ax.set_xticks(x, names, rotation=30)
+    ax.set_xticks(x, names, rotation=30, ha="right", rotation_mode="anchor")
     ax.set_ylabel(f"model error [N] (low-passed at {MODEL_CUTOFF_HZ:g} Hz)")
     ax.set_title("Rate check on the mock's noise: exact and fitted models against the goal")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # covers no row
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
