@@ -241,8 +241,8 @@ def bench_filters(seed: int, skin_kind: str) -> list[Figure]:
     for name, row in rows.items():
         noise_n = row["noise"] / PAPER_SENSITIVITY_V_PER_N
         dr = 20 * math.log10(PAPER_FULL_SCALE_N / noise_n)
-        figures += [Figure(f"{name}: lag at 1 mm/s", row["lag_0.001"], "ms"),
-                    Figure(f"{name}: lag at 10 mm/s", row["lag_0.01"], "ms"),
+        figures += [Figure(f"{name}: lag at 1 mm/s", round(row["lag_0.001"], 1), "ms"),
+                    Figure(f"{name}: lag at 10 mm/s", round(row["lag_0.01"], 1), "ms"),
                     Figure(f"{name}: RMS error at 1 mm/s", row["rms_0.001"] * 1e3, "mV"),
                     Figure(f"{name}: RMS error at 10 mm/s", row["rms_0.01"] * 1e3, "mV"),
                     Figure(f"{name}: noise σ at rest", row["noise"] * 1e3, "mV"),

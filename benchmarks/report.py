@@ -21,8 +21,8 @@ BENCHMARKS = ROOT / "benchmarks"
 
 
 def value_text(value: object, unit: str) -> str:
-    """Four significant digits: more than any of these timings repeat to on a shared
-    machine."""
+    """Four significant digits, more than any of these timings repeat to on a shared
+    machine; rates of thousands per second as whole numbers with separators."""
     if value is None:
         return "n/a"
     if isinstance(value, bool):
@@ -30,7 +30,7 @@ def value_text(value: object, unit: str) -> str:
     elif isinstance(value, int):
         text = f"{value:,}"
     elif isinstance(value, float):
-        text = f"{value:,.4g}" if abs(value) < 1e15 else f"{value:.4g}"
+        text = f"{value:,.0f}" if 1e3 <= abs(value) < 1e15 else f"{value:.4g}"
     else:
         text = str(value)
     return f"{text} {unit}".strip()

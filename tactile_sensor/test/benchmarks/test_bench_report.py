@@ -18,7 +18,8 @@ from results import Figure, ResultsError, read_results, write_results  # noqa: E
 
 def write_two(folder: Path) -> None:
     write_results("fem", [Figure("default sweep", 1.234567, "s", "<= 2 s", True),
-                          Figure("force at 3 mm", 7.1, "N")],
+                          Figure("force at 3 mm", 7.1, "N"),
+                          Figure("written", 110403.2, "messages/s")],
                   argv=["benchmarks/bench_fem.py", "--no-study"], directory=folder,
                   notes="load average 0.3")
     write_results("adc", [Figure("highest ingest rate", 40000, "frames/s", ">= 5000", False),
@@ -42,6 +43,7 @@ def test_page_holds_every_figure_with_command_commit_machine_and_date(tmp_path, 
     assert "`python benchmarks/bench_fem.py --no-study`" in fem
     assert "| default sweep | 1.235 s | <= 2 s: met |" in fem
     assert "| force at 3 mm | 7.1 N |  |" in fem
+    assert "| written | 110,403 messages/s |  |" in fem
     assert "load average 0.3" in fem
     record = json.loads((results / "fem.json").read_text())
     assert f"commit `{record['commit']}`" in fem
