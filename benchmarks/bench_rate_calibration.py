@@ -165,7 +165,7 @@ def main() -> int:
                     help="fit this many rate terms instead of choosing by held-out error")
     ap.add_argument("--play", choices=("auto", "on", "off"), default="auto",
                     help="play compensation: chosen by held-out error (auto), always, never "
-                         "(off: the model before play compensation)")
+                         "(off: no play term)")
     args = ap.parse_args()
     os.environ.setdefault("ROS_DOMAIN_ID", "171")
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
