@@ -41,6 +41,8 @@ import threading
 import time
 from pathlib import Path
 
+from results import Figure, write_results
+
 from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 
@@ -366,7 +368,6 @@ def report(cancels: list[float], node_events: list[dict], truth: dict,
     for key, values in stages.items():
         print(f"  {key:40s} {stats(values)}")
     import numpy as np
-    from results import Figure, write_results
 
     figures = [Figure(f"{key}: {label}", float(fn(values)) * 1e3, "ms")
                for key, values in stages.items() if values

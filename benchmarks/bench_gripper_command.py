@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from results import Figure, write_results
 
 from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
@@ -289,8 +290,6 @@ def measure(args: argparse.Namespace, rec: Recorder, closed: float, open_: float
     if args.plot is not None:
         plot(args.plot, rec, {m: trials[-1] for m, trials in runs.items()})
         print(f"\nplot: {args.plot}")
-    from results import Figure, write_results
-
     figures = []
     for max_effort, trials in runs.items():
         name = f"max_effort {max_effort:g} N" if max_effort else "position only"

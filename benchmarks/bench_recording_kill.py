@@ -32,6 +32,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from results import Figure, write_results
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
@@ -181,8 +182,6 @@ def main() -> int:
     print(f"time lost per kill: median {statistics.median(lost_spans):.2f} s, "
           f"max {max(lost_spans):.2f} s (flush period 0.5 s; publish stamp of the last "
           "recovered message to the kill)")
-    from results import Figure, write_results
-
     write_results("recording_kill", [
         Figure("time lost per kill: median", statistics.median(lost_spans), "s"),
         Figure("time lost per kill: max", max(lost_spans), "s")],

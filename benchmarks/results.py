@@ -93,6 +93,11 @@ def commit() -> str:
     return f"{rev}-dirty" if git("status", "--porcelain", "--untracked-files=no") else rev
 
 
+#: The commit a benchmark started on (this module is imported as it starts): a run of
+#: minutes may end after HEAD moved on.
+STARTED_ON = commit()
+
+
 def write_results(name: str, figures: list[Figure], *, notes: str = "",
                   argv: list[str] | None = None, directory: Path | None = None) -> Path:
     """Write ``benchmarks/results/<name>.json`` (replacing the last run's), say where, and
@@ -104,7 +109,7 @@ def write_results(name: str, figures: list[Figure], *, notes: str = "",
     record = {
         "benchmark": name,
         "command": shlex.join(["python", str(script), *argv[1:]]),
-        "commit": commit(),
+        "commit": STARTED_ON,
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "machine": machine(),
         "notes": notes,
