@@ -252,8 +252,9 @@ def _heatmap(ax: Axes, values: np.ndarray, rows: list[str], cols: list[str], tit
     ax.set_xticks(range(len(cols)), cols)
     ax.set_yticks(range(len(rows)), rows)
     for (r, c), v in np.ndenumerate(values):
+        dark = np.isfinite(v) and abs(v) > 0.6 * vmax  # black on deep red or blue is unreadable
         ax.text(c, r, f"{v:.2f}" if np.isfinite(v) else "n/a", ha="center", va="center",
-                fontsize=8)
+                fontsize=8, color="white" if dark else "black")
     ax.set_title(title, fontsize=9)
     plt.colorbar(image, ax=ax, shrink=0.8)
 
@@ -297,6 +298,10 @@ def array_shear_direction(an: ArrayAnalysis, path: Path) -> Path:
                    label="estimated (driver)")
         polar.set_title(f"lateral force direction [N radius], |F_lat,ref| >= "
                         f"{sh.threshold_n:.3g} N", fontsize=9)
+        # four radius labels between two spokes of the eight-direction protocol, not
+        # eight stacked on the 0 deg spoke
+        polar.yaxis.set_major_locator(MaxNLocator(4))
+        polar.set_rlabel_position(22.5)
         polar.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
         err_ax.plot(np.degrees(sh.applied_rad[idx]), np.degrees(sh.error_rad[idx]), ".", ms=2)
         err_ax.axhline(0.0, color="k", lw=0.6)
