@@ -206,14 +206,17 @@ def array_force_time(an: ArrayAnalysis, path: Path) -> Path:
     idx = _thin(np.arange(sig.t_s.size))
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for j, (ax, name) in enumerate(zip(axes, AXES, strict=True)):
-        ax.plot(sig.t_s[idx], sig.reference_n[idx, j], lw=0.8, color="tab:gray",
-                label="reference (gauge)")
-        ax.plot(sig.t_s[idx], sig.estimate_n[idx, j], lw=0.6, color="tab:red",
+        # the reference drawn last: under the noisy estimate it cannot be seen
+        ax.plot(sig.t_s[idx], sig.estimate_n[idx, j], lw=0.6, color="tab:red", alpha=0.8,
                 label="estimated (driver)")
+        ax.plot(sig.t_s[idx], sig.reference_n[idx, j], lw=0.9, color="black", zorder=3,
+                label="reference (gauge)")
         ax.set_ylabel(f"F{name} [N]")
         ax.set_title(f"F{name}: rmse {an.rmse_n[j]:.3g} N over a range of {an.range_n[j]:.3g} N",
-                     fontsize=9)
-    axes[0].legend(fontsize=8, loc="upper right")
+                     fontsize=9, loc="left")
+    # above the first panel, right of its title: inside, it covers a stretch of the trace
+    axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2,
+                   frameon=False, borderaxespad=0.1)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Estimated vs reference force per axis")
     return _save(fig, path, top=0.9)

@@ -96,3 +96,22 @@ def test_shear_direction_radius_labels_do_not_pile_up(tmp_path, monkeypatch):
     assert 2 <= len(labels) <= 5
     boxes = [label.get_window_extent(renderer) for label in labels]
     assert not any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+def test_force_time_legend_is_off_the_traces_and_the_reference_on_top(tmp_path, monkeypatch):
+    drawn = _drawn(monkeypatch)
+    t = np.linspace(0.0, 100.0, 2000)
+    reference = np.stack([2 * np.sin(t / 10), 2 * np.cos(t / 10), 7.0 * (t > 5)], axis=1)
+    signals = SimpleNamespace(t_s=t, reference_n=reference, estimate_n=reference + 0.1)
+    plots.array_force_time(SimpleNamespace(signals=signals, rmse_n=[0.1] * 3,
+                                           range_n=[4.0, 4.0, 7.0]), tmp_path / "f.png")
+    (fig, renderer), = drawn
+    top = fig.axes[0]
+    legend = top.get_legend().get_window_extent(renderer)
+    assert not legend.overlaps(top.get_window_extent(renderer))
+    assert not legend.overlaps(top.title.get_window_extent(renderer))
+    assert legend.x1 <= fig.bbox.x1 + 1
+    for ax in fig.axes:
+        lines = {line.get_label(): line for line in ax.get_lines()}
+        assert (lines["reference (gauge)"].get_zorder()
+                > lines["estimated (driver)"].get_zorder())
