@@ -3,17 +3,20 @@ generated page with their command, commit, machine and date; a bad file is one s
 
 from __future__ import annotations
 
+import importlib
 import json
 import sys
 from pathlib import Path
 
 import pytest
 
+# The scripts in benchmarks/ import each other by file name, as `python benchmarks/x.py` does.
 BENCHMARKS = Path(__file__).resolve().parents[3] / "benchmarks"
 sys.path.insert(0, str(BENCHMARKS))
-
-import report  # noqa: E402
-from results import Figure, ResultsError, read_results, write_results  # noqa: E402
+report = importlib.import_module("report")
+results = importlib.import_module("results")
+Figure, ResultsError = results.Figure, results.ResultsError
+read_results, write_results = results.read_results, results.write_results
 
 
 def write_two(folder: Path) -> None:
