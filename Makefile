@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate bench clean
+.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate bench bench-report clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -41,8 +41,12 @@ demo-gripper: setup  ## grasp the rod, hold, release on mock hardware
 demo-rate: setup  ## fit force across speeds on 'speeds', check it on unseen speeds with holds
 	@bash scripts/demo.sh rate
 
-bench: setup  ## every benchmark in benchmarks/, printing its figures
+bench: setup  ## every benchmark in benchmarks/: prints its figures, writes benchmarks/results/
 	@. scripts/env.sh && for b in benchmarks/bench_*.py; do echo "== $$b"; python "$$b" || exit 1; done
+	@python3 benchmarks/report.py
+
+bench-report:  ## render docs/benchmarks.md from benchmarks/results/*.json
+	@python3 benchmarks/report.py
 
 clean:  ## remove the build products of DISTRO (keeps its venv)
 	rm -rf build/$(DISTRO) install/$(DISTRO) log/$(DISTRO) build/docs .cache demo-out

@@ -35,6 +35,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SOURCE = ROOT / "tactile_sensor"
 sys.path.insert(0, str(SOURCE))
 
+from results import Figure, write_results  # noqa: E402
+
 from tactile_sensor.hardware.adc_frame import FrameParser, encode_frame  # noqa: E402
 from tactile_sensor.hardware.adc_reader import AdcStreamReader, Sample  # noqa: E402
 from tactile_sensor.sensing.calibration import Calibration  # noqa: E402
@@ -143,7 +145,7 @@ def ingest_run(rate_hz: float, seconds: float, skin_table: Path, workdir: Path) 
     return result
 
 
-def bench_ingest(rates: list[float], seconds: float) -> None:
+def bench_ingest(rates: list[float], seconds: float) -> list[Figure]:
     print("\n== ingest: mock ADC process -> pty -> AdcStreamReader -> SignalChain ==")
     parse_us, chain_us = chain_cost_us()
     print(f"offline cost per frame: parse {parse_us:.2f} µs + chain {chain_us:.2f} µs "
@@ -156,7 +158,7 @@ def bench_ingest(rates: list[float], seconds: float) -> None:
         table.write_text(json.dumps({"indentation_m": d.tolist(),
                                      "force_n": skin.force_n(d).tolist(),
                                      "voltage_v": skin.voltage_v(d).tolist()}))
-        best = 0.0
+        best, best_cpu = 0.0, float("nan")
         print(f"{'rate Hz':>9} {'ingested':>10} {'dropped':>8} {'crc':>5} {'hdr':>5} "
               f"{'resync':>6} {'dev lost B':>10} {'cpu %':>6}  {seconds:g} s each")
         for rate in rates:
@@ -167,9 +169,14 @@ def bench_ingest(rates: list[float], seconds: float) -> None:
                   f"{'ok' if r['ok'] else 'DROPS'}", flush=True)
             if not r["ok"]:
                 break
-            best = rate
+            best, best_cpu = rate, r["cpu_percent"]
     print(f"highest rate ingested with zero drops for {seconds:g} s: {best:,.0f} frames/s "
           f"(goal ≥ 5,000: {'met' if best >= 5000 else 'NOT met'})")
+    return [Figure("parse cost per frame (offline)", parse_us, "µs"),
+            Figure("signal chain cost per frame (offline)", chain_us, "µs"),
+            Figure(f"highest rate ingested with zero drops for {seconds:g} s", best,
+                   "frames/s", ">= 5000", best >= 5000),
+            Figure("reader process CPU at that rate", best_cpu, "%")]
 
 
 # -- 2. filters ------------------------------------------------------------------------------
@@ -198,7 +205,7 @@ def best_lag_ms(out: np.ndarray, truth: np.ndarray, mask: np.ndarray, rate_hz: f
     return float(shifts[int(np.argmin(rms))] / rate_hz * 1e3)
 
 
-def bench_filters(seed: int, skin_kind: str) -> None:
+def bench_filters(seed: int, skin_kind: str) -> list[Figure]:
     print("\n== filters: one simulated press at 1 kHz, paper-level noise ==")
     rate = 1000.0
     skin = load_skin(skin_kind)
@@ -230,9 +237,16 @@ def bench_filters(seed: int, skin_kind: str) -> None:
                 row["noise"] = float(np.std(out[rest]))
     print(f"{'filter':>15} {'lag 1mm/s':>10} {'lag 10mm/s':>11} {'rms err 1':>10} "
           f"{'rms err 10':>11} {'noise σ':>9} {'noise':>7} {'DR':>7}")
+    figures = []
     for name, row in rows.items():
         noise_n = row["noise"] / PAPER_SENSITIVITY_V_PER_N
         dr = 20 * math.log10(PAPER_FULL_SCALE_N / noise_n)
+        figures += [Figure(f"{name}: lag at 1 mm/s", round(row["lag_0.001"], 1), "ms"),
+                    Figure(f"{name}: lag at 10 mm/s", round(row["lag_0.01"], 1), "ms"),
+                    Figure(f"{name}: RMS error at 1 mm/s", row["rms_0.001"] * 1e3, "mV"),
+                    Figure(f"{name}: RMS error at 10 mm/s", row["rms_0.01"] * 1e3, "mV"),
+                    Figure(f"{name}: noise σ at rest", row["noise"] * 1e3, "mV"),
+                    Figure(f"{name}: dynamic range", dr, "dB")]
         print(f"{name + (' *' if name == DEFAULT_FILTER else ''):>15} "
               f"{row['lag_0.001']:8.1f}ms {row['lag_0.01']:9.1f}ms "
               f"{row['rms_0.001'] * 1e3:8.1f}mV {row['rms_0.01'] * 1e3:9.1f}mV "
@@ -244,6 +258,11 @@ def bench_filters(seed: int, skin_kind: str) -> None:
           f"{best['lag_0.001']:.1f}/{best['lag_0.01']:.1f} ms vs "
           f"{ma['lag_0.001']:.1f}/{ma['lag_0.01']:.1f} ms, noise {best['noise'] * 1e3:.1f} vs "
           f"{ma['noise'] * 1e3:.1f} mV -> goal {'met' if less_lag and quieter else 'NOT met'}")
+    figures.append(Figure(f"default filter ({DEFAULT_FILTER}) against the 9-point average",
+                          "less lag and no more noise" if less_lag and quieter else
+                          "more lag or more noise", "",
+                          "less lag at both speeds, noise no higher", less_lag and quieter))
+    return figures
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -260,10 +279,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skip-ingest", action="store_true")
     parser.add_argument("--skip-filters", action="store_true")
     args = parser.parse_args(argv)
+    figures: list[Figure] = []
     if not args.skip_filters:
-        bench_filters(args.seed, args.skin)
+        figures += bench_filters(args.seed, args.skin)
     if not args.skip_ingest:
-        bench_ingest([float(r) for r in args.rates.split(",")], args.seconds)
+        figures += bench_ingest([float(r) for r in args.rates.split(",")], args.seconds)
+    write_results("adc", figures, notes="Filters: one simulated press at 1 kHz with the "
+                  "paper's noise; lag on the noise-free press. Ingest: mock ADC in its own "
+                  "process streaming on a pseudo-terminal.")
     return 0
 
 

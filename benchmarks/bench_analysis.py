@@ -18,6 +18,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from results import Figure, write_results
 from rosbags.rosbag2 import Reader
 
 from tactile_sensor.analysis import cli
@@ -68,6 +69,7 @@ def main() -> None:
         root = args.keep or Path(stack.enter_context(tempfile.TemporaryDirectory()))
         root.mkdir(parents=True, exist_ok=True)
         signals = None
+        figures: list[Figure] = []
         print(f"{args.cycles} cycles at 1 mm/s, 3 mm, {args.rate:g} Hz, three topics")
         for storage in args.storage:
             bag = root / f"press_{args.cycles}_{int(args.rate)}_{storage}"
@@ -81,6 +83,14 @@ def main() -> None:
             full = analysis_s(bag, root / f"out_{storage}")
             print(f"{storage:8s} messages {n:9d}  rosbags read+deserialize {base:7.2f} s  "
                   f"analysis {full:7.2f} s  ratio {full / base:5.2f}x (goal <= 1.5x)")
+            figures += [Figure(f"{storage}: messages", n),
+                        Figure(f"{storage}: rosbags read + deserialize", base, "s"),
+                        Figure(f"{storage}: full analysis", full, "s"),
+                        Figure(f"{storage}: analysis / baseline", full / base, "x", "<= 1.5",
+                               full / base <= 1.5)]
+    write_results("analysis", figures, notes=f"{args.cycles} cycles at 1 mm/s to 3 mm, "
+                  f"{args.rate:g} Hz, three topics; the baseline reads the same topics with "
+                  "rosbags and deserializes every message.")
 
 
 if __name__ == "__main__":

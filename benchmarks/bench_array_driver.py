@@ -171,6 +171,13 @@ def main() -> int:
               f"{end_lost.get(name, 'no diagnostics')})")
     print(f"  CPU ratio array / single: {cpu['array'] / max(cpu['single'], 1e-9):.2f} "
           f"(goal <= 1.5); array readings with 4 outputs: {lateral['array']}")
+    from results import Figure, write_results
+
+    ratio = cpu["array"] / max(cpu["single"], 1e-9)
+    write_results("array_driver", [
+        *(Figure(f"{name} driver CPU", cpu[name], "% of one core") for name in runs),
+        Figure("CPU ratio array / single", ratio, "", "<= 1.5", ratio <= 1.5)],
+        notes=f"Two drivers at {args.rate:g} Hz side by side for {span:.1f} s.")
     return 0
 
 

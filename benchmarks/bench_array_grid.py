@@ -23,6 +23,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from results import Figure, write_results
+
 from tactile_sensor.physics.array_grid import ArrayGrid, LoadPath, compute_grid, solve_path
 from tactile_sensor.physics.array_report import fit_grid, summary
 from tactile_sensor.physics.params import PhysicsParams
@@ -60,8 +62,10 @@ def main() -> None:
     print(load(), flush=True)
     start = time.perf_counter()
     curve = compute_curve(PhysicsParams())
-    print(f"default single-module sweep (extrapolated): {time.perf_counter() - start:.2f} s, "
+    sweep_s = time.perf_counter() - start
+    print(f"default single-module sweep (extrapolated): {sweep_s:.2f} s, "
           f"force {curve.force_n[-1]:.4f} N, output {curve.output_v[-1]:.4f} V", flush=True)
+    figures = [Figure("default single-module sweep", sweep_s, "s")]
     params = PhysicsParams(modules="front,back,left,right")
     for workers in args.workers:
         start = time.perf_counter()
@@ -69,13 +73,20 @@ def main() -> None:
         seconds = time.perf_counter() - start
         print(f"grid with {workers} worker(s): {seconds:.1f} s for {grid.paths} paths, "
               f"{grid.indentation_m.size} points (goal <= 300 s); {load()}", flush=True)
+        figures.append(Figure(f"grid ({grid.paths} paths) with {workers} worker(s)", seconds,
+                              "s", "<= 300 s", seconds <= 300))
     calibration, report = fit_grid(grid, args.degree)
     print(summary(report, params, "off (benchmark)"))
+    figures += [Figure(f"held-out F{axis} rmse", report["held_out_rmse_percent_of_range"][axis],
+                       "% of range") for axis in report["held_out_rmse_n"]]
     if not args.no_off_grid:
-        off_grid(params, calibration, grid)
+        figures += off_grid(params, calibration, grid)
+    write_results("array_grid", figures, notes=f"Four-module grid computed cold; {load()} "
+                  "at the end.")
 
 
-def off_grid(params: PhysicsParams, calibration: ArrayCalibration, grid: ArrayGrid) -> None:
+def off_grid(params: PhysicsParams, calibration: ArrayCalibration, grid: ArrayGrid
+             ) -> list[Figure]:
     """The calibration's error at 22.5 deg, halfway between two grid directions."""
     theta = np.radians(22.5)
     start = time.perf_counter()
@@ -97,6 +108,8 @@ def off_grid(params: PhysicsParams, calibration: ArrayCalibration, grid: ArrayGr
               f"{axis} rmse {r * 1e3:.1f} mN ({100 * r / w:.2f} % of range), max "
               f"{np.abs(e).max() * 1e3:.1f} mN"
               for axis, r, w, e in zip("xyz", rmse, span, error.T, strict=True)))
+    return [Figure(f"off-grid (22.5 deg) F{axis} rmse", 100 * r / w, "% of range")
+            for axis, r, w in zip("xyz", rmse, span, strict=True)]
 
 
 if __name__ == "__main__":

@@ -21,6 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from results import Figure, write_results
+
 GOALS_PCT = {"x": 10.0, "y": 10.0, "z": 5.0}
 
 
@@ -55,6 +57,7 @@ def main() -> int:
           f"{t2 - t1:.1f} s, {array['samples']} samples at {array['sample_rate_hz']:.0f} Hz, "
           f"load average {os.getloadavg()[0]:.1f}")
     met = True
+    figures = [Figure("bringup", t1 - t0, "s"), Figure("analysis", t2 - t1, "s")]
     for axis in "xyz":
         rmse, span = mt["force_rmse_n"][axis], mt["force_range_n"][axis]
         pct = 100 * rmse / span if span else float("nan")
@@ -62,11 +65,15 @@ def main() -> int:
         met &= ok
         print(f"  F{axis}: rmse {rmse:.3f} N over a {span:.2f} N range = {pct:.2f} % "
               f"(goal <= {GOALS_PCT[axis]:g} %: {'met' if ok else 'NOT met'})")
+        figures.append(Figure(f"F{axis} rmse", pct, "% of range", f"<= {GOALS_PCT[axis]:g} %",
+                              ok))
     shear = array.get("shear_direction")
     if shear:
         print(f"  shear direction where |F_lateral| >= {shear['threshold_n']:.2f} N: median "
               f"|error| {shear['median_abs_deg']:.1f} deg, rmse {shear['rmse_deg']:.1f} deg, "
               f"max {shear['max_abs_deg']:.1f} deg over {shear['samples']} samples")
+        figures += [Figure("shear direction median |error|", shear["median_abs_deg"], "deg"),
+                    Figure("shear direction max |error|", shear["max_abs_deg"], "deg")]
     sens = array.get("sensitivity_matrix")
     if sens:
         print("  sensitivity matrix [V/N] (rows: modules; columns: Fx, Fy, Fz):")
@@ -75,6 +82,9 @@ def main() -> int:
                                            for v in row))
     print(f"  figures and report: {out}")
     print("goals " + ("met" if met else "NOT met"))
+    write_results("array_shear", figures, notes=f"Protocol {args.protocol} on mock hardware "
+                  f"through `tactile-sensor bringup array`, {array['samples']} samples; load "
+                  f"average {os.getloadavg()[0]:.1f} at the end.")
     return 0
 
 

@@ -26,6 +26,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from results import Figure, write_results
+
 from tactile_sensor.physics.array_grid import grid_params
 from tactile_sensor.physics.fem import SkinModel
 from tactile_sensor.physics.params import PhysicsParams
@@ -47,6 +49,7 @@ def main() -> None:
           f"{'R-L':>7} {'R-L/out':>7} {'bulge':>6} {'time':>5}")
     print(f"{'[mm]':>8} {'[mm]':>5} {'[N]':>6} {'[V/N]':>7} {'[N]':>6} {'[V/N]':>7} "
           f"{'[V]':>7} {'':>7} {'[mm]':>6} {'[s]':>5}")
+    figures: list[Figure] = []
     for zc in args.heights:
         start = time.perf_counter()
         band = args.band if args.band is not None else zc + 3.0
@@ -63,6 +66,15 @@ def main() -> None:
               f"{normal / pure.force_n[-1]:7.4f} {shear.force_x_n[-1]:6.3f} "
               f"{diff / shear.force_x_n[-1]:7.4f} {diff:7.4f} {diff / normal:7.2f} "
               f"{bulge * 1e3:6.3f} {time.perf_counter() - start:5.1f}", flush=True)
+        at = f"window at {zc:g} mm"
+        figures += [Figure(f"{at}: normal sensitivity", normal / pure.force_n[-1], "V/N"),
+                    Figure(f"{at}: shear sensitivity", diff / shear.force_x_n[-1], "V/N"),
+                    Figure(f"{at}: shear signal / normal output", diff / normal),
+                    Figure(f"{at}: largest bulge", bulge * 1e3, "mm", "< 2 mm gap",
+                           bulge < 2e-3)]
+    write_results("array_window", figures, notes=f"Mesh scale {args.scale:g}, shear "
+                  f"{args.shear:g} mm, band " + (f"{args.band:g} mm" if args.band is not None
+                                                 else "window centre + 3 mm") + ".")
 
 
 if __name__ == "__main__":

@@ -68,6 +68,11 @@ def main() -> int:
             print(f"driver CPU, {name} against static: {cpu[model]:.1f} % vs "
                   f"{cpu['static']:.1f} % of one core "
                   f"({100 * (cpu[model] / cpu['static'] - 1):+.1f} %; goal: at most +10 %)")
+    from results import Figure, write_results
+
+    write_results("driver", [Figure(f"driver CPU, {m} calibration", c, "% of one core")
+                             for m, c in cpu.items()],
+                  notes=f"{args.rate:g} Hz for {args.seconds:g} s per calibration.")
     return 0
 
 

@@ -34,6 +34,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from results import Figure, write_results
+
 from tactile_sensor.physics.errors import ConvergenceError
 from tactile_sensor.physics.fem import SkinModel, SweepResult, richardson
 from tactile_sensor.physics.params import PhysicsParams
@@ -98,18 +100,30 @@ def main() -> None:
           f"{base.max_indentation * 1e3:.1f} mm force {f:.3f} N, bulge "
           f"{curve.bulge_m[-1] * 1e3:.4f} mm, output {o:.4f} V, sensitivity {o / f:.4f} V/N",
           flush=True)
+    at = f"at {base.max_indentation * 1e3:.1f} mm"
+    figures = [Figure("default prediction: solve", curve.seconds, "s"),
+               Figure("default prediction: total", total, "s"),
+               Figure(f"force {at}", f, "N", "about 7 N (paper)"),
+               Figure(f"output {at}", o, "V"),
+               Figure("sensitivity", o / f, "V/N", "about 0.07 V/N (paper)")]
+    notes = (f"Load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at the start, "
+             f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}.")
     if "--7k" in sys.argv:
         raw(base.replace(mesh_nx=12, mesh_ny=12, mesh_nz=42), "quarter mesh >= 7005 nodes")
     half, default = raw(scaled(base, 0.5), "half mesh"), raw(base, "default mesh")
     print(f"raw default sweep {default.seconds:.2f} s; half {half.seconds:.2f} s; "
           f"load average now {os.getloadavg()[0]:.1f}", flush=True)
+    figures += [Figure("raw default-mesh sweep", default.seconds, "s"),
+                Figure("raw half-mesh sweep", half.seconds, "s")]
     if "--no-study" in sys.argv:
+        write_results("fem", figures, notes=notes)
         return
     fine_params = scaled(base, 2.0)
     try:
         fine = raw(fine_params, "2x finer mesh", verbose=True)
     except ConvergenceError as exc:
         print(f"2x finer mesh ({fine_params.steps} steps): no result: {exc}")
+        write_results("fem", figures, notes=f"{notes} The 2x finer mesh did not converge.")
         return
     f1, b1 = extrapolate(base, default, half)
     f2, b2 = extrapolate(fine_params, fine, default)
@@ -118,6 +132,10 @@ def main() -> None:
     print(f"mesh study, extrapolated (the product's curve): force {f1:.4f} -> {f2:.4f} N "
           f"({change(f1, f2)}), bulge {b1 * 1e3:.5f} -> {b2 * 1e3:.5f} mm ({change(b1, b2)}); "
           "target < 2 %")
+    figures += [Figure("mesh study: extrapolated force change on a 2x finer mesh",
+                       100 * abs(f2 / f1 - 1), "%", "< 2 %", abs(f2 / f1 - 1) < 0.02),
+                Figure("mesh study: extrapolated bulge change on a 2x finer mesh",
+                       100 * abs(b2 / b1 - 1), "%", "< 2 %", abs(b2 / b1 - 1) < 0.02)]
     for name, key in (("force", "force_n"), ("bulge", "bulge_m")):
         a, b, c = (getattr(r, key)[1:] for r in (half, default, fine))
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -136,6 +154,9 @@ def main() -> None:
                              default.nodes, default.seconds)
     print(f"default mesh alone, for comparison: sensitivity "
           f"{plain.output_v[-1] / plain.force_n[-1]:.4f} V/N")
+    figures.append(Figure("sensitivity, default mesh alone",
+                          plain.output_v[-1] / plain.force_n[-1], "V/N"))
+    write_results("fem", figures, notes=notes)
 
 
 if __name__ == "__main__":

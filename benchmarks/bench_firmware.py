@@ -5,7 +5,7 @@
    stimulus voltages from 1 % to 99 % of its reference. The host turns counts into volts
    with what the device states in its info frame (nothing configured), exactly as the
    driver does; the error against the stimulus is reported in mV and in codes (LSB), with
-   what the old fixed setting (12 bit, 5 V) made of the Uno's codes.
+   what a fixed setting of 12 bit, 5 V (the info frame ignored) makes of the Uno's codes.
 2. Size: ``firmware/build-avr.sh`` (``make firmware``) when avr-g++ is installed.
 
 Run from the repository root after ``. scripts/env.sh``: ``python benchmarks/bench_firmware.py
@@ -27,6 +27,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tactile_sensor"))
+
+from results import Figure, write_results  # noqa: E402
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo  # noqa: E402
 from tactile_sensor.hardware.adc_reader import AdcStreamReader, Sample  # noqa: E402
@@ -76,7 +78,7 @@ def report(board: Board, info: DeviceInfo, stimulus: np.ndarray, counts: np.ndar
           f"mV; 1 LSB = {lsb * 1e3:.2f} mV")
     if board is UNO:
         old = counts * AdcConversion(12, 5.0).volts_per_count - stimulus
-        print(f"  the same codes read with the old fixed 12 bit, 5 V: worst error "
+        print(f"  the same codes read as a fixed 12 bit, 5 V: worst error "
               f"{np.max(np.abs(old)):.2f} V (volts x {np.median(1 + old / stimulus):.3f})")
     return errors
 
@@ -105,6 +107,7 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=200, help="stimulus voltages per build")
     parser.add_argument("--plot", type=Path, default=None, help="write the error plot here")
     args = parser.parse_args()
+    figures: list[Figure] = []
     with tempfile.TemporaryDirectory() as tmp:
         results = {}
         for board in (UNO, PICO):
@@ -114,17 +117,26 @@ def main() -> int:
             info, stimulus, counts = sweep(board, exe, Path(tmp) / f"{board.name}.pty",
                                            args.steps)
             errors = report(board, info, stimulus, counts)
-            results[board.name] = (stimulus, errors, info.vref_v / (1 << info.adc_bits))
+            lsb = info.vref_v / (1 << info.adc_bits)
+            results[board.name] = (stimulus, errors, lsb)
+            worst = float(np.max(np.abs(errors)))
+            figures += [Figure(f"{board.name}: worst codes -> volts error", worst * 1e3, "mV"),
+                        Figure(f"{board.name}: worst error in codes", worst / lsb, "LSB"),
+                        Figure(f"{board.name}: RMS error",
+                               float(np.sqrt(np.mean(errors ** 2))) * 1e3, "mV")]
     if args.plot is not None:
         plot(args.plot, results)
+    notes = f"{args.steps} stimulus voltages per build, from 1 % to 99 % of the reference."
     if shutil.which("avr-g++") is None:
         print("size: avr-g++ not installed (apt-get install gcc-avr avr-libc arduino-core-avr)")
+        write_results("firmware", figures, notes=f"{notes} AVR sizes not measured (no avr-g++).")
         return 0
     started = time.monotonic()
     subprocess.run(["bash", str(ROOT / "firmware" / "build-avr.sh")], check=True,
                    env={"FIRMWARE_OUT": str(Path(tempfile.gettempdir()) / "tactile-firmware"),
                         "PATH": "/usr/bin:/bin"})
     print(f"make firmware took {time.monotonic() - started:.1f} s")
+    write_results("firmware", figures, notes=f"{notes} AVR sizes: see `make firmware`.")
     return 0
 
 

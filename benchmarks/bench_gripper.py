@@ -26,6 +26,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tactile_sensor"))
 
+from results import Figure, write_results  # noqa: E402
+
 from tactile_sensor.control.grasp import (  # noqa: E402
     GraspConfig,
     GraspController,
@@ -154,11 +156,14 @@ def main() -> int:
     seconds = 1.0 if args.quick else 3.0
 
     print("control-loop rate, read_state() = one Sync Read, emulator in its own process")
+    figures: list[Figure] = []
     for baud in (1_000_000, 4_000_000):
         for delay in (250, 0):
             rate, lost = loop_rate(baud, delay, seconds)
             print(f"  {baud / 1e6:.0f} Mbps, Return Delay Time {delay:3d} "
                   f"({delay * 2:3d} us): {rate:6.0f} Hz  ({lost} timeouts)")
+            figures.append(Figure(f"control-loop rate at {baud / 1e6:.0f} Mbps, Return Delay "
+                                  f"{delay * 2} us", rate, "Hz"))
 
     skin_model, source = skin()
     print(f"\ngrasp overshoot past {TARGET_FORCE_N} N (skin: {source}; tactile: "
@@ -182,6 +187,11 @@ def main() -> int:
                         over, final, rate = grasp_once(client, world, t0, config, speed)
                         print(f"    {speed * 1e3:4.0f} mm/s: overshoot {over:+.2f} N "
                               f"(held {final:.2f} N), loop {rate:.0f} Hz")
+                        figures.append(Figure(f"overshoot at {speed * 1e3:.0f} mm/s, {label}",
+                                              over, "N"))
+    write_results("gripper", figures, notes=f"Grasp to {TARGET_FORCE_N:g} N on the XM430 "
+                  f"emulator (skin: {source}); tactile force through a {AVERAGE_POINTS}-point "
+                  f"moving average at 1 kHz and {TRANSPORT_DELAY_S * 1e3:.0f} ms transport.")
     return 0
 
 

@@ -22,7 +22,8 @@ Stages (all on CLOCK_MONOTONIC, shared by the processes; ROS stamps converted):
 Run: python benchmarks/bench_gripper_cancel.py [--trials 20] [--force-rate 250]
 (needs the built workspace: ``. scripts/env.sh``; ROS_DOMAIN_ID defaults to 121).
 A/B switches for the node: BENCH_SWITCH_INTERVAL=0.005 (Python's default GIL switch
-interval), BENCH_READ_FIRST=1 (the stop reads the servo first: two transactions, as before).
+interval), BENCH_READ_FIRST=1 (the stop reads the servo first: two transactions instead of
+one write).
 """
 
 from __future__ import annotations
@@ -39,6 +40,8 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+
+from results import Figure, write_results
 
 from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
@@ -130,7 +133,7 @@ def run_node(ros_args: list[str]) -> int:
     gripper.GripperNode._on_cancel = timed_cancel  # type: ignore[method-assign]
     Xm430Client.write_items = timed_write  # type: ignore[method-assign]
     Xm430Client.read_state = timed_read  # type: ignore[method-assign]
-    if os.environ.get("BENCH_READ_FIRST"):  # A/B: the stop reads the servo first (old way)
+    if os.environ.get("BENCH_READ_FIRST"):  # A/B: the stop reads the servo first
         stop = gripper.GripperNode._stop
 
         def read_first(self, goal_handle):  # type: ignore[no-untyped-def]
@@ -364,6 +367,17 @@ def report(cancels: list[float], node_events: list[dict], truth: dict,
           f"{one_write} stopped with one write from the last sample, the rest read first:")
     for key, values in stages.items():
         print(f"  {key:40s} {stats(values)}")
+    import numpy as np
+
+    figures = [Figure(f"{key}: {label}", float(fn(values)) * 1e3, "ms")
+               for key, values in stages.items() if values
+               for label, fn in (("median", np.median), ("p90", lambda v: np.percentile(v, 90)),
+                                 ("max", np.max))]
+    variant = ", ".join(f"{k}={os.environ[k]}" for k in ("BENCH_SWITCH_INTERVAL",
+                                                         "BENCH_READ_FIRST") if k in os.environ)
+    write_results("gripper_cancel", figures, notes=f"{len(cancels)} cancels at "
+                  f"{FINGER_SPEED_M_S * 1e3:.0f} mm/s finger speed; {one_write} stopped with "
+                  "one write" + (f"; node variant {variant}" if variant else "") + ".")
 
 
 def main() -> int:

@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from results import Figure, write_results
 
 from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
@@ -289,6 +290,18 @@ def measure(args: argparse.Namespace, rec: Recorder, closed: float, open_: float
     if args.plot is not None:
         plot(args.plot, rec, {m: trials[-1] for m, trials in runs.items()})
         print(f"\nplot: {args.plot}")
+    figures = []
+    for max_effort, trials in runs.items():
+        name = f"max_effort {max_effort:g} N" if max_effort else "position only"
+        for key, label, unit, scale in (("rest", "goal -> at rest", "s", 1.0),
+                                        ("result", "goal -> result", "s", 1.0),
+                                        ("peak", "peak force", "N", 1.0),
+                                        ("held", "held force", "N", 1.0),
+                                        ("opening", "result opening", "mm", 1e3)):
+            figures.append(Figure(f"{name}: {label}",
+                                  float(np.median([t[key] for t in trials])) * scale, unit))
+    write_results("gripper_command", figures, notes=f"Median of {args.trials} closes per "
+                  "condition into the 20 mm rod, launched with `ros2 launch`.")
     return 0
 
 

@@ -33,6 +33,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from results import Figure, write_results
+
 from tactile_sensor.analysis.characterise import Characterisation, Options, analyse_bag
 from tactile_sensor.analysis.rate_evaluation import (
     GOAL_RATIO,
@@ -163,7 +165,7 @@ def main() -> int:
                     help="fit this many rate terms instead of choosing by held-out error")
     ap.add_argument("--play", choices=("auto", "on", "off"), default="auto",
                     help="play compensation: chosen by held-out error (auto), always, never "
-                         "(off: the model before play compensation)")
+                         "(off: no play term)")
     args = ap.parse_args()
     os.environ.setdefault("ROS_DOMAIN_ID", "171")
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -240,6 +242,20 @@ def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit
                                       exact_rows(check, rec))
     print(f"goal per-sample RMSE: {verdict(sample_ok)}; goal on the model error: "
           f"{verdict(model_ok)}")
+    full_scale_n = float(check.metrics["full_scale_n"])
+    goal = f"<= {GOAL_RATIO:g} x static and <= {100 * GOAL_SHARE_FS:g} % FS"
+    figures = [Figure("fit (incl. reading)", fit_s, "s"), Figure("rate terms fitted", fit.terms)]
+    for r in rows:
+        row = f"{r.speed_mm_s:g} mm/s {r.phase}"
+        figures += [Figure(f"{row}: static model error", r.static_model_rmse_n, "N"),
+                    Figure(f"{row}: rate-aware model error", r.rate_model_rmse_n, "N", goal,
+                           bool(r.meets_goal(full_scale_n, True)))]
+    figures += [Figure("every row, per-sample RMSE", verdict(sample_ok), "", goal, sample_ok),
+                Figure("every row, model error", verdict(model_ok), "", goal, model_ok)]
+    write_results("rate_calibration", figures, notes=f"Fitted on {fit_run.recording.path.name}"
+                  f", scored on {check.recording.path.name} against a static curve fitted on "
+                  f"its own ramps; full scale {full_scale_n:.3f} N; model error low-passed at "
+                  f"{MODEL_CUTOFF_HZ:g} Hz.")
     return 0
 
 

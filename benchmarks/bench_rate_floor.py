@@ -35,6 +35,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from results import Figure, write_results
+
 from tactile_sensor.analysis.calibration_fit import Calibration, fit_calibration
 from tactile_sensor.analysis.errors import RateFitError
 from tactile_sensor.analysis.rate_evaluation import (
@@ -77,9 +79,9 @@ def score(rows: list[PhaseError], full_scale_n: float) -> np.ndarray:
                       float(r.meets_goal(full_scale_n, True))) for r in rows])
 
 
-def summary(label: str, names: list[str], runs: list[np.ndarray]) -> None:
+def summary(label: str, names: list[str], runs: list[np.ndarray]) -> list[Figure]:
     if not runs:
-        return
+        return []
     a = np.stack(runs)  # (runs, rows, 3)
     print(f"\n{label}: {len(runs)} run(s)")
     print(f"{'row':<19} {'rate-aware [N] median (5-95 %)':>31} {'static [N]':>11} "
@@ -92,6 +94,9 @@ def summary(label: str, names: list[str], runs: list[np.ndarray]) -> None:
     print(f"rows meeting the goal: {a[:, :, 2].sum():.0f} of {a[:, :, 2].size} "
           f"({100 * a[:, :, 2].mean():.1f} %); runs meeting it in every row: {every} of "
           f"{len(runs)}")
+    return [Figure(f"{label}: rows meeting the goal", 100 * float(a[:, :, 2].mean()),
+                   f"% of {a[:, :, 2].size}"),
+            Figure(f"{label}: runs meeting it in every row", every, f"of {len(runs)}")]
 
 
 def plot(path: Path, names: list[str], exact: list[np.ndarray],
@@ -101,7 +106,7 @@ def plot(path: Path, names: list[str], exact: list[np.ndarray],
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(9, 4.5))
+    fig, ax = plt.subplots(figsize=(10.5, 4.5))
     x = np.arange(len(names))
     for runs, dx, colour, label in ((exact, -0.2, "tab:blue", "exact model"),
                                     (output_only, 0.0, "tab:green", "exact, output only"),
@@ -116,10 +121,10 @@ def plot(path: Path, names: list[str], exact: list[np.ndarray],
     ax.scatter(x, GOAL_RATIO * static, marker="_", s=400, color="k",
                label=f"{GOAL_RATIO:g} x static (median)")
     ax.axhline(limit_n, color="tab:red", ls="--", label=f"{100 * GOAL_SHARE_FS:g} % FS")
-    ax.set_xticks(x, names, rotation=30)
+    ax.set_xticks(x, names, rotation=30, ha="right", rotation_mode="anchor")
     ax.set_ylabel(f"model error [N] (low-passed at {MODEL_CUTOFF_HZ:g} Hz)")
     ax.set_title("Rate check on the mock's noise: exact and fitted models against the goal")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # covers no row
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -194,10 +199,10 @@ def main() -> int:
     limit = GOAL_SHARE_FS * float(np.median(full_scale))
     print(f"\nfull scale {np.median(full_scale):.3f} N: goal per row rate-aware <= "
           f"{GOAL_RATIO:g} x static and <= {limit:.3f} N (model error, {MODEL_CUTOFF_HZ:g} Hz)")
-    summary("exact model (noise and filter only)", names, exact)
-    summary("exact model, play state from the output (the driver's tracker)", names,
-            output_only)
-    summary("fitted model", names, fitted)
+    figures = summary("exact model (noise and filter only)", names, exact)
+    figures += summary("exact model, play state from the output (the driver's tracker)", names,
+                       output_only)
+    figures += summary("fitted model", names, fitted)
     if fitted:
         same = np.stack([exact[k] for k in fitted_seeds])
         alone = np.stack([output_only[k] for k in fitted_seeds])
@@ -207,6 +212,10 @@ def main() -> int:
     path = args.plot or Path(tempfile.mkdtemp(prefix="bench_rate_floor_")) / "floor.png"
     plot(path, names, exact, output_only, fitted, limit)
     print(f"figure: {path}")
+    write_results("rate_floor", figures, notes=f"{args.seeds} noise seeds of rate_check "
+                  f"offline, {len(fitted)} fitted; filter {args.filter}; goal per row: "
+                  f"rate-aware model error <= {GOAL_RATIO:g} x static and <= "
+                  f"{100 * GOAL_SHARE_FS:g} % of full scale ({limit:.3f} N).")
     return 0
 
 

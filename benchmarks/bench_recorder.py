@@ -23,6 +23,8 @@ from pathlib import Path
 SOURCE = Path(__file__).resolve().parents[1] / "tactile_sensor"
 sys.path.insert(0, str(SOURCE))
 
+from results import Figure, write_results  # noqa: E402
+
 from tactile_sensor.recording import BagRecorder, default_typestore  # noqa: E402
 
 RATES_HZ = (1000, 2000, 5000, 10000, 0)  # 0 = as fast as the publisher can
@@ -30,7 +32,7 @@ PHASE_S = 2.0
 MAX_BURST = 20_000  # messages in the as-fast-as-possible phase
 
 
-def bench_core(folder: Path, n: int = 200_000) -> float:
+def bench_core(folder: Path, n: int = 200_000) -> list[Figure]:
     ts = default_typestore()
     t = ts.types
     msg = t["geometry_msgs/msg/WrenchStamped"](
@@ -49,10 +51,11 @@ def bench_core(folder: Path, n: int = 200_000) -> float:
     assert bag.counts["/w"] == n
     print(f"core: {n} messages queued at {n / queued_s:,.0f}/s (caller side), "
           f"written and closed at {n / total_s:,.0f}/s")
-    return n / total_s
+    return [Figure("core: queued (caller side)", n / queued_s, "messages/s"),
+            Figure("core: written and closed", n / total_s, "messages/s")]
 
 
-def bench_node(folder: Path) -> None:
+def bench_node(folder: Path) -> list[Figure]:
     import rclpy
     from geometry_msgs.msg import WrenchStamped
     from rclpy.duration import Duration
@@ -118,6 +121,7 @@ def bench_node(folder: Path) -> None:
             got[phase] += 1
             received[phase].append(stamp_ns)
     best = 0.0
+    figures = []
     for phase, rate in enumerate(RATES_HZ):
         n, achieved = sent[phase]
         lost = n - got[phase]
@@ -130,20 +134,26 @@ def bench_node(folder: Path) -> None:
               f"in bag {got[phase]:6d} received at {taken}, lost {lost}")
         if lost == 0:
             best = max(best, min(achieved, rate_in))
+        figures.append(Figure(f"node: lost at {label}", lost, f"of {n}"))
     print(f"node: highest sustained rate recorded without loss: {best:,.0f} messages/s "
           f"(a burst faster than that loses once it exceeds the {10_000}-message queue)")
+    return [Figure("node: highest sustained rate recorded without loss", best, "messages/s"),
+            *figures]
 
 
 def main() -> int:
     with tempfile.TemporaryDirectory(prefix="bench_recorder_") as tmp:
         folder = Path(tmp)
-        bench_core(folder)
+        figures = bench_core(folder)
         try:
             import rclpy  # noqa: F401
         except ImportError:
             print("node: skipped (. scripts/env.sh for rclpy)")
+            write_results("recorder", figures, notes="Node figures not measured (no rclpy).")
             return 0
-        bench_node(folder)
+        figures += bench_node(folder)
+    write_results("recorder", figures, notes="Core: pre-serialized WrenchStamped, no ROS. "
+                  "Node: the recorder node in its own process, fed by a reliable publisher.")
     return 0
 
 

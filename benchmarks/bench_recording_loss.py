@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from results import Figure, write_results
 
 SOURCE = Path(__file__).resolve().parents[1] / "tactile_sensor"
 sys.path.insert(0, str(SOURCE))
@@ -195,6 +196,11 @@ def main() -> int:
     print(f"\nprotocol {args.protocol} with {args.burners} burner(s) on {os.cpu_count()} "
           f"cores: exit {code}, {wall_s:.1f} s wall, bringup CPU {cpu_s:.1f} s "
           f"({cpu_s / wall_s:.2f} cores)")
+    figures = [Figure("wall time", wall_s, "s"), Figure("bringup CPU", cpu_s / wall_s, "cores"),
+               Figure("ADC frames generated", final.get("generated", 0)),
+               Figure("ADC frames lost in the device", final.get("device_lost", 0)),
+               Figure("frames missing by sequence at the driver", final.get("seq_dropped", 0)),
+               Figure("frames dropped with a full driver backlog", final.get("overflowed", 0))]
     print(f"ADC frames  generated {final.get('generated', 0)}  written {final.get('written', 0)}"
           f"  lost in the device (host buffer full) {final.get('device_lost', 0)}")
     print(f"driver      parsed {final.get('parsed', 0)}  missing by sequence "
@@ -210,6 +216,9 @@ def main() -> int:
         print(f"{topic:20s} published {published}  recorded {s.size}  missing inside "
               f"the recording {missing} ({share:.3f} %)  gaps {gaps}  longest step "
               f"{longest * 1e3:.1f} ms")
+        figures += [Figure(f"{topic} missing inside the recording", share, "%"),
+                    Figure(f"{topic} gaps", gaps),
+                    Figure(f"{topic} longest step", longest * 1e3, "ms")]
     written = max(final.get("generated", 0), 1)
     print(f"stages: device overflow {final.get('device_lost', 0)} frames, sequence gaps seen "
           f"by the driver {final.get('seq_dropped', 0)}, driver backlog overflow "
@@ -218,6 +227,8 @@ def main() -> int:
     threads = sorted(runner.threads.items(), key=lambda kv: -kv[1])
     print("CPU by thread [s]: " + ", ".join(f"{name} {cpu:.1f}" for name, cpu in threads))
     print(f"bag: {bag}")
+    write_results("recording_loss", figures, notes=f"Protocol {args.protocol} with "
+                  f"{args.burners} busy-loop process(es) on {os.cpu_count()} cores; exit {code}.")
     return code
 
 

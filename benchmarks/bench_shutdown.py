@@ -26,6 +26,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from results import Figure, write_results
+
 FAULTS = ("Traceback", "never retrieved", "context is invalid")
 LIFECYCLE_NODES = {"array": 2, "bench": 2, "gripper": 3}
 READY_TIMEOUT_S = 180.0
@@ -86,6 +88,7 @@ def main() -> int:
     target = "process group" if args.group else "ros2 launch"
     print(f"SIGINT to the {target}; {args.runs} runs per launch file", flush=True)
     failed = False
+    figures: list[Figure] = []
     for name in args.launch_files or sorted(LIFECYCLE_NODES):
         times, bad = [], []
         for run in range(args.runs):
@@ -112,6 +115,15 @@ def main() -> int:
               f"runs; runs with a non-zero status, a fault, a noisy start or >= 5 s: "
               f"{bad or 'none'}", flush=True)
         failed = failed or bool(bad)
+        figures += [Figure(f"{name}.launch.py: exit after SIGINT, median",
+                           statistics.median(times), "s"),
+                    Figure(f"{name}.launch.py: exit after SIGINT, max", max(times), "s",
+                           "< 5 s", max(times) < 5.0),
+                    Figure(f"{name}.launch.py: bad runs", len(bad), f"of {args.runs}",
+                           "none", not bad)]
+    write_results("shutdown", figures, notes=f"SIGINT to the {target}, {args.runs} runs per "
+                  "launch file; a bad run has a non-zero status, a fault, a noisy start or "
+                  "takes >= 5 s.")
     return 1 if failed else 0
 
 

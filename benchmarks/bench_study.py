@@ -24,6 +24,8 @@ from pathlib import Path
 SOURCE = Path(__file__).resolve().parents[1] / "tactile_sensor"
 sys.path.insert(0, str(SOURCE))
 
+from results import Figure, write_results  # noqa: E402
+
 from tactile_sensor.physics.loopback_cluster import loopback_cluster  # noqa: E402
 from tactile_sensor.physics.study import DesignRow, run_study  # noqa: E402
 from tactile_sensor.physics.study_spec import StudySpecError, load_spec  # noqa: E402
@@ -61,14 +63,21 @@ def main() -> int:
           f"{os.cpu_count()} cores", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
-        _, one = timed("1 local worker", spec=spec, workers=1, cache_dir=root / "one")
-        _, two = timed("2 local workers", spec=spec, workers=2, cache_dir=root / "two")
+        s1, one = timed("1 local worker", spec=spec, workers=1, cache_dir=root / "one")
+        s2, two = timed("2 local workers", spec=spec, workers=2, cache_dir=root / "two")
         with loopback_cluster(root, workers=2) as address:
-            _, remote = timed("loopback cluster (2)", spec=spec, scheduler=address,
-                              cache_dir=root / "remote")
+            s3, remote = timed("loopback cluster (2)", spec=spec, scheduler=address,
+                               cache_dir=root / "remote")
     workers = {r.worker for r in remote if r.ok}
     agree = same(one, two) and same(one, remote)
     print(f"rows agree on every path: {agree}; loopback workers used: {len(workers)}")
+    write_results(f"study_{spec.name}", [
+        Figure("1 local worker", s1, "s"), Figure("2 local workers", s2, "s"),
+        Figure("loopback cluster (2 workers)", s3, "s"),
+        Figure("rows agree on every path", agree, "", "yes", agree),
+        Figure("loopback workers used", len(workers), "", "2", len(workers) == 2)],
+        notes=f"Study '{spec.name}', {len(one)} designs, each run from an empty cache; load "
+              f"average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at the end.")
     return 0 if agree and len(workers) == 2 else 1
 
 

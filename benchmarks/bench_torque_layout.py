@@ -21,6 +21,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from results import Figure, write_results
+
 from tactile_sensor.physics.design_metrics import full_scale, wrench_matrix, wrench_metrics
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.wrench import compute_wrench_set
@@ -35,6 +37,7 @@ def main() -> None:
     faces = ("front", "back", "left", "right")
     layouts = [",".join(faces),
                ",".join(f"{f}@{s * args.offset:g}" for f in faces for s in (-1, 1))]
+    figures: list[Figure] = []
     for modules in layouts:
         params = PhysicsParams(modules=modules, array_steps=args.steps)
         start = time.perf_counter()
@@ -48,7 +51,10 @@ def main() -> None:
         for name, value in metrics.items():
             if not name.startswith("full_scale"):
                 print(f"  {name} {value:.4g}")
+                figures.append(Figure(f"{modules}: {name}", float(value)))
         sys.stdout.flush()
+    write_results("torque_layout", figures, notes=f"Window offset {args.offset:g} m, module "
+                  f"noise {args.noise:g} V, {args.steps} indentation levels.")
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import json
+import math
 import os
 import platform
 import shlex
@@ -26,12 +27,47 @@ RESULTS = ROOT / "benchmarks" / "results"
 
 @dataclass(frozen=True)
 class Figure:
-    """One measured number: ``value`` in ``unit``, with the goal it answers, if any."""
+    """One measured number: ``value`` in ``unit``, with the goal it answers, if any, and
+    whether this run met it (``None``: no goal, or not judged)."""
 
     name: str
     value: float | int | str | None
     unit: str = ""
     goal: str = ""
+    met: bool | None = None
+
+
+class ResultsError(ValueError):
+    """A results file that is not what ``write_results`` writes."""
+
+
+FIELDS = {"benchmark": str, "command": str, "commit": str, "date": str, "machine": dict,
+          "figures": list}
+
+
+def read_results(path: Path) -> dict[str, object]:
+    """One results file, checked: a hand-edited or truncated file names itself and the fix
+    instead of failing somewhere in the page it would feed."""
+    fix = f"rerun the benchmark that writes it or delete {path}"
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ResultsError(f"{path} cannot be read ({exc.__class__.__name__}); {fix}.") from None
+    except json.JSONDecodeError as exc:
+        raise ResultsError(f"{path} is not valid JSON (line {exc.lineno}: {exc.msg}); "
+                           f"{fix}.") from None
+    if not isinstance(record, dict):
+        raise ResultsError(f"{path} holds a JSON {type(record).__name__}, not a benchmark "
+                           f"result; {fix}.")
+    for key, kind in FIELDS.items():
+        if not isinstance(record.get(key), kind):
+            raise ResultsError(f"{path} lacks the {kind.__name__} field '{key}' of a benchmark "
+                               f"result; {fix}.")
+    for k, figure in enumerate(record["figures"]):  # type: ignore[arg-type]
+        if not (isinstance(figure, dict) and isinstance(figure.get("name"), str)
+                and "value" in figure):
+            raise ResultsError(f"{path}: figure {k + 1} has no 'name' and 'value'; {fix}.")
+    return record
 
 
 def machine() -> dict[str, object]:
@@ -57,9 +93,15 @@ def commit() -> str:
     return f"{rev}-dirty" if git("status", "--porcelain", "--untracked-files=no") else rev
 
 
+#: The commit a benchmark started on (this module is imported as it starts): a run of
+#: minutes may end after HEAD moved on.
+STARTED_ON = commit()
+
+
 def write_results(name: str, figures: list[Figure], *, notes: str = "",
                   argv: list[str] | None = None, directory: Path | None = None) -> Path:
-    """Write ``benchmarks/results/<name>.json`` (replacing the last run's) and return it."""
+    """Write ``benchmarks/results/<name>.json`` (replacing the last run's), say where, and
+    return it."""
     argv = sys.argv if argv is None else argv
     script = Path(argv[0])
     with contextlib.suppress(ValueError):
@@ -67,13 +109,27 @@ def write_results(name: str, figures: list[Figure], *, notes: str = "",
     record = {
         "benchmark": name,
         "command": shlex.join(["python", str(script), *argv[1:]]),
-        "commit": commit(),
+        "commit": STARTED_ON,
         "date": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "machine": machine(),
         "notes": notes,
-        "figures": [asdict(f) for f in figures],
+        "figures": [{**asdict(f), "value": _finite(f.value)} for f in figures],
     }
     out = (directory or RESULTS) / f"{name}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(record, indent=2) + "\n")
+    out.write_text(json.dumps(record, indent=2, allow_nan=False, default=_plain) + "\n")
+    print(f"figures: {out}", flush=True)
     return out
+
+
+def _finite(value: object) -> object:
+    """A NaN or infinite figure (nothing measured) as ``null``: JSON has no NaN."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _plain(value: object) -> object:
+    """numpy scalars as Python numbers (their ``item()``), anything else as text."""
+    item = getattr(value, "item", None)
+    return item() if callable(item) else str(value)

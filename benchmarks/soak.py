@@ -56,6 +56,9 @@ from typing import Any
 
 SOURCE = Path(__file__).resolve().parents[1] / "tactile_sensor"
 sys.path.insert(0, str(SOURCE))
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # results.py, also when imported
+
+from results import RESULTS, Figure, write_results  # noqa: E402
 
 from tactile_sensor.analysis.soak import (  # noqa: E402
     SPLIT_KIND,
@@ -235,9 +238,9 @@ class Monitor:
 
     def close(self, timeout_s: float = TEARDOWN_S) -> bool:
         """Stop spinning and tear the node down; False when the teardown did not end in
-        ``timeout_s``. Once, on Kilted, Fast DDS 3.2 deadlocked destroying a publisher
-        (its event thread and a receive thread each waiting on the other), and the
-        benchmark hung after its run; the caller then exits without waiting for it."""
+        ``timeout_s``. On Kilted, Fast DDS 3.2 can deadlock destroying a publisher (its
+        event thread and a receive thread each waiting on the other), which would hang the
+        benchmark after its run; the caller then exits without waiting for it."""
         import rclpy
 
         def teardown() -> None:
@@ -751,6 +754,29 @@ def print_report(r: dict[str, Any]) -> None:
         say(f"{'PASS' if goal['passed'] else 'FAIL'}  {goal['name']}: {goal['detail']}")
 
 
+def report_figures(r: dict[str, Any]) -> list[Figure]:
+    """The summary's figures for benchmarks/results: losses, each fault kind's slowest
+    detection and recovery, the worst RSS growth, grasps and every goal."""
+    loss = r["loss"]
+    figures = [Figure("readings lost outside the unplugged windows", loss["lost_outside"]),
+               Figure("readings lost in the unplugged windows", loss["lost_in_windows"]),
+               Figure("readings recorded", r["recorded"], f"of {loss['published']} published")]
+    for kind in sorted({f["kind"] for f in r["faults"]}):
+        of_kind = [f for f in r["faults"] if f["kind"] == kind]
+        for key, label in (("detected_after_s", "detection"), ("recovered_after_s", "recovery")):
+            values = [f[key] for f in of_kind if f[key] is not None]
+            figures.append(Figure(f"{kind}: slowest {label} of {len(of_kind)}",
+                                  max(values) if len(values) == len(of_kind) else None, "s"))
+    judged = [p["rss_growth_mb_per_h"] for p in r["processes"] if SELF not in p["process"]
+              and math.isfinite(p["rss_growth_mb_per_h"])]
+    figures.append(Figure("worst RSS growth", max(judged) if judged else None, "MB/h"))
+    grasps = r["grasps"]
+    figures.append(Figure("grasps succeeded", grasps["succeeded"], f"of {grasps['attempted']}"))
+    figures += [Figure(g["name"], "PASS" if g["passed"] else "FAIL", "", g["detail"], g["passed"])
+                for g in r["goals"]]
+    return figures
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--minutes", type=float, default=5.0)
@@ -759,6 +785,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="recorder max_bag_duration [s] (default: a third of the run)")
     parser.add_argument("--keep", type=Path, default=None,
                         help="work folder to keep (logs, bag); default: a temporary one")
+    parser.add_argument("--results", type=Path, default=RESULTS,
+                        help="folder for soak.json, the summary's figures (default "
+                             "benchmarks/results)")
     parser.add_argument("--bring-up-timeout", type=float, default=180.0,
                         help="seconds each bring-up step may take (default %(default)g)")
     args = parser.parse_args(argv)
@@ -789,6 +818,10 @@ def main(argv: list[str] | None = None) -> int:
             print_report(report)
             if args.json is not None:
                 args.json.write_text(json.dumps(report, indent=2, default=str))
+            write_results("soak", report_figures(report), directory=args.results,
+                          argv=sys.argv if argv is None else [sys.argv[0], *argv],
+                          notes=f"Bench and gripper configurations for {args.minutes:g} min at "
+                                f"{ADC_RATE_HZ:g} Hz under scheduled faults.")
             code = 0 if all(g["passed"] for g in report["goals"]) else 1
         except RuntimeError as exc:  # a node did not come up or report: say which, where
             say(f"soak: {exc}")

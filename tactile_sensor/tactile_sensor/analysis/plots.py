@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 
 from .array import AXES, ArrayAnalysis
 from .characterise import Characterisation
@@ -103,6 +104,7 @@ def cycles_over_time(ch: Characterisation, path: Path) -> Path:
     ax_f.set_ylabel("force [N]")
     peaks = ch.repeatability.peaks_v
     ax2.plot(np.arange(1, peaks.size + 1), peaks, "o-", ms=3)
+    ax2.xaxis.set_major_locator(MaxNLocator(integer=True))  # no cycle 1.25
     ax2.set(xlabel="cycle", ylabel="peak output [V]")
     return _save(fig, path)
 
@@ -173,9 +175,10 @@ def force_estimates(ch: Characterisation, path: Path) -> Path:
         pad = (b - a) // 10
         idx = _thin(np.arange(max(0, a - pad), min(sig.t_s.size, b + pad)))
         t = sig.t_s[idx] - sig.t_s[a]
-        ax.plot(t, sig.force_n[idx], lw=1.2, color="tab:gray", label="gauge")
-        ax.plot(t, static_n[idx], lw=0.8, color="tab:blue", label="static curve")
-        ax.plot(t, rate_n[idx], lw=0.8, color="tab:red", label="rate-aware")
+        # the gauge drawn last: under the noisy estimates the reference cannot be seen
+        ax.plot(t, static_n[idx], lw=0.8, color="tab:blue", alpha=0.8, label="static curve")
+        ax.plot(t, rate_n[idx], lw=0.8, color="tab:red", alpha=0.8, label="rate-aware")
+        ax.plot(t, sig.force_n[idx], lw=1.4, color="black", zorder=3, label="gauge")
         ax.set(xlabel="time [s]", ylabel="force [N]", title=f"{key} mm/s")
     axes[0][0].legend(loc="upper right", fontsize=8)
     fig.suptitle("Force at each indentation speed: gauge, static and rate-aware estimates")
@@ -203,14 +206,17 @@ def array_force_time(an: ArrayAnalysis, path: Path) -> Path:
     idx = _thin(np.arange(sig.t_s.size))
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for j, (ax, name) in enumerate(zip(axes, AXES, strict=True)):
-        ax.plot(sig.t_s[idx], sig.reference_n[idx, j], lw=0.8, color="tab:gray",
-                label="reference (gauge)")
-        ax.plot(sig.t_s[idx], sig.estimate_n[idx, j], lw=0.6, color="tab:red",
+        # the reference drawn last: under the noisy estimate it cannot be seen
+        ax.plot(sig.t_s[idx], sig.estimate_n[idx, j], lw=0.6, color="tab:red", alpha=0.8,
                 label="estimated (driver)")
+        ax.plot(sig.t_s[idx], sig.reference_n[idx, j], lw=0.9, color="black", zorder=3,
+                label="reference (gauge)")
         ax.set_ylabel(f"F{name} [N]")
         ax.set_title(f"F{name}: rmse {an.rmse_n[j]:.3g} N over a range of {an.range_n[j]:.3g} N",
-                     fontsize=9)
-    axes[0].legend(fontsize=8, loc="upper right")
+                     fontsize=9, loc="left")
+    # above the first panel, right of its title: inside, it covers a stretch of the trace
+    axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2,
+                   frameon=False, borderaxespad=0.1)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Estimated vs reference force per axis")
     return _save(fig, path, top=0.9)
@@ -249,8 +255,9 @@ def _heatmap(ax: Axes, values: np.ndarray, rows: list[str], cols: list[str], tit
     ax.set_xticks(range(len(cols)), cols)
     ax.set_yticks(range(len(rows)), rows)
     for (r, c), v in np.ndenumerate(values):
+        dark = np.isfinite(v) and abs(v) > 0.6 * vmax  # black on deep red or blue is unreadable
         ax.text(c, r, f"{v:.2f}" if np.isfinite(v) else "n/a", ha="center", va="center",
-                fontsize=8)
+                fontsize=8, color="white" if dark else "black")
     ax.set_title(title, fontsize=9)
     plt.colorbar(image, ax=ax, shrink=0.8)
 
@@ -294,6 +301,10 @@ def array_shear_direction(an: ArrayAnalysis, path: Path) -> Path:
                    label="estimated (driver)")
         polar.set_title(f"lateral force direction [N radius], |F_lat,ref| >= "
                         f"{sh.threshold_n:.3g} N", fontsize=9)
+        # four radius labels between two spokes of the eight-direction protocol, not
+        # eight stacked on the 0 deg spoke
+        polar.yaxis.set_major_locator(MaxNLocator(4))
+        polar.set_rlabel_position(22.5)
         polar.legend(fontsize=7, loc="lower left", bbox_to_anchor=(-0.15, -0.15))
         err_ax.plot(np.degrees(sh.applied_rad[idx]), np.degrees(sh.error_rad[idx]), ".", ms=2)
         err_ax.axhline(0.0, color="k", lw=0.6)

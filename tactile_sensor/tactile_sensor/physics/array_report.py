@@ -137,7 +137,7 @@ def write_plot(grid: ArrayGrid, report: dict[str, Any], path: Path) -> None:
            title="(d) outputs at the deepest indentation, largest shear")
     ax.set_xticks(range(0, 361, 45))
     ax.grid(True, alpha=0.3)
-    ax.legend()
+    ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5))  # the curves fill the axes
     fig.suptitle(f"Array calibration from the FEM grid (degree {report['degree']}, "
                  f"{report['held_out_points']} of {report['points']} points held out)")
     try:

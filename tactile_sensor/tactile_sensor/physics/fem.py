@@ -194,7 +194,7 @@ def _mooney_rivlin_piola(F: np.ndarray, c10: float, c01: float, pres: np.ndarray
     F has shape (3, 3, N). W = C10 (J^-2/3 I1 - 3) + C01 (J^-4/3 I2 - 3) + volume term (mean
     dilatation, entering through ``pres``). Written out per component: numpy's batched 3 x 3
     inverse and matrix products cost ten times more on this many tiny matrices. Products go
-    through one scratch array and accumulate in place: half the time of fresh temporaries
+    through one reused work array and accumulate in place: half the time of fresh temporaries
     (1.1 against 2.8 ms per call on the default mesh, on a busy machine).
     """
     f = F

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -333,8 +334,41 @@ def _axes_pair(spec: StudySpec) -> tuple[str, str]:
     return objectives[0], objectives[1] if len(objectives) > 1 else objectives[0]
 
 
+def _integer_axis(axis: Any, values: list[float]) -> None:
+    """Whole-number metrics (observed_torques, wrench_rank) get whole-number ticks, and a
+    span of at least one either side: Matplotlib's default puts 0.2 steps between 3 and 4,
+    and a single value in the middle of +/-0.05."""
+    from matplotlib.ticker import MaxNLocator, MultipleLocator
+
+    finite = [v for v in values if math.isfinite(v)]
+    if not finite or any(v != round(v) for v in finite):
+        return
+    low, high = min(finite), max(finite)
+    # MaxNLocator(integer=True) falls back to fractions on a span of a few units
+    axis.set_major_locator(MultipleLocator(1) if high - low <= 10
+                           else MaxNLocator(integer=True))
+    if high - low < 2:
+        set_limits = axis.axes.set_xlim if axis is axis.axes.xaxis else axis.axes.set_ylim
+        set_limits(low - 0.5, high + 0.5)
+
+
+def _short(text: str, width: int = 18) -> str:
+    """A category's tick label: long module lists run into each other (results.csv holds
+    them in full)."""
+    return text if len(text) <= width else text[:width - 1] + "…"
+
+
+def _fitted_title(fig: Any, text: str, fontsize: float = 10.0) -> None:
+    """A figure title wrapped to the figure's width: centred, a long one otherwise runs off
+    both edges of a narrow figure (one varied parameter: one column of plots)."""
+    chars = max(20, int(fig.get_figwidth() * 72 / (0.6 * fontsize)))
+    fig.suptitle(textwrap.fill(text, chars), fontsize=fontsize)
+
+
 def write_pareto_plot(rows: list[DesignRow], spec: StudySpec, path: Path) -> None:
-    """Sensitivity against full scale: every design, the Pareto front, the paper's star."""
+    """Sensitivity against full scale: every design, the Pareto front, the paper's star.
+    The legend sits outside the axes, so it covers no design; designs on the same point
+    share one label."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -350,9 +384,12 @@ def write_pareto_plot(rows: list[DesignRow], spec: StudySpec, path: Path) -> Non
     front.sort(key=lambda r: metric_value(r, x_col))
     ax.plot([metric_value(r, x_col) for r in front], [metric_value(r, y_col) for r in front],
             "o-", color="tab:red", ms=6, label="non-dominated (Pareto)")
+    at: dict[tuple[float, float], list[str]] = {}
     for r in front:
-        ax.annotate(r.design, (metric_value(r, x_col), metric_value(r, y_col)),
-                    textcoords="offset points", xytext=(4, 4), fontsize=8)
+        at.setdefault((metric_value(r, x_col), metric_value(r, y_col)), []).append(r.design)
+    for (x, y), names in at.items():
+        label = ", ".join(names) if len(names) <= 4 else f"{', '.join(names[:3])} +{len(names) - 3}"
+        ax.annotate(label, (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
     paper = rows[0]
     if paper in ok:
         ax.plot(metric_value(paper, x_col), metric_value(paper, y_col), "*", color="black",
@@ -361,7 +398,9 @@ def write_pareto_plot(rows: list[DesignRow], spec: StudySpec, path: Path) -> Non
            title=f"{spec.name}: Pareto front")
     ax.title.set_fontsize(10)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    _integer_axis(ax.xaxis, [metric_value(r, x_col) for r in ok])
+    _integer_axis(ax.yaxis, [metric_value(r, y_col) for r in ok])
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     try:
         fig.savefig(path, dpi=120, format="png")
     finally:
@@ -400,14 +439,18 @@ def write_metrics_plot(rows: list[DesignRow], spec: StudySpec, path: Path) -> No
                 ax.plot(place(rows[0].values[param]), metric_value(rows[0], column), "*",
                         color="black", ms=12)
             if numeric is None:
-                ax.set_xticks(range(len(cats)), cats, fontsize=7, rotation=15)
+                ax.set_xticks(range(len(cats)), [_short(c) for c in cats], fontsize=7,
+                              rotation=15)
+                ax.set_xlim(-0.5, len(cats) - 0.5)
+            _integer_axis(ax.yaxis, [metric_value(r, column) for r in ok])
             if i == len(metrics) - 1:
                 unit = "mm" if scale == 1e3 else _UNITS.get(param, "")
                 ax.set_xlabel(f"{param}" + (f" [{unit}]" if unit not in ("-", "") else ""))
             if j == 0:
                 ax.set_ylabel(LABELS.get(column, column), fontsize=8)
             ax.grid(True, alpha=0.3)
-    fig.suptitle(f"{spec.name}: metrics against the varied parameters (star: paper's design)")
+    _fitted_title(fig, f"{spec.name}: metrics against the varied parameters (star: paper's "
+                  "design)")
     try:
         fig.savefig(path, dpi=110, format="png")
     finally:

@@ -15,7 +15,7 @@ overrides): repeatability with 6 cycles instead of 100, speeds with two cycles p
 - peak-output CV < 2 % and |drift| < 2 %: "no change observed in the maximum output".
 - phase lag: the onset fit scatters from cycle to cycle (one standard deviation: ~0.1 s
   at 0.1 mm/s, ~0.04 s at 1 mm/s, ~0.01 s at 10 mm/s with the mock's noise; one cycle
-  per speed failed the ordering below once, with 0.37 s at 0.1 and 0.13 s at 1 mm/s), so:
+  per speed can break the ordering below, e.g. 0.37 s at 0.1 and 0.13 s at 1 mm/s), so:
   the median of two 0.1 mm/s cycles within ±50 % of the paper's 0.706 s and three times
   the faster ones; 10 mm/s within 0.03 s of zero; the 1 mm/s median of 6 repeatability
   cycles within 0.06 s of the paper's 0.062 s (3 standard errors).

@@ -162,8 +162,8 @@ def rig(spawn, ros_domain, tmp_path, calibration_file):
         client = Client()
         # the driver tares while the fingers are open and still
         _until(lambda: client.force, rig.driver.output())
-        # ... and the gripper must hear the force too before a grasp starts: the first
-        # grasp used to abort "tactile_stale" (force nan) while discovery was still going.
+        # ... and the gripper must hear the force too before a grasp starts: a grasp sent
+        # while discovery is still going aborts "tactile_stale" (force nan).
         # Its joint states carry the force it heard as the effort (nan before any).
         _until(lambda: client.effort and math.isfinite(client.effort[-1]),
                "the gripper hears no force: " + rig.gripper.output())

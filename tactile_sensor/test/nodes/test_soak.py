@@ -20,7 +20,8 @@ def test_two_minute_soak_meets_the_goals(spawn, ros_domain, tmp_path: Path) -> N
     report_path = tmp_path / "soak.json"
     # --split 40: a 2-minute bag splits twice, so the recorder's count crosses files
     run = spawn(sys.executable, "-u", str(SOAK), "--minutes", "2", "--split", "40",
-                "--json", str(report_path), "--keep", str(tmp_path / "work"))
+                "--json", str(report_path), "--keep", str(tmp_path / "work"),
+                "--results", str(tmp_path / "results"))
     # The bound is for a starved machine (bring-up alone may take minutes); every step of
     # the benchmark waits for a condition, the run itself is two minutes of faults.
     run.proc.wait(timeout=1200)
@@ -52,6 +53,11 @@ def test_two_minute_soak_meets_the_goals(spawn, ros_domain, tmp_path: Path) -> N
     assert driver["samples"] >= 2 and driver["fds_end"] <= driver["fds_start"] + 2, driver
     # The benchmark's exit status follows the goals.
     assert run.proc.returncode == (0 if all(g["passed"] for g in goals.values()) else 1)
+    # The summary's figures went where --results said, for the benchmark page.
+    figures = {f["name"]: f for f in json.loads(
+        (tmp_path / "results" / "soak.json").read_text())["figures"]}
+    assert figures["readings lost outside the unplugged windows"]["value"] == 0
+    assert figures["every fault recovered without a restart"]["met"] is True
 
 
 def test_a_run_too_short_for_every_fault_is_refused_before_anything_starts(
@@ -81,19 +87,20 @@ def test_a_node_that_does_not_come_up_is_named_and_everything_stops(
         spawn, ros_domain, own_processes, tmp_path: Path) -> None:
     # 1 ms is less than any recorder needs to subscribe: bring-up fails at its first step
     run = spawn(sys.executable, "-u", str(SOAK), "--minutes", "2", "--bring-up-timeout",
-                "0.001", "--keep", str(tmp_path / "work"))
+                "0.001", "--keep", str(tmp_path / "work"), "--results", str(tmp_path / "res"))
     assert run.proc.wait(timeout=120) == 1, run.output()
     assert "soak: the recorder did not subscribe" in run.output()
     assert "recorder.log ends" in run.output()
     assert not (tmp_path / "work" / "soak.json").exists()
+    assert not (tmp_path / "res").exists()
     assert own_processes() == []  # the nodes it had started are gone with it
 
 
 def test_a_hung_ros_teardown_after_the_run_keeps_the_figures_and_exits(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
-    """Once, on Kilted, Fast DDS deadlocked as the benchmark destroyed its own node after a
-    complete run, and the process never ended. The figures are written before the teardown,
-    and a teardown that does not end makes the process exit with the run's status."""
+    """On Kilted, Fast DDS can deadlock as the benchmark destroys its own node after a
+    complete run. The figures are written before the teardown, and a teardown that does not
+    end makes the process exit with the run's status."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("soak_benchmark", SOAK)
@@ -123,11 +130,44 @@ def test_a_hung_ros_teardown_after_the_run_keeps_the_figures_and_exits(
 
     monkeypatch.setattr(soak, "Soak", HungTeardown)
     monkeypatch.setattr(soak, "print_report", lambda report: events.append("report"))
+    monkeypatch.setattr(soak, "report_figures", lambda report: [soak.Figure("g", "FAIL")])
     monkeypatch.setattr(soak.os, "_exit", exit_now)
     report_path = tmp_path / "soak.json"
     with pytest.raises(Exited):
         soak.main(["--minutes", "2", "--json", str(report_path), "--keep",
-                   str(tmp_path / "work")])
+                   str(tmp_path / "work"), "--results", str(tmp_path / "results")])
     assert events == ["report", "close", "exit 1"]  # a failed goal: status 1
     assert json.loads(report_path.read_text())["goals"][0]["passed"] is False
+    assert json.loads((tmp_path / "results" / "soak.json").read_text())["figures"][0][
+        "value"] == "FAIL"
     assert "ROS teardown did not end" in capsys.readouterr().out
+
+
+def test_the_summary_figures_take_each_fault_kinds_slowest_and_the_worst_growth(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("soak_benchmark", SOAK)
+    assert spec is not None and spec.loader is not None
+    soak = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, soak)
+    spec.loader.exec_module(soak)
+    report = {
+        "loss": {"lost_outside": 0, "lost_in_windows": 7, "published": 900},
+        "recorded": 900,
+        "faults": [{"kind": "adc_unplug", "detected_after_s": 0.5, "recovered_after_s": 2.5},
+                   {"kind": "adc_unplug", "detected_after_s": 0.7, "recovered_after_s": 2.0},
+                   {"kind": "servo_overload", "detected_after_s": 0.1,
+                    "recovered_after_s": None}],
+        "processes": [{"process": "bench_driver (pid 1)", "rss_growth_mb_per_h": 0.5},
+                      {"process": "gripper (pid 2)", "rss_growth_mb_per_h": float("nan")},
+                      {"process": f"{soak.SELF} (pid 3)", "rss_growth_mb_per_h": 40.0}],
+        "grasps": {"succeeded": 4, "attempted": 5},
+        "goals": [{"name": "no reading lost", "passed": True, "detail": "0 lost"}],
+    }
+    figures = {f.name: f for f in soak.report_figures(report)}
+    assert figures["adc_unplug: slowest detection of 2"].value == 0.7
+    assert figures["adc_unplug: slowest recovery of 2"].value == 2.5
+    assert figures["servo_overload: slowest recovery of 1"].value is None  # not recovered
+    assert figures["worst RSS growth"].value == 0.5  # this process is not judged
+    assert figures["no reading lost"].met is True
