@@ -15,6 +15,12 @@ Conventions of the control_msgs interfaces: position is the **opening** between 
 [m], as in ``~/joint_states`` and the URDF; velocity is the opening's rate [m/s] (twice a
 finger's speed); effort is the **tactile force** the module measures [N], not motor effort.
 
+Force ceiling: a grasp target, and a move's ``max_effort``, may not exceed
+``max_grasp_force`` nor reach the tactile sensor's full scale (the driver latches it; until
+then the parameter alone applies): at the full scale the reading saturates, the target can
+never be seen reached, and the fingers would squeeze on (27.9 N true force once, while the
+sensor read 6.77 N). ``accept`` refuses such a goal in one sentence naming both limits.
+
 Goals are plain objects read by attribute (the ROS goal messages, or anything shaped like
 them), and results are dicts of message fields (nested dicts for nested messages): no ROS
 import here, so the semantics are tested without ROS. ``accept`` raises InvalidRequest with
@@ -24,9 +30,10 @@ one sentence before anything moves.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
+from tactile_sensor.control.back_off import BackOff
 from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import (
@@ -63,6 +70,36 @@ class GoalSettings:
     #: A stalled move (force limit or current limit) succeeds (ros2_controllers' meaning).
     allow_stalling: bool = True
     skin_stiffness_n_per_m: float = 2500.0
+    #: The most a grasp target or a move's max_effort may ask [N] (``max_grasp_force``).
+    max_grasp_force_n: float = 10.0
+    #: The tactile sensor's full-scale force [N] as the driver latched it; None until then.
+    full_scale_force_n: float | None = None
+
+    def with_full_scale(self, force_n: float) -> GoalSettings:
+        """These settings once the driver stated its full scale; InvalidRequest (one
+        sentence) for a value no calibration can have."""
+        if not (math.isfinite(force_n) and force_n > 0):
+            raise InvalidRequest(f"The driver's full-scale force {force_n} N is not a positive "
+                                 "number; check its calibration (the gripper keeps "
+                                 "max_grasp_force alone as the ceiling).")
+        return replace(self, full_scale_force_n=float(force_n))
+
+    def check_force(self, what: str, force_n: float) -> None:
+        """Refuse a requested force above max_grasp_force or at/above the full scale."""
+        limit, full = self.max_grasp_force_n, self.full_scale_force_n
+        if full is None:
+            if force_n > limit:
+                raise InvalidRequest(
+                    f"{what} {force_n:g} N is above max_grasp_force {limit:g} N (the tactile "
+                    f"sensor's full scale is not known yet); request at most {limit:g} N.")
+            return
+        if force_n > limit or force_n >= full:
+            bound = (f"at most {limit:g} N" if limit < full
+                     else f"less than {full:.3g} N")
+            raise InvalidRequest(
+                f"{what} {force_n:g} N is beyond the gripper's force ceiling: the tactile "
+                f"sensor measures up to {full:.3g} N and max_grasp_force is {limit:g} N; "
+                f"request {bound}.")
 
 
 def settings_from_parameters(values: dict[str, Any]) -> GoalSettings:
@@ -84,7 +121,8 @@ def settings_from_parameters(values: dict[str, Any]) -> GoalSettings:
         opening_speed_m_s=values["release_speed"], timeout_s=values["default_timeout"],
         goal_tolerance_m=values["goal_tolerance"], stall_time_s=values["stall_timeout"],
         allow_stalling=values["allow_stalling"],
-        skin_stiffness_n_per_m=values["skin_stiffness"])
+        skin_stiffness_n_per_m=values["skin_stiffness"],
+        max_grasp_force_n=values["max_grasp_force"])
 
 
 @dataclass(frozen=True)
@@ -122,6 +160,12 @@ class ActiveGoal:
     def settler(self, step: Step) -> ForceSettler | None:
         """A force regulation to run after ``step`` finished, or None."""
         del step
+        return None
+
+    def back_off(self, full_scale_force_n: float | None) -> BackOff | None:
+        """How an aborted goal backs off a force above its target, given the sensor's full
+        scale as known now (None: the goal has no force target)."""
+        del full_scale_force_n
         return None
 
     def succeeded(self, step: Step) -> bool:
@@ -162,6 +206,14 @@ class TactileGoal(ActiveGoal):
             return None
         return ForceSettler(self.settings.config.geometry, self.target_force_n,
                             self.settings.skin_stiffness_n_per_m)
+
+    def back_off(self, full_scale_force_n: float | None) -> BackOff | None:
+        if self.target_force_n <= 0:
+            return None  # a position-only move: no force was asked for
+        s = self.settings
+        return BackOff(s.config.geometry, self.target_force_n, full_scale_force_n,
+                       s.config.geometry.finger_speed_to_rad_s(s.closing_speed_m_s),
+                       s.config.hold_current_a, s.config.stop_velocity_rad_s)
 
 
 class GraspGoal(TactileGoal):
@@ -214,6 +266,8 @@ class MoveGoal(TactileGoal):
     def __init__(self, settings: GoalSettings, request: MoveRequest) -> None:
         controller = MoveController(settings.config)
         request.validate(settings.config, controller.max_speed_m_s)
+        if request.max_effort_n > 0:
+            settings.check_force("Effort limit", request.max_effort_n)
         super().__init__(settings, controller, request, request.max_effort_n)
         self.request: MoveRequest = request
 
@@ -262,6 +316,7 @@ def accept_grasp(goal: Any, settings: GoalSettings) -> GraspGoal:
                            speed_m_s=goal.closing_speed or settings.closing_speed_m_s,
                            timeout_s=goal.timeout or settings.timeout_s)
     request.validate(GraspController(settings.config).max_speed_m_s)
+    settings.check_force("Grasp target force", request.target_force_n)
     return GraspGoal(settings, request)
 
 
