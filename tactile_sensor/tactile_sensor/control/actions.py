@@ -16,10 +16,11 @@ Conventions of the control_msgs interfaces: position is the **opening** between 
 finger's speed); effort is the **tactile force** the module measures [N], not motor effort.
 
 Force ceiling: a grasp target, and a move's ``max_effort``, may not exceed
-``max_grasp_force`` nor reach the tactile sensor's full scale (the driver latches it; until
-then the parameter alone applies): at the full scale the reading saturates, the target can
-never be seen reached, and the fingers would squeeze on (27.9 N true force once, while the
-sensor read 6.77 N). ``accept`` refuses such a goal in one sentence naming both limits.
+``max_grasp_force`` nor reach the band below the tactile sensor's full scale where readings
+saturate (``SATURATION_BAND``; the driver latches the full scale, and until then the
+parameter alone applies). There the target may never be seen reached while the fingers
+squeeze on: a 6.7 N grasp on the mock read 6.5-6.67 N while the true force rose to 27.9 N
+(of a 6.77 N full scale). ``accept`` refuses such a goal in one sentence naming both limits.
 
 Goals are plain objects read by attribute (the ROS goal messages, or anything shaped like
 them), and results are dicts of message fields (nested dicts for nested messages): no ROS
@@ -33,7 +34,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
-from tactile_sensor.control.back_off import BackOff
+from tactile_sensor.control.back_off import SATURATION_BAND, BackOff
 from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import (
@@ -84,22 +85,34 @@ class GoalSettings:
                                  "max_grasp_force alone as the ceiling).")
         return replace(self, full_scale_force_n=float(force_n))
 
+    @property
+    def saturates_from_n(self) -> float | None:
+        """Where the tactile readings may be saturated [N]; None while unknown."""
+        full = self.full_scale_force_n
+        return None if full is None else (1.0 - SATURATION_BAND) * full
+
+    @property
+    def force_ceiling_n(self) -> float:
+        """The most a goal may ask [N]: max_grasp_force, below the saturation band."""
+        saturates = self.saturates_from_n
+        return self.max_grasp_force_n if saturates is None else min(
+            self.max_grasp_force_n, saturates)
+
     def check_force(self, what: str, force_n: float) -> None:
-        """Refuse a requested force above max_grasp_force or at/above the full scale."""
-        limit, full = self.max_grasp_force_n, self.full_scale_force_n
-        if full is None:
-            if force_n > limit:
-                raise InvalidRequest(
-                    f"{what} {force_n:g} N is above max_grasp_force {limit:g} N (the tactile "
-                    f"sensor's full scale is not known yet); request at most {limit:g} N.")
+        """Refuse a requested force above the ceiling, naming both of its limits."""
+        limit, saturates, ceiling = (self.max_grasp_force_n, self.saturates_from_n,
+                                     self.force_ceiling_n)
+        if force_n <= ceiling:
             return
-        if force_n > limit or force_n >= full:
-            bound = (f"at most {limit:g} N" if limit < full
-                     else f"less than {full:.3g} N")
+        if saturates is None:
             raise InvalidRequest(
-                f"{what} {force_n:g} N is beyond the gripper's force ceiling: the tactile "
-                f"sensor measures up to {full:.3g} N and max_grasp_force is {limit:g} N; "
-                f"request {bound}.")
+                f"{what} {force_n:g} N is above max_grasp_force {limit:g} N (the tactile "
+                f"sensor's full scale is not known yet); request at most {limit:g} N.")
+        raise InvalidRequest(
+            f"{what} {force_n:g} N is above the gripper's force ceiling of {ceiling:.3g} N "
+            f"(the smaller of max_grasp_force {limit:g} N and {saturates:.3g} N, from where "
+            f"the tactile sensor's readings saturate below its {self.full_scale_force_n:.3g}"
+            f" N full scale); request at most {ceiling:.3g} N.")
 
 
 def settings_from_parameters(values: dict[str, Any]) -> GoalSettings:

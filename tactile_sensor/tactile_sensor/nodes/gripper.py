@@ -283,7 +283,7 @@ class GripperNode(Node):
         if settings.full_scale_force_n != msg.data:
             self.get_logger().info(
                 f"tactile full scale {msg.data:.3g} N: goals may ask up to "
-                f"{min(msg.data, settings.max_grasp_force_n):.3g} N (max_grasp_force "
+                f"{self._settings.force_ceiling_n:.3g} N (max_grasp_force "
                 f"{settings.max_grasp_force_n:g} N)")
 
     # -- actions -----------------------------------------------------------------------------

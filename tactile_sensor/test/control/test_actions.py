@@ -23,6 +23,7 @@ from tactile_sensor.control.actions import (
     accept_release,
     settings_from_parameters,
 )
+from tactile_sensor.control.back_off import SATURATION_BAND
 from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import GraspConfig, Outcome, Phase, Step
@@ -141,19 +142,25 @@ def test_a_force_beyond_the_ceiling_is_refused_naming_both_limits(settings, goal
     with pytest.raises(InvalidRequest) as refusal:
         accept(goal, settings)
     sentence = str(refusal.value)
-    assert "6.77 N" in sentence and f"max_grasp_force is {limit:g} N" in sentence
+    assert "6.77 N full scale" in sentence and f"max_grasp_force {limit:g} N" in sentence
     assert sentence.count(". ") == 0 and sentence.endswith(" N.")
 
 
 def test_up_to_the_ceiling_is_accepted_and_zero_effort_stays_position_only():
-    accept_grasp(NS(target_force=6.76, closing_speed=0.0, timeout=0.0), FULL)
+    saturates = (1 - SATURATION_BAND) * 6.77  # readings from here up may be saturated
+    assert FULL.force_ceiling_n == pytest.approx(saturates)
+    accept_grasp(NS(target_force=saturates, closing_speed=0.0, timeout=0.0), FULL)
     accept_gripper_command(gripper_command(0.01, 0.0), FULL)
     capped = replace(FULL, max_grasp_force_n=3.0)
+    assert capped.force_ceiling_n == 3.0
     accept_grasp(NS(target_force=3.0, closing_speed=0.0, timeout=0.0), capped)
     with pytest.raises(InvalidRequest, match="request at most 3 N"):
         accept_gripper_command(gripper_command(0.01, 3.01), capped)
-    with pytest.raises(InvalidRequest, match=re.escape("request less than 6.77 N")):
-        accept_gripper_command(gripper_command(0.01, 6.77), FULL)
+    with pytest.raises(InvalidRequest, match=re.escape(
+            "Effort limit 6.1 N is above the gripper's force ceiling of 6.09 N (the smaller "
+            "of max_grasp_force 10 N and 6.09 N, from where the tactile sensor's readings "
+            "saturate below its 6.77 N full scale); request at most 6.09 N.")):
+        accept_gripper_command(gripper_command(0.01, 6.1), FULL)
 
 
 def test_until_the_driver_states_its_range_the_parameter_alone_applies():

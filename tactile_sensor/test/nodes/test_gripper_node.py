@@ -23,6 +23,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from tactile_sensor.configurations import config_dir
+from tactile_sensor.control.back_off import SATURATION_BAND
 from tactile_sensor.nodes.action_client import RaceFreeActionClient
 from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
@@ -195,9 +196,11 @@ def test_a_target_beyond_the_ceiling_is_refused_one_within_is_reached_and_report
                                            PATIENCE_S), devices.gripper.output()
     refused = _wait(client.grasp.send_goal_async(Grasp.Goal(target_force=1e9)))
     assert not refused.accepted
-    sentence = ("grasp goal rejected: Grasp target force 1e+09 N is beyond the gripper's "
-                f"force ceiling: the tactile sensor measures up to {full_scale:.3g} N and "
-                f"max_grasp_force is 10 N; request less than {full_scale:.3g} N.\n")
+    ceiling = f"{(1 - SATURATION_BAND) * full_scale:.3g} N"
+    sentence = ("grasp goal rejected: Grasp target force 1e+09 N is above the gripper's "
+                f"force ceiling of {ceiling} (the smaller of max_grasp_force 10 N and "
+                f"{ceiling}, from where the tactile sensor's readings saturate below its "
+                f"{full_scale:.3g} N full scale); request at most {ceiling}.\n")
     assert devices.gripper.wait_for_output(sentence, PATIENCE_S), devices.gripper.output()
 
     feedback_times: list[float] = []
