@@ -106,7 +106,7 @@ class Client:
         self.grasp = RaceFreeActionClient(self.node, Grasp, "/gripper/grasp")
         self.release = RaceFreeActionClient(self.node, Release, "/gripper/release")
         self.force: list[tuple[float, float]] = []  # (header stamp, force)
-        self.truth: list[tuple[float, float]] = []
+        self.truth: list[tuple[float, float]] = []  # (header stamp, true force)
         self.opening: list[tuple[float, float]] = []
         self.effort: list[float] = []  # the force the gripper heard (nan: none yet)
         self.diagnostics: list[DiagnosticStatus] = []
@@ -114,7 +114,7 @@ class Client:
                                       lambda m: self.force.append((_stamp(m),
                                                                    m.wrench.force.z)), 1000)
         self.node.create_subscription(WrenchStamped, "/gripper_world/ground_truth",
-                                      lambda m: self.truth.append((time.time(),
+                                      lambda m: self.truth.append((_stamp(m),
                                                                    m.wrench.force.z)), 1000)
         self.node.create_subscription(JointState, "/gripper/joint_states", self._joint, 1000)
         self.node.create_subscription(
@@ -294,6 +294,7 @@ def test_a_grasp_timed_out_at_the_full_scale_backs_off_to_its_target(
             Float64(data=full_scale))
         result = _wait(handle.get_result_async()).result
         done = time.time()
+        # by the samples' stamps: under load they arrive late
         _until(lambda: client.truth and client.truth[-1][0] > done + 0.5,
                "no ground truth")
     # the saturated reading sits a little below the full scale (the tare's offset)
@@ -302,7 +303,7 @@ def test_a_grasp_timed_out_at_the_full_scale_backs_off_to_its_target(
     assert backed_off and float(backed_off[1]) >= 0.95 * full_scale, result.message
     pressed = max(f for t, f in client.truth if t < done)
     after = [f for t, f in client.truth if t > done + 0.2]
-    assert pressed > target and max(after) <= target, (pressed, after)
+    assert pressed > target and max(after) <= target, (pressed, after[:10], result.message)
 
 
 def test_cancel_stops_the_fingers_promptly(rig):
