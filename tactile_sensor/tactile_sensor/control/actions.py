@@ -15,6 +15,13 @@ Conventions of the control_msgs interfaces: position is the **opening** between 
 [m], as in ``~/joint_states`` and the URDF; velocity is the opening's rate [m/s] (twice a
 finger's speed); effort is the **tactile force** the module measures [N], not motor effort.
 
+Force ceiling: a grasp target, and a move's ``max_effort``, may not exceed
+``max_grasp_force`` nor reach the band below the tactile sensor's full scale where readings
+saturate (``SATURATION_BAND``; the driver latches the full scale, and until then the
+parameter alone applies). There the target may never be seen reached while the fingers
+squeeze on: a 6.7 N grasp on the mock read 6.5-6.67 N while the true force rose to 27.9 N
+(of a 6.77 N full scale). ``accept`` refuses such a goal in one sentence naming both limits.
+
 Goals are plain objects read by attribute (the ROS goal messages, or anything shaped like
 them), and results are dicts of message fields (nested dicts for nested messages): no ROS
 import here, so the semantics are tested without ROS. ``accept`` raises InvalidRequest with
@@ -24,9 +31,10 @@ one sentence before anything moves.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
+from tactile_sensor.control.back_off import SATURATION_BAND, BackOff
 from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import (
@@ -63,6 +71,48 @@ class GoalSettings:
     #: A stalled move (force limit or current limit) succeeds (ros2_controllers' meaning).
     allow_stalling: bool = True
     skin_stiffness_n_per_m: float = 2500.0
+    #: The most a grasp target or a move's max_effort may ask [N] (``max_grasp_force``).
+    max_grasp_force_n: float = 10.0
+    #: The tactile sensor's full-scale force [N] as the driver latched it; None until then.
+    full_scale_force_n: float | None = None
+
+    def with_full_scale(self, force_n: float) -> GoalSettings:
+        """These settings once the driver stated its full scale; InvalidRequest (one
+        sentence) for a value no calibration can have."""
+        if not (math.isfinite(force_n) and force_n > 0):
+            raise InvalidRequest(f"The driver's full-scale force {force_n} N is not a positive "
+                                 "number; check its calibration (the gripper keeps "
+                                 "max_grasp_force alone as the ceiling).")
+        return replace(self, full_scale_force_n=float(force_n))
+
+    @property
+    def saturates_from_n(self) -> float | None:
+        """Where the tactile readings may be saturated [N]; None while unknown."""
+        full = self.full_scale_force_n
+        return None if full is None else (1.0 - SATURATION_BAND) * full
+
+    @property
+    def force_ceiling_n(self) -> float:
+        """The most a goal may ask [N]: max_grasp_force, below the saturation band."""
+        saturates = self.saturates_from_n
+        return self.max_grasp_force_n if saturates is None else min(
+            self.max_grasp_force_n, saturates)
+
+    def check_force(self, what: str, force_n: float) -> None:
+        """Refuse a requested force above the ceiling, naming both of its limits."""
+        limit, saturates, ceiling = (self.max_grasp_force_n, self.saturates_from_n,
+                                     self.force_ceiling_n)
+        if force_n <= ceiling:
+            return
+        if saturates is None:
+            raise InvalidRequest(
+                f"{what} {force_n:g} N is above max_grasp_force {limit:g} N (the tactile "
+                f"sensor's full scale is not known yet); request at most {limit:g} N.")
+        raise InvalidRequest(
+            f"{what} {force_n:g} N is above the gripper's force ceiling of {ceiling:.3g} N "
+            f"(the smaller of max_grasp_force {limit:g} N and {saturates:.3g} N, from where "
+            f"the tactile sensor's readings saturate below its {self.full_scale_force_n:.3g}"
+            f" N full scale); request at most {ceiling:.3g} N.")
 
 
 def settings_from_parameters(values: dict[str, Any]) -> GoalSettings:
@@ -84,7 +134,8 @@ def settings_from_parameters(values: dict[str, Any]) -> GoalSettings:
         opening_speed_m_s=values["release_speed"], timeout_s=values["default_timeout"],
         goal_tolerance_m=values["goal_tolerance"], stall_time_s=values["stall_timeout"],
         allow_stalling=values["allow_stalling"],
-        skin_stiffness_n_per_m=values["skin_stiffness"])
+        skin_stiffness_n_per_m=values["skin_stiffness"],
+        max_grasp_force_n=values["max_grasp_force"])
 
 
 @dataclass(frozen=True)
@@ -122,6 +173,12 @@ class ActiveGoal:
     def settler(self, step: Step) -> ForceSettler | None:
         """A force regulation to run after ``step`` finished, or None."""
         del step
+        return None
+
+    def back_off(self, full_scale_force_n: float | None) -> BackOff | None:
+        """How an aborted goal backs off a force above its target, given the sensor's full
+        scale as known now (None: the goal has no force target)."""
+        del full_scale_force_n
         return None
 
     def succeeded(self, step: Step) -> bool:
@@ -162,6 +219,14 @@ class TactileGoal(ActiveGoal):
             return None
         return ForceSettler(self.settings.config.geometry, self.target_force_n,
                             self.settings.skin_stiffness_n_per_m)
+
+    def back_off(self, full_scale_force_n: float | None) -> BackOff | None:
+        if self.target_force_n <= 0:
+            return None  # a position-only move: no force was asked for
+        s = self.settings
+        return BackOff(s.config.geometry, self.target_force_n, full_scale_force_n,
+                       s.config.geometry.finger_speed_to_rad_s(s.closing_speed_m_s),
+                       s.config.hold_current_a, s.config.stop_velocity_rad_s)
 
 
 class GraspGoal(TactileGoal):
@@ -214,6 +279,8 @@ class MoveGoal(TactileGoal):
     def __init__(self, settings: GoalSettings, request: MoveRequest) -> None:
         controller = MoveController(settings.config)
         request.validate(settings.config, controller.max_speed_m_s)
+        if request.max_effort_n > 0:
+            settings.check_force("Effort limit", request.max_effort_n)
         super().__init__(settings, controller, request, request.max_effort_n)
         self.request: MoveRequest = request
 
@@ -262,6 +329,7 @@ def accept_grasp(goal: Any, settings: GoalSettings) -> GraspGoal:
                            speed_m_s=goal.closing_speed or settings.closing_speed_m_s,
                            timeout_s=goal.timeout or settings.timeout_s)
     request.validate(GraspController(settings.config).max_speed_m_s)
+    settings.check_force("Grasp target force", request.target_force_n)
     return GraspGoal(settings, request)
 
 

@@ -1,9 +1,14 @@
 """The one runner every gripper action shares: start, tick at the control rate, finish.
 
 Goal policy: one goal is active; a newer goal of any kind preempts the running one (it ends
-aborted with the slot's reason, "preempted by a newer goal" unless the node gave another),
+aborted with the slot's reason, PREEMPTED unless the node gave another),
 so a manipulation stack can always release what it holds without canceling first; cancel
 stops the fingers where they are; a servo hardware error aborts with the decoded reason.
+A goal that ends without success backs off a force above its target (control/back_off.py)
+before it answers, so no abort leaves the fingers pressing harder than the goal asked.
+
+Every result message is ``<outcome>: <detail>`` with an ``Outcome`` value as the outcome,
+and a message that states the force at the end states the result's ``force`` field.
 
 No ROS here: the node adapts a goal handle to a ``GoalLink`` (its token, whether a cancel
 was requested, how feedback is published), turns the returned ``Finish`` into succeed /
@@ -21,16 +26,25 @@ from dataclasses import dataclass, replace
 from enum import StrEnum
 
 from tactile_sensor.control.actions import ActiveGoal, Fields, Snapshot
+from tactile_sensor.control.back_off import BackOff
 from tactile_sensor.control.errors import ControlError
 from tactile_sensor.control.grasp import ForceSettler, Outcome, Phase, Step
 from tactile_sensor.control.servo_link import ServoLink
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError, ServoHardwareError
+from tactile_sensor.hardware.xm430 import ServoState
 
-PREEMPTED = "preempted by a newer goal"
-REBOOTING = "the servo is being rebooted"
-REBOOTED = ("the servo was rebooted while this goal ran, and the reboot's hold replaced its "
-            "command; send the goal again")
+PREEMPTED = f"{Outcome.PREEMPTED}: a newer goal took over the fingers"
+REBOOTING = f"{Outcome.INTERRUPTED}: the servo is being rebooted"
+REBOOTED = (f"{Outcome.INTERRUPTED}: the servo was rebooted while this goal ran, and the "
+            "reboot's hold replaced its command; send the goal again")
+NOT_ACTIVE = f"{Outcome.INACTIVE}: the gripper is not active"
+CANCELED = f"{Outcome.CANCELED}: stopped where the fingers were"
+
+
+def interrupted(reason: str) -> str:
+    """The message of a goal ended by the node itself (deactivation, shutdown)."""
+    return f"{Outcome.INTERRUPTED}: {reason}"
 
 
 class GoalSlot:
@@ -146,8 +160,12 @@ class GoalRunner:
         self.slot.take_over(token)
         goal: ActiveGoal | None = None
 
-        def finish(step: Step | None, succeeded: bool, message: str) -> Finish:
-            status = GoalStatus.SUCCEEDED if succeeded else GoalStatus.ABORTED
+        def finish(step: Step | None, status: GoalStatus | bool, message: str,
+                   tail: str = "") -> Finish:
+            """``tail`` ends the message with the result's force: ``{force}`` in it is
+            formatted with the very value the result's field carries."""
+            if isinstance(status, bool):
+                status = GoalStatus.SUCCEEDED if status else GoalStatus.ABORTED
             if goal is None:
                 return Finish(status, message, None)
             if step is None:  # never started: report where the fingers are
@@ -155,21 +173,35 @@ class GoalRunner:
                 opening = (servo.config.geometry.opening_m(state.position_rad)
                            if state is not None else math.nan)
                 step = Step(Phase.IDLE, None, None, message, opening)
-            return Finish(status, message, goal.result(self.snapshot(step), message))
+            snap = self.snapshot(step)
+            message += tail.format(force=snap.force_n)
+            return Finish(status, message, goal.result(snap, message))
+
+        def canceled(step: Step) -> Finish:
+            assert goal is not None
+            step = goal.cancel(self._wall(), servo.state)
+            if servo.stop_written is not token:  # the cancel callback's stop failed
+                self._stop_logged(token)
+            step, tail = self._safe_end(link, goal, step)
+            return finish(step, GoalStatus.CANCELED, CANCELED, tail)
 
         if servo.state is None:
-            return finish(None, False, "the gripper is not active")
+            return finish(None, False, NOT_ACTIVE)
         try:
             goal = accept()
             if servo.hardware_error:
-                raise ServoHardwareError("servo hardware error: "
-                                         + ", ".join(sorted(servo.hardware_error)),
+                raise ServoHardwareError(", ".join(sorted(servo.hardware_error)),
                                          servo.hardware_error)
             servo.ensure_torque()
             step = goal.start(self._wall(), servo.state)
             servo.send(step.command, token)
-        except (ControlError, DynamixelError) as exc:
-            return finish(None, False, str(exc))
+        except ControlError as exc:
+            return finish(None, False, f"{Outcome.INVALID_GOAL}: {exc}")
+        except ServoHardwareError as exc:
+            return finish(None, False, f"{Outcome.HARDWARE_ERROR}: "
+                          + ", ".join(sorted(exc.bits)))
+        except DynamixelError as exc:
+            return finish(None, False, f"{Outcome.SERVO_UNREACHABLE}: {exc}")
 
         def feedback(step: Step) -> None:
             assert goal is not None
@@ -179,39 +211,109 @@ class GoalRunner:
         last_feedback = 0.0
         while not step.finished:
             if link.cancel_requested():
-                step = goal.cancel(self._wall(), servo.state)
-                if servo.stop_written is not token:  # the cancel callback's stop failed
-                    self._stop_logged(token)
-                message = "canceled: stopped where the fingers were"
-                return Finish(GoalStatus.CANCELED, message,
-                              goal.result(self.snapshot(step), message))
+                return canceled(step)
             if self.slot.superseded(token):
                 # no stop command: the newer goal (or the reboot) owns the servo now
                 return finish(goal.cancel(self._wall(), servo.state), False,
                               self.slot.abort_reason)
             servo.await_sample(2 * period)
             if servo.comm_error:
-                return finish(step, False, f"servo unreachable: {servo.comm_error}")
+                return finish(step, False,
+                              f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}")
             force = self.forces.latest
             step = goal.tick(self._wall(), force[0] if force else None,
                              force[1] if force else None, servo.state)
             if (error := servo.send_safely(step.command, token)) is not None:
-                return finish(step, False, f"servo unreachable: {error}")
+                return finish(step, False, f"{Outcome.SERVO_UNREACHABLE}: {error}")
             now = self._clock()
             if now - last_feedback >= self.timing.feedback_period_s:
                 feedback(step)
                 last_feedback = now
+        tail = ""
         settler = goal.settler(step)
         if settler is not None:
             aborted = self._settle(link, settler, step, feedback)
             if aborted is not None:
                 return finish(step, False, aborted)
+            if link.cancel_requested() and not self.slot.superseded(token):
+                return canceled(step)
             step = self._at_rest(link, step)
+            tail = ", settled at {force:.2f} N"
         if step.outcome is Outcome.HARDWARE_ERROR and servo.state is not None:
             self._on_hardware_error(servo.state.hardware_error)
-        self.slot.release(token)
         failure = goal.failure(step)
-        return finish(step, failure is None, failure or f"{step.outcome}: {step.message}")
+        if failure is not None:
+            step, backed_off = self._safe_end(link, goal, step)
+            tail += backed_off
+        self.slot.release(token)
+        return finish(step, failure is None, failure or f"{step.outcome}: {step.message}",
+                      tail)
+
+    def _safe_end(self, link: GoalLink, goal: ActiveGoal, step: Step) -> tuple[Step, str]:
+        """Back off a force above the goal's target after it ended without success (no
+        hardware error: torque is off; no stale force: nothing to judge by); the step with
+        the opening where the fingers stay, and the message's tail ("" when nothing was
+        done)."""
+        servo, latest = self.servo, self.forces.latest
+        back_off = goal.back_off(self.forces.full_scale_n)
+        state = servo.state
+        if (back_off is None or latest is None or state is None or servo.comm_error
+                or state.hardware_error
+                or step.outcome in (Outcome.HARDWARE_ERROR, Outcome.TACTILE_STALE)
+                or not back_off.needed(latest[0]) or self.slot.superseded(link.token)):
+            return step, ""
+        start_force = latest[0]
+        end = self._back_off(link, back_off, state)
+        state = servo.state
+        if state is not None:
+            step = replace(step, opening_m=servo.config.geometry.opening_m(state.position_rad))
+        return step, (f"; backed off from {start_force:.2f} N to {{force:.2f}} N" + end)
+
+    def _back_off(self, link: GoalLink, back_off: BackOff, state: ServoState) -> str:
+        """Open until the forces stamped after the start are safe, then hold; "" when it
+        got there, else why it stopped short (appended to the message)."""
+        servo, period = self.servo, self.timing.control_period_s
+        # its own token: a cancel's stop of the goal must not block the back-off's commands
+        mover = object()
+        started_wall, started = self._wall(), self._clock()
+        self.forces.count_after(started_wall)
+        deadline = started + back_off.time_bound_s(state) + 1.0
+        sent_at = last_fresh = started
+        if servo.send_safely(back_off.opening_command(), mover) is not None:
+            return f" (stopped: servo unreachable: {servo.comm_error})"
+        while True:
+            if self.slot.superseded(link.token):
+                return " (a newer goal took over)"
+            servo.await_sample(2 * period)
+            state_now = servo.state
+            if servo.comm_error or state_now is None or state_now.hardware_error:
+                return " (stopped: the servo failed)"
+            now, mean = self._clock(), self.forces.mean_since_last_call()
+            if mean is not None:
+                last_fresh = now
+                hold = back_off.tick(mean, state_now)
+                if hold is not None:
+                    servo.send_safely(hold, mover)
+                    self._await_rest()
+                    return ""
+            if now - last_fresh > servo.config.stale_after_s or now > deadline:
+                servo.send_safely(back_off.hold(state_now), mover)
+                self._await_rest()
+                return (" (stopped: no fresh tactile force)" if now <= deadline
+                        else " (stopped: fully open)")
+            if not state_now.moving and now - sent_at > 3 * period:
+                # a cancel's stop halted the opening: resume it
+                servo.send_safely(back_off.opening_command(), mover)
+                sent_at = now
+
+    def _await_rest(self) -> None:
+        """Until the servo's Moving flag clears after a hold (at most the settle time)."""
+        deadline = self._clock() + self.timing.settle_time_s
+        while self._clock() < deadline:
+            self.servo.await_sample(2 * self.timing.control_period_s)
+            state = self.servo.state
+            if state is None or state.hardware_error or not state.moving:
+                return
 
     def _at_rest(self, link: GoalLink, step: Step) -> Step:
         """``step`` with the opening the fingers hold once they stop (the servo's Moving
@@ -249,7 +351,7 @@ class GoalRunner:
             servo.await_sample(2 * period)
             state = servo.state
             if servo.comm_error:
-                return f"servo unreachable: {servo.comm_error}"
+                return f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}"
             if state is None or state.hardware_error:
                 return None
             if effective_s is not None:
@@ -267,7 +369,7 @@ class GoalRunner:
             if command is None:
                 continue
             if (error := servo.send_safely(command, link.token)) is not None:
-                return f"servo unreachable: {error}"
+                return f"{Outcome.SERVO_UNREACHABLE}: {error}"
             travel_s = abs(command.goal_position_rad - state.position_rad) / max(
                 command.profile_velocity_rad_s, 1e-9)
             effective_s = self._clock() + travel_s + period

@@ -30,7 +30,8 @@ from tactile_sensor.control.geometry import GripperGeometry
 
 
 class Outcome(StrEnum):
-    """Why a grasp or release finished (the action result's reason)."""
+    """Why a goal finished: every result message starts with one of these and ": " (the
+    stable prefix a manipulation stack may parse; listed in docs/gripper.md)."""
 
     CONTACT = "contact"
     OPENED = "opened"
@@ -45,6 +46,12 @@ class Outcome(StrEnum):
     REACHED = "reached_goal"
     #: A position move came to rest short of its goal (the current limit holds it there).
     STALLED = "stalled"
+    #: Ends the runner decides rather than a controller (control/goal_runner.py).
+    PREEMPTED = "preempted"
+    INTERRUPTED = "interrupted"
+    SERVO_UNREACHABLE = "servo_unreachable"
+    INVALID_GOAL = "invalid_goal"
+    INACTIVE = "inactive"
 
     @property
     def succeeded(self) -> bool:
@@ -160,6 +167,11 @@ def slowed_speed(config: GraspConfig, full_rad_s: float, force_n: float,
     return full_rad_s * max(config.min_speed_fraction, min(1.0, fraction))
 
 
+def hardware_error_detail(servo: ServoReading) -> str:
+    """The latched hardware-error bits, as the result's detail ("overload")."""
+    return ", ".join(sorted(servo.hardware_error))
+
+
 #: XM430-W210 no-load speed at 12 V (77 rpm) bounds the profile velocity [rad/s].
 MAX_SERVO_SPEED_RAD_S = 77.0 * 2.0 * math.pi / 60.0
 
@@ -191,8 +203,8 @@ class BaseController:
     def _check_common(self, now_s: float, servo: ServoReading,
                       force_n: float | None) -> Step | None:
         if servo.hardware_error:
-            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
-                                + ", ".join(sorted(servo.hardware_error)), servo, force_n)
+            return self._finish(Outcome.HARDWARE_ERROR, hardware_error_detail(servo),
+                                servo, force_n)
         if now_s - self._started_s > self._timeout_s:
             return self._finish(Outcome.TIMEOUT, f"no result within {self._timeout_s:g} s",
                                 servo, force_n)
@@ -220,8 +232,7 @@ class GraspController(BaseController):
         self._started_s, self._timeout_s = now_s, request.timeout_s
         self.phase = Phase.CLOSING
         if servo.hardware_error:
-            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
-                                + ", ".join(sorted(servo.hardware_error)), servo)
+            return self._finish(Outcome.HARDWARE_ERROR, hardware_error_detail(servo), servo)
         self._speed_rad_s = self.config.geometry.finger_speed_to_rad_s(request.speed_m_s)
         return Step(self.phase, self._closing_command(), None, "closing", self._opening(servo))
 
@@ -247,12 +258,12 @@ class GraspController(BaseController):
                         self._opening(servo), force_n)
         assert force_n is not None
         if force_n >= request.target_force_n:
-            return self._finish(Outcome.CONTACT, f"reached {force_n:.2f} N", servo, force_n,
-                                hold=True)
+            return self._finish(Outcome.CONTACT, f"contact at {force_n:.2f} N", servo,
+                                force_n, hold=True)
         opening = self._opening(servo)
         if opening <= cfg.geometry.closed_opening_m + cfg.limit_tolerance_m:
             return self._finish(Outcome.CLOSED_LIMIT_WITHOUT_CONTACT,
-                                f"closed to {opening * 1e3:.1f} mm at {force_n:.2f} N",
+                                f"closed to {opening * 1e3:.1f} mm",
                                 servo, force_n)
         speed = self._scheduled_speed(force_n)
         command = None
@@ -282,8 +293,7 @@ class ReleaseController(BaseController):
         self._started_s, self._timeout_s = now_s, timeout_s
         self.phase = Phase.OPENING
         if servo.hardware_error:
-            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
-                                + ", ".join(sorted(servo.hardware_error)), servo)
+            return self._finish(Outcome.HARDWARE_ERROR, hardware_error_detail(servo), servo)
         command = ServoCommand(g.position_rad(opening_m), g.finger_speed_to_rad_s(speed_m_s),
                                self.config.closing_current_a)
         return Step(self.phase, command, None, "opening", self._opening(servo))

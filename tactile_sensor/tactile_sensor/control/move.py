@@ -34,6 +34,7 @@ from tactile_sensor.control.grasp import (
     ServoCommand,
     ServoReading,
     Step,
+    hardware_error_detail,
     slowed_speed,
 )
 
@@ -101,8 +102,7 @@ class MoveController(BaseController):
         self.phase = Phase.CLOSING if closing else Phase.OPENING
         self._limited = closing and request.max_effort_n > 0
         if servo.hardware_error:
-            return self._finish(Outcome.HARDWARE_ERROR, "servo hardware error: "
-                                + ", ".join(sorted(servo.hardware_error)), servo)
+            return self._finish(Outcome.HARDWARE_ERROR, hardware_error_detail(servo), servo)
         self._target_rad = g.position_rad(request.opening_m)
         speed = request.closing_speed_m_s if closing else request.opening_speed_m_s
         self._full_rad_s = self._speed_rad_s = g.finger_speed_to_rad_s(speed)
@@ -129,9 +129,9 @@ class MoveController(BaseController):
             if fresh:
                 assert force_n is not None
                 if force_n >= request.max_effort_n:
-                    return self._finish(Outcome.FORCE_LIMIT, f"tactile force {force_n:.2f} N "
-                                        f"reached the limit {request.max_effort_n:g} N",
-                                        servo, force_n, hold=True)
+                    return self._finish(Outcome.FORCE_LIMIT, f"limit {request.max_effort_n:g} N"
+                                        f" reached at {force_n:.2f} N", servo, force_n,
+                                        hold=True)
                 speed = slowed_speed(self.config, self._full_rad_s, force_n,
                                      request.max_effort_n)
                 if abs(speed - self._speed_rad_s) > (self.config.resend_speed_change

@@ -5,6 +5,10 @@ force settler acts on the mean of all forces since its previous tick, so it foll
 force rather than its noise, and only on forces stamped after its last correction took
 effect (``count_after``): a force that arrives late still describes where the fingers
 were. The subscription thread adds, the goal's thread reads.
+
+``full_scale_n`` is the sensor's full-scale force as the driver latched it (None until
+then): a reading there is saturated, and a goal that ends pressing there backs off
+(control/back_off.py) even when it was accepted before the range was known.
 """
 
 from __future__ import annotations
@@ -18,6 +22,8 @@ class TactileForce:
         self._lock = threading.Lock()
         #: (force [N], its stamp [s]) of the newest message; None before the first.
         self.latest: tuple[float, float] | None = None
+        #: The sensor's full-scale force [N]; None until the driver stated it.
+        self.full_scale_n: float | None = None
         self._sum_n, self._count = 0.0, 0
         self._after_s = -math.inf
 

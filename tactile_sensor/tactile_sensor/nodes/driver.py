@@ -22,6 +22,7 @@ from rclpy.lifecycle import Node, State, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.time import Time
+from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo
@@ -95,6 +96,7 @@ class DriverNode(Node):
         self._info_logged: DeviceInfo | None = None
         self._wrench_pub = self._reading_pub = self._diag_pub = None
         self._tare_srv = self._calibration_sub = self._diag_timer = None
+        self._full_scale_pub: Any = None
 
     @property
     def ready(self) -> bool:
@@ -128,6 +130,9 @@ class DriverNode(Node):
                                                               SAMPLE_QUEUE_DEPTH)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._tare_srv = self.create_service(Trigger, "~/tare", self._on_tare)
+        self._full_scale_pub = self.create_publisher(Float64, "~/full_scale_force",
+                                                     CALIBRATION_QOS)
+        self._publish_full_scale()
         if values["calibration_source"] == "model" and modules:
             self._calibration_sub = self.create_subscription(
                 ArrayCalibrationMsg, "array_calibration", self._on_array_calibration,
@@ -180,8 +185,10 @@ class DriverNode(Node):
         for pub in (self._wrench_pub, self._reading_pub):
             if pub is not None:
                 self.destroy_lifecycle_publisher(pub)
-        if self._diag_pub is not None:
-            self.destroy_publisher(self._diag_pub)
+        for plain in (self._diag_pub, self._full_scale_pub):
+            if plain is not None:
+                self.destroy_publisher(plain)
+        self._full_scale_pub = None
         self._reader = self._chain = None
         self._wrench_pub = self._reading_pub = self._diag_pub = None
         self._tare_srv = self._calibration_sub = self._diag_timer = None
@@ -312,6 +319,7 @@ class DriverNode(Node):
             self.get_logger().error(f"ignoring calibration curve: {exc}")
             return
         self._chain.set_calibration(calibration)
+        self._publish_full_scale()
         self.get_logger().info(f"calibration from {calibration.source} "
                                f"({len(msg.output)} points, {describe_model(calibration)})")
 
@@ -324,8 +332,15 @@ class DriverNode(Node):
         except SensingError as exc:
             self.get_logger().error(f"ignoring array calibration: {exc}")
             return
+        self._publish_full_scale()
         self.get_logger().info(f"array calibration from {chain.calibration_source} "
                                f"({', '.join(chain.faces)})")
+
+    def _publish_full_scale(self) -> None:
+        """Latch the most force the calibration reports [N], the gripper's force ceiling."""
+        chain, pub = self._chain, self._full_scale_pub
+        if chain is not None and chain.calibration is not None and pub is not None:
+            pub.publish(Float64(data=float(chain.calibration.full_scale_force_n)))
 
     # -- diagnostics ---------------------------------------------------------------------------
     def _publish_diagnostics(self) -> None:

@@ -1,7 +1,8 @@
 """Gripper node: an XM430 on a rack and pinion, closed until the tactile force says contact.
 
 Wiring only: parameters, the XM430 client (hardware/), the tactile force subscription,
-joint states, diagnostics, the reboot service and four action servers (``ACTIONS``):
+the driver's latched full-scale force (the goals' force ceiling), joint states,
+diagnostics, the reboot service and four action servers (``ACTIONS``):
 ``~/grasp``, ``~/release``, control_msgs ``~/gripper_cmd`` and ``~/parallel_gripper_cmd``.
 What a goal means lives in control/actions.py; the goal policy (one active goal,
 preemption, cancel, hardware errors) in control/goal_runner.py; the servo the control loop,
@@ -23,7 +24,9 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.duration import Duration
 from rclpy.lifecycle import Node, State, TransitionCallbackReturn
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from tactile_sensor.control.actions import (
@@ -36,12 +39,14 @@ from tactile_sensor.control.actions import (
 )
 from tactile_sensor.control.errors import ControlError
 from tactile_sensor.control.goal_runner import (
+    NOT_ACTIVE,
     Finish,
     GoalLink,
     GoalRunner,
     GoalSlot,
     GoalStatus,
     RunnerTiming,
+    interrupted,
 )
 from tactile_sensor.control.servo_link import ServoLink
 from tactile_sensor.control.tactile_force import TactileForce
@@ -78,6 +83,10 @@ else:
     ACTIONS["gripper_cmd"] = (GripperCommand, accept_gripper_command)
     ACTIONS["parallel_gripper_cmd"] = (ParallelGripperCommand,
                                        accept_parallel_gripper_command)
+
+#: The driver's ~/full_scale_force: latched, so a gripper started later still hears it.
+FULL_SCALE_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                            reliability=ReliabilityPolicy.RELIABLE)
 
 
 class GripperNode(Node):
@@ -128,6 +137,8 @@ class GripperNode(Node):
             WrenchStamped, "tactile_wrench", self._on_force, 100, callback_group=self._group)
         self._entities = [
             self._force_sub,
+            self.create_subscription(Float64, "tactile_full_scale", self._on_full_scale,
+                                     FULL_SCALE_QOS, callback_group=self._group),
             *(self._action_server(name, action_type, accept)
               for name, (action_type, accept) in ACTIONS.items()),
             self.create_service(Trigger, "~/reboot", self._on_reboot,
@@ -152,7 +163,7 @@ class GripperNode(Node):
         return super().on_activate(state)
 
     def on_deactivate(self, state: State) -> TransitionCallbackReturn:
-        self._slot.abort_active("the gripper node was deactivated")
+        self._slot.abort_active(interrupted("the gripper node was deactivated"))
         if self._timer is not None:
             self.destroy_timer(self._timer)
             self._timer = None
@@ -165,7 +176,7 @@ class GripperNode(Node):
         return TransitionCallbackReturn.SUCCESS
 
     def on_shutdown(self, state: State) -> TransitionCallbackReturn:
-        self._slot.abort_active("the gripper node is shutting down")
+        self._slot.abort_active(interrupted("the gripper node is shutting down"))
         self._teardown()
         return TransitionCallbackReturn.SUCCESS
 
@@ -259,6 +270,22 @@ class GripperNode(Node):
         self._forces.add(msg.wrench.force.z, stamp, total, count,
                          first.sec + first.nanosec * 1e-9)
 
+    def _on_full_scale(self, msg: Float64) -> None:
+        settings = self._settings
+        if settings is None:
+            return
+        try:
+            self._settings = settings.with_full_scale(msg.data)
+        except ControlError as exc:
+            self.get_logger().error(str(exc))
+            return
+        self._forces.full_scale_n = msg.data  # a running goal's back-off reads it here
+        if settings.full_scale_force_n != msg.data:
+            self.get_logger().info(
+                f"tactile full scale {msg.data:.3g} N: goals may ask up to "
+                f"{self._settings.force_ceiling_n:.3g} N (max_grasp_force "
+                f"{settings.max_grasp_force_n:g} N)")
+
     # -- actions -----------------------------------------------------------------------------
     def _action_server(self, name: str, action_type: Any, accept: Any) -> ActionServer:
         return ActionServer(
@@ -291,7 +318,7 @@ class GripperNode(Node):
         runner, settings = self._runner, self._settings
         if runner is None or settings is None:
             self._slot.take_over(goal_handle)
-            end = Finish(GoalStatus.ABORTED, "the gripper is not active", None)
+            end = Finish(GoalStatus.ABORTED, NOT_ACTIVE, None)
         else:
             link = GoalLink(goal_handle, lambda: goal_handle.is_cancel_requested,
                             lambda fields: goal_handle.publish_feedback(

@@ -49,6 +49,10 @@ SPECS = [
               maximum=0.01),
     ParamSpec("stall_timeout", 0.2, "a GripperCommand at rest short of its target this "
               "long has stalled [s]", minimum=0.0, exclusive_minimum=True, maximum=10.0),
+    ParamSpec("max_grasp_force", 10.0, "the most a Grasp target_force or a GripperCommand / "
+              "ParallelGripperCommand max_effort may ask [N]; the tactile sensor's full scale "
+              "(latched by the driver on tactile_full_scale) lowers the ceiling further",
+              minimum=0.0, exclusive_minimum=True, maximum=100.0),
     ParamSpec("allow_stalling", True, "a stalled GripperCommand (tactile force limit or "
               "current limit) succeeds; false: it aborts"),
 ]

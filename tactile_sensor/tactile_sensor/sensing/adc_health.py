@@ -100,6 +100,9 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
         "calibration_source": chain.calibration_source,
         "calibration_model": describe_model(chain.calibration),
+        # the most force the calibration reports: a gripper's force ceiling (docs/gripper.md)
+        "full_scale_force_n": "none" if chain.calibration is None
+        else f"{chain.calibration.full_scale_force_n:.4g}",
         "baseline_v": "none" if chain.baseline_v is None else f"{chain.baseline_v:.4f}",
         "device": stats.device_info.summary() if stats.device_info else "not stated yet",
         "adc_settings": adc.source.value if adc else "not decided yet",

@@ -156,6 +156,12 @@ class ArrayCalibration:
         self._limits = tuple(float(v) * 1.05 for v in self.output_max_v)
 
     @property
+    def full_scale_force_n(self) -> float:
+        """Normal force Fz [N] with every face at the largest output the fit saw: beyond it
+        the polynomial extrapolates, so that is the most pressing it measures."""
+        return float(self._force_one(*(float(v) for v in self.output_max_v))[2])
+
+    @property
     def degree(self) -> int:
         return int(self.terms.sum(axis=1).max())
 

@@ -69,6 +69,12 @@ class Calibration:
     def max_output_v(self) -> float:
         return self._out[-1]
 
+    @property
+    def full_scale_force_n(self) -> float:
+        """The most force this curve can report [N]: its last point, since every output
+        beyond it clamps there (a gripper must not ask for more than it can see)."""
+        return self._force[-1]
+
     def evaluate(self, output_v: float) -> tuple[float, bool]:
         """(force [N], saturated); saturated means the output is beyond the curve's end."""
         out, force = self._out, self._force

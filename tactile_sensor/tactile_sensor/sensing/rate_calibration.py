@@ -164,6 +164,12 @@ class RateCalibration:
         return tuple(t.tau_s for t in self.terms)
 
     @property
+    def full_scale_force_n(self) -> float:
+        """The static curve's last force [N]: the relaxed force it saturates at (the rate
+        terms add to it only while the load changes)."""
+        return self.static.full_scale_force_n
+
+    @property
     def instant_gain(self) -> float:
         """F / F_s for a step change (all terms active): 1 + sum g_i."""
         return 1.0 + sum(self.g)

@@ -23,6 +23,7 @@ from tactile_sensor.control.actions import (
     accept_release,
     settings_from_parameters,
 )
+from tactile_sensor.control.back_off import SATURATION_BAND
 from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import GraspConfig, Outcome, Phase, Step
@@ -51,7 +52,7 @@ def finished(outcome: Outcome, opening: float = 0.02) -> Step:
     return Step(Phase.DONE, None, outcome, "why", opening)
 
 
-@given(st.floats(0.002, 0.06), st.floats(0.0, 50.0))
+@given(st.floats(0.002, 0.06), st.floats(0.0, SETTINGS.max_grasp_force_n))
 def test_gripper_command_position_is_the_opening_and_effort_the_tactile_limit(pos, effort):
     goal = accept_gripper_command(gripper_command(pos, effort), SETTINGS)
     assert goal.request.opening_m == pos and goal.request.max_effort_n == effort
@@ -59,7 +60,8 @@ def test_gripper_command_position_is_the_opening_and_effort_the_tactile_limit(po
     assert step.command.goal_position_rad == pytest.approx(G.position_rad(pos))
 
 
-@given(st.floats(0.002, 0.06), st.just(0.0) | st.floats(1e-4, 0.2), st.floats(0.0, 50.0))
+@given(st.floats(0.002, 0.06), st.just(0.0) | st.floats(1e-4, 0.2),
+       st.floats(0.0, SETTINGS.max_grasp_force_n))
 def test_parallel_command_reads_the_joint_state_fields(pos, velocity, effort):
     goal = accept_parallel_gripper_command(parallel([pos], [velocity], [effort]), SETTINGS)
     request = goal.request
@@ -124,6 +126,69 @@ def test_invalid_releases_are_rejected_before_they_start(opening):
         accept_release(NS(opening=opening), SETTINGS)
 
 
+FULL = SETTINGS.with_full_scale(6.77)  # the FEM curve's top, as the driver latches it
+
+
+@pytest.mark.parametrize("settings, goal, accept", [
+    (FULL, NS(target_force=1e9, closing_speed=0.0, timeout=0.0), accept_grasp),
+    (FULL, NS(target_force=6.77, closing_speed=0.0, timeout=0.0), accept_grasp),
+    (FULL, gripper_command(0.01, 7.0), accept_gripper_command),
+    (FULL, parallel(effort=[1e9]), accept_parallel_gripper_command),
+    (replace(FULL, max_grasp_force_n=3.0), NS(target_force=3.5, closing_speed=0.0,
+                                              timeout=0.0), accept_grasp),
+])
+def test_a_force_beyond_the_ceiling_is_refused_naming_both_limits(settings, goal, accept):
+    limit = settings.max_grasp_force_n
+    with pytest.raises(InvalidRequest) as refusal:
+        accept(goal, settings)
+    sentence = str(refusal.value)
+    assert "6.77 N full scale" in sentence and f"max_grasp_force {limit:g} N" in sentence
+    assert sentence.count(". ") == 0 and sentence.endswith(" N.")
+
+
+def test_up_to_the_ceiling_is_accepted_and_zero_effort_stays_position_only():
+    saturates = (1 - SATURATION_BAND) * 6.77  # readings from here up may be saturated
+    assert FULL.force_ceiling_n == pytest.approx(saturates)
+    accept_grasp(NS(target_force=saturates, closing_speed=0.0, timeout=0.0), FULL)
+    accept_gripper_command(gripper_command(0.01, 0.0), FULL)
+    capped = replace(FULL, max_grasp_force_n=3.0)
+    assert capped.force_ceiling_n == 3.0
+    accept_grasp(NS(target_force=3.0, closing_speed=0.0, timeout=0.0), capped)
+    with pytest.raises(InvalidRequest, match="request at most 3 N"):
+        accept_gripper_command(gripper_command(0.01, 3.01), capped)
+    with pytest.raises(InvalidRequest, match=re.escape(
+            "Effort limit 6.1 N is above the gripper's force ceiling of 6.09 N (the smaller "
+            "of max_grasp_force 10 N and 6.09 N, from where the tactile sensor's readings "
+            "saturate below its 6.77 N full scale); request at most 6.09 N.")):
+        accept_gripper_command(gripper_command(0.01, 6.1), FULL)
+
+
+def test_until_the_driver_states_its_range_the_parameter_alone_applies():
+    assert SETTINGS.full_scale_force_n is None
+    accept_grasp(NS(target_force=9.0, closing_speed=0.0, timeout=0.0), SETTINGS)
+    with pytest.raises(InvalidRequest, match=re.escape(
+            "Grasp target force 1e+09 N is above max_grasp_force 10 N (the tactile sensor's "
+            "full scale is not known yet); request at most 10 N.")):
+        accept_grasp(NS(target_force=1e9, closing_speed=0.0, timeout=0.0), SETTINGS)
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, math.nan, math.inf])
+def test_a_full_scale_no_calibration_can_have_is_refused(value):
+    with pytest.raises(InvalidRequest, match="not a positive number; check its calibration"):
+        SETTINGS.with_full_scale(value)
+
+
+def test_goals_with_a_force_target_back_off_to_it_position_only_moves_do_not():
+    grasp = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0), FULL)
+    back_off = grasp.back_off(6.77)
+    assert (back_off.target_force_n, back_off.full_scale_force_n) == (2.0, 6.77)
+    assert back_off.speed_rad_s == G.finger_speed_to_rad_s(FULL.closing_speed_m_s)
+    assert accept_gripper_command(gripper_command(0.01, 3.0), FULL).back_off(
+        None).target_force_n == 3.0
+    assert accept_gripper_command(gripper_command(0.01, 0.0), FULL).back_off(6.77) is None
+    assert accept_release(NS(opening=0.05), FULL).back_off(6.77) is None
+
+
 def test_zero_means_the_node_s_defaults_for_grasp_and_release():
     grasp = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0), SETTINGS)
     assert grasp.request.speed_m_s == SETTINGS.closing_speed_m_s
@@ -181,9 +246,9 @@ def test_a_force_limit_is_settled_onto_the_limit_other_outcomes_are_not():
 def test_grasp_and_release_results_keep_their_fields():
     grasp = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0), SETTINGS)
     snap = Snapshot(finished(Outcome.CONTACT, 0.0195), 2.01, 0.0)
-    assert grasp.result(snap, "contact: reached 2.01 N") == {
+    assert grasp.result(snap, "contact: contact at 2.2 N, settled at 2.01 N") == {
         "contact_detected": True, "force": 2.01, "opening": 0.0195,
-        "message": "contact: reached 2.01 N"}
+        "message": "contact: contact at 2.2 N, settled at 2.01 N"}
     assert grasp.feedback(snap) == {"force": 2.01, "opening": 0.0195}
     assert grasp.succeeded(snap.step) and grasp.failure(snap.step) is None
     release = accept_release(NS(opening=0.0), SETTINGS)
@@ -210,7 +275,8 @@ PARAMETERS = {
     "geometry.closed_opening": 0.002, "current_limit": 1.0, "closing_current": 0.6,
     "default_closing_speed": 0.01, "release_speed": 0.02, "default_timeout": 10.0,
     "tactile_timeout": 0.2, "skin_stiffness": 2500.0, "joint_name": "finger_opening",
-    "goal_tolerance": 0.0005, "stall_timeout": 0.2, "allow_stalling": True}
+    "goal_tolerance": 0.0005, "stall_timeout": 0.2, "allow_stalling": True,
+    "max_grasp_force": 10.0}
 
 
 def test_settings_from_the_node_parameters():
@@ -220,6 +286,8 @@ def test_settings_from_the_node_parameters():
     assert config.closing_current_a == config.hold_current_a == 0.5
     assert config.geometry.open_opening_m == 0.05 and config.stale_after_s == 0.2
     assert settings == replace(SETTINGS, config=config)
+    assert settings_from_parameters({**PARAMETERS, "max_grasp_force": 4.0}
+                                    ).max_grasp_force_n == 4.0
 
 
 def test_a_closing_current_above_the_limit_is_refused_naming_both():

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import collections
 import math
+import re
 import threading
 import time
 from types import SimpleNamespace
@@ -26,6 +27,7 @@ from tactile_sensor.control.goal_runner import (
     GoalSlot,
     GoalStatus,
     RunnerTiming,
+    interrupted,
 )
 from tactile_sensor.control.grasp import GraspConfig
 from tactile_sensor.control.servo_link import ServoLink
@@ -90,7 +92,8 @@ class Rig:
     skin of ``stiffness`` N/m around a rod ``rod_m`` wide feeding the tactile force."""
 
     def __init__(self, rod_m: float = 0.030, stiffness: float = 2500.0,
-                 settle_time_s: float = 0.5, force_delay_s: float = 0.0) -> None:
+                 settle_time_s: float = 0.5, force_delay_s: float = 0.0,
+                 full_scale_n: float = math.inf) -> None:
         self.client = KinematicServo()
         self.servo = ServoLink(self.client, CONFIG, period_s=TICK_S, retries=0)
         self.forces, self.slot = TactileForce(), GoalSlot()
@@ -101,6 +104,8 @@ class Rig:
                                  on_hardware_error=self.hardware_errors.append,
                                  log_error=self.errors.append)
         self.rod_m, self.stiffness = rod_m, stiffness
+        #: The sensor reads the true force up to this and saturates there [N].
+        self.full_scale_n = full_scale_n
         #: The tactile force arrives this late [s], stamped when it was true (CPU load).
         self.force_delay_s = force_delay_s
         self._in_flight: collections.deque[tuple[float, float]] = collections.deque()
@@ -114,7 +119,8 @@ class Rig:
             poll = self.servo.poll()
             now = time.time()
             if poll.state is not None:
-                self._in_flight.append((now, self.true_force(poll.state.position_rad)))
+                self._in_flight.append((now, min(self.true_force(poll.state.position_rad),
+                                                 self.full_scale_n)))
             while self._in_flight and self._in_flight[0][0] <= now - self.force_delay_s:
                 stamp, force = self._in_flight.popleft()
                 self.forces.add(force, stamp)
@@ -162,7 +168,10 @@ def closing(rig: Rig):
 def test_a_grasp_closes_to_contact_settles_and_reports():
     with Rig() as rig:
         end = rig.run(accept_grasp, grasp())
-    assert end.status is GoalStatus.SUCCEEDED and end.message.startswith("contact")
+    assert end.status is GoalStatus.SUCCEEDED
+    # the message reports the force the result's field carries, and the contact apart
+    assert re.fullmatch(r"contact: contact at \d+\.\d\d N, settled at "
+                        + re.escape(f"{end.result['force']:.2f}") + " N", end.message)
     assert end.result["contact_detected"] and end.result["force"] >= 1.8
     assert end.result["opening"] < 0.030
     assert rig.feedback and set(rig.feedback[0]) == {"force", "opening"}
@@ -180,14 +189,15 @@ def test_an_invalid_goal_aborts_with_no_result():
     with Rig() as rig:
         end = rig.run(accept_grasp, grasp(speed=5.0))
     assert end.status is GoalStatus.ABORTED and end.result is None
-    assert "speed" in end.message and rig.client.commands == []
+    assert end.message.startswith("invalid_goal: Grasp speed 5.0 m/s")
+    assert rig.client.commands == []
 
 
 def test_a_gripper_never_sampled_is_not_active():
     rig = Rig()
     end = rig.run(accept_grasp, grasp())
     assert (end.status, end.message, end.result) == (
-        GoalStatus.ABORTED, "the gripper is not active", None)
+        GoalStatus.ABORTED, "inactive: the gripper is not active", None)
 
 
 def test_a_latched_hardware_error_aborts_before_anything_moves():
@@ -197,7 +207,7 @@ def test_a_latched_hardware_error_aborts_before_anything_moves():
             rig.servo.await_sample(1.0)
         end = rig.run(accept_grasp, grasp())
     assert end.status is GoalStatus.ABORTED
-    assert end.message == "servo hardware error: overload"
+    assert end.message == "hardware_error: overload"
     assert end.result["opening"] == pytest.approx(0.040) and rig.client.commands == []
 
 
@@ -247,9 +257,9 @@ def test_a_newer_goal_preempts_without_a_stop():
 def test_deactivation_aborts_the_running_goal_with_its_reason():
     with Rig(rod_m=0.0) as rig:
         thread, out = closing(rig)
-        rig.slot.abort_active("the gripper node was deactivated")
+        rig.slot.abort_active(interrupted("the gripper node was deactivated"))
         thread.join()
-    assert out["end"].message == "the gripper node was deactivated"
+    assert out["end"].message == "interrupted: the gripper node was deactivated"
 
 
 def test_an_unreachable_servo_aborts_the_goal():
@@ -258,7 +268,7 @@ def test_an_unreachable_servo_aborts_the_goal():
         rig.client.fail_reads = CommunicationTimeout("no status packet")
         thread.join()
     assert out["end"].status is GoalStatus.ABORTED
-    assert out["end"].message == "servo unreachable: no status packet"
+    assert out["end"].message == "servo_unreachable: no status packet"
 
 
 def test_a_command_that_cannot_be_written_aborts_the_goal():
@@ -271,7 +281,7 @@ def test_a_command_that_cannot_be_written_aborts_the_goal():
         rig.client.fail_commands = [PortLost("unplugged")] * 100
         thread.join()
     assert out["end"].status is GoalStatus.ABORTED
-    assert out["end"].message == "servo unreachable: unplugged"
+    assert out["end"].message == "servo_unreachable: unplugged"
 
 
 def test_a_hardware_error_while_moving_ends_the_goal_and_is_reported():
@@ -280,7 +290,7 @@ def test_a_hardware_error_while_moving_ends_the_goal_and_is_reported():
         rig.client.bits = frozenset({"overheating"})
         thread.join()
     assert out["end"].status is GoalStatus.ABORTED
-    assert out["end"].message.startswith("hardware_error")
+    assert out["end"].message == "hardware_error: overheating"
     assert rig.hardware_errors == [frozenset({"overheating"})]
 
 
@@ -296,7 +306,7 @@ def test_settling_aborts_when_the_servo_is_lost():
             rig.servo.await_sample(1.0)
         rig.client.fail_reads = CommunicationTimeout("no status packet")
         thread.join()
-    assert out["end"].message == "servo unreachable: no status packet"
+    assert out["end"].message == "servo_unreachable: no status packet"
     assert out["end"].result["contact_detected"]  # lost while settling, after contact
 
 
@@ -374,3 +384,73 @@ def test_a_reboot_ends_the_running_goal_and_one_started_during_it():
     assert first_out["end"].message == REBOOTING
     assert second_out["end"].status is GoalStatus.ABORTED
     assert second_out["end"].message == REBOOTED
+
+
+def saturated_grasp(rig: Rig, target_n: float = 5.0, timeout_s: float = 10.0):
+    """A grasp accepted before the driver stated its range: the sensor saturates at
+    ``rig.full_scale_n`` below the target, the range arrives while the fingers close, and
+    the grasp runs on, pressing ever harder while it reads the full scale."""
+    thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(
+        force_n=target_n, speed=0.02, timeout=timeout_s)))
+    while not rig.feedback:
+        rig.servo.await_sample(1.0)
+    rig.forces.full_scale_n = rig.full_scale_n
+    while not (rig.forces.latest and rig.forces.latest[0] >= rig.full_scale_n):
+        rig.servo.await_sample(1.0)
+    return thread, out
+
+
+def held_force(rig: Rig) -> float:
+    """The true force once the fingers stopped."""
+    while rig.client.velocity != 0.0:
+        rig.servo.await_sample(1.0)
+    return rig.true_force(rig.client.position)
+
+
+def test_a_grasp_that_times_out_at_the_full_scale_backs_off_to_its_target():
+    """Issue 34: a grasp timed out at the sensor's full scale held 27.9 N on the mock, four
+    times what the sensor reads. It now opens until the reading is below the full scale
+    and at most the target, then holds: the true force is as low."""
+    with Rig(full_scale_n=3.0) as rig:
+        thread, out = saturated_grasp(rig, timeout_s=0.6)
+        thread.join()
+        held = held_force(rig)
+    end = out["end"]
+    assert end.status is GoalStatus.ABORTED
+    assert end.message == ("timeout: no result within 0.6 s; backed off from 3.00 N to "
+                           f"{end.result['force']:.2f} N")
+    assert end.result["force"] < 3.0 and held < 3.0 <= 5.0
+    assert end.result["opening"] == pytest.approx(GEOMETRY.opening_m(rig.client.position))
+
+
+def test_a_cancel_above_the_target_backs_off_and_holds():
+    with Rig(full_scale_n=3.0) as rig:
+        thread, out = saturated_grasp(rig)
+        rig.runner.stop("goal")  # the cancel callback's stop ...
+        rig.cancel.set()  # ... then the goal's loop sees the cancel
+        thread.join()
+        held = held_force(rig)
+    end = out["end"]
+    assert end.status is GoalStatus.CANCELED
+    assert end.message == ("canceled: stopped where the fingers were; backed off from "
+                           f"3.00 N to {end.result['force']:.2f} N")
+    assert held < 3.0
+
+
+def test_a_hardware_error_above_the_target_commands_nothing_more():
+    """Torque is off: the fingers rest where the error left them (docs/gripper.md)."""
+    with Rig(full_scale_n=3.0) as rig:
+        thread, out = saturated_grasp(rig)
+        sent = len(rig.client.commands)
+        rig.client.bits = frozenset({"overload"})
+        thread.join()
+    assert out["end"].message == "hardware_error: overload"
+    assert len(rig.client.commands) == sent
+
+
+def test_an_abort_below_the_target_stays_where_it_stopped():
+    with Rig(rod_m=0.0) as rig:
+        end = rig.run(accept_grasp, grasp(speed=0.005, timeout=0.2))
+        sent = len(rig.client.commands)
+    assert end.message == "timeout: no result within 0.2 s"
+    assert sent == 2  # the closing and the stop: no back-off

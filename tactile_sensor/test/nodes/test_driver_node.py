@@ -18,6 +18,7 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from tactile_sensor.configurations import config_dir
@@ -238,7 +239,8 @@ def test_a_rate_aware_file_runs_its_model_on_every_sample(spawn, ros, files, tmp
 def test_the_model_nodes_prony_terms_make_the_driver_rate_aware(spawn, ros, files):
     """calibration_source: model and the model's calibration_rate_terms: the latched curve
     carries physics' prony_g/prony_tau and /diagnostics name the rate-aware model; a curve
-    with unpaired rate terms before it is ignored with one sentence."""
+    with unpaired rate terms before it is ignored with one sentence. The driver latches the
+    full scale of the curve it uses (none before it has one) for the gripper's ceiling."""
     driver = spawn("--ros-args", "-r", "__node:=driver", "-p", f"port:={files['link']}",
                    "-p", "calibration_source:=model", "-p", "autostart:=true",
                    module="tactile_sensor.nodes.driver")
@@ -253,7 +255,11 @@ def test_the_model_nodes_prony_terms_make_the_driver_rate_aware(spawn, ros, file
         driver.output()
     assert ros.wait_for(lambda: ros.diagnostics, PATIENCE_S)
     assert _value(ros.diagnostics[-1][1], "calibration_model") == "none"
+    assert _value(ros.diagnostics[-1][1], "full_scale_force_n") == "none"
     ros.node.destroy_publisher(bad)
+    full_scales: list[float] = []
+    ros.node.create_subscription(Float64, "/driver/full_scale_force",
+                                 lambda m: full_scales.append(m.data), latched)
 
     curves: list[CalibrationCurve] = []
     ros.node.create_subscription(CalibrationCurve, "/calibration_curve", curves.append, latched)
@@ -272,6 +278,9 @@ def test_the_model_nodes_prony_terms_make_the_driver_rate_aware(spawn, ros, file
     assert described == "rate-aware (2 term(s): g=0.05 tau=0.1 s, g=0.04 tau=1.5 s)"
     assert ros.wait_for(lambda: _value(ros.diagnostics[-1][1], "calibration_model")
                         == described, PATIENCE_S), driver.output()
+    assert _value(ros.diagnostics[-1][1], "full_scale_force_n") == f"{curve.force[-1]:.4g}"
+    assert ros.wait_for(lambda: full_scales, PATIENCE_S)
+    assert full_scales == [curve.force[-1]]  # nothing for the curve it ignored
     assert f"calibration from {curve.source} ({len(curve.output)} points, {described})" \
         in driver.output()
     assert "simulation's assumption" in model.output()

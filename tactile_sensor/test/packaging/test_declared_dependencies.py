@@ -20,6 +20,7 @@ PROVIDER = {
     "rclpy": "rclpy",
     "geometry_msgs": "geometry_msgs",
     "sensor_msgs": "sensor_msgs",
+    "std_msgs": "std_msgs",
     "std_srvs": "std_srvs",
     "builtin_interfaces": "builtin_interfaces",
     "diagnostic_msgs": "diagnostic_msgs",

@@ -86,6 +86,7 @@ def test_key_values_of_a_ready_stream():
     assert (values["adc_settings"], values["adc_bits"], values["reference_voltage"]) == (
         "device", "10", "3.3")
     assert values["calibration_source"] == "test"
+    assert values["full_scale_force_n"] == f"{CALIBRATION.full_scale_force_n:.4g}"
     assert values["readings_published"] == "997"
     assert (values["reading_subscribers"], values["wrench_subscribers"]) == ("1", "0")
     assert all(isinstance(v, str) for v in values.values())
@@ -94,8 +95,8 @@ def test_key_values_of_a_ready_stream():
 def test_key_values_before_the_device_spoke():
     values = adc_health(stats(), None, Tared(None, None), 0.0, 0, 0).values
     assert (values["device"], values["adc_settings"], values["adc_bits"],
-            values["reference_voltage"], values["baseline_v"]) == (
-        "not stated yet", "not decided yet", "none", "none", "none")
+            values["reference_voltage"], values["baseline_v"], values["full_scale_force_n"]
+            ) == ("not stated yet", "not decided yet", "none", "none", "none", "none")
 
 
 def test_an_array_reports_each_face_baseline():

@@ -112,6 +112,13 @@ def test_in_range_flags_outputs_beyond_the_fit():
     assert not cal.in_range(outputs.max(axis=0) * 1.2)
 
 
+def test_the_full_scale_is_the_normal_force_with_every_face_at_its_fitted_maximum():
+    outputs, forces = synthetic()
+    cal = ArrayCalibration.fit(FACES, outputs, forces, 2, "")
+    top = outputs.max(axis=0)  # faces in FACES order: front, back, left, right
+    assert cal.full_scale_force_n == pytest.approx(3.0 * top.sum() + 2.0 * top[0] * top[1])
+
+
 def valid() -> dict:
     outputs, forces = synthetic()
     return ArrayCalibration.fit(FACES, outputs, forces, 2, "s").to_dict()

@@ -24,6 +24,11 @@ def test_interpolates_linearly_and_flags_saturation():
     assert np.isnan(force) and not saturated
 
 
+def test_the_full_scale_is_the_most_force_the_curve_reports():
+    assert CAL.full_scale_force_n == 7.0
+    assert max(CAL.force(x) for x in (0.4, 0.5, 0.6, 10.0)) == CAL.full_scale_force_n
+
+
 @given(st.floats(-1.0, 1.0))
 def test_agrees_with_numpy_interp(x):
     assert CAL.force(x) == pytest.approx(float(np.interp(x, CAL.output_v, CAL.force_n)))

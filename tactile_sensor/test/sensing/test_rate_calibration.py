@@ -80,6 +80,10 @@ def test_a_step_adds_the_instant_moduli_and_saturation_is_reported():
     assert est.update(0.6, 0.001)[1]  # beyond the curve's end
 
 
+def test_the_full_scale_is_the_static_curves_relaxed_maximum():
+    assert RATE.full_scale_force_n == STATIC.full_scale_force_n == 7.0
+
+
 def test_nan_output_and_a_clock_going_back_restart_from_rest():
     est = RATE.estimator()
     est.update(0.1, 0.0)
