@@ -480,6 +480,15 @@ class SkinModel:
         self._indices = c.astype(np.int32)
         self._nnz = uniq.size
         self._perm = _nested_dissection_order(self.mesh.p, self._free)
+        # the factorised matrix is the tangent with rows and columns in that order; where
+        # each of its entries sits in the tangent's data, found once, so that a factorisation
+        # gathers it (the tangent is symmetric: its permuted CSR is the permuted CSC) instead
+        # of permuting rows and columns and converting every time (13 ms of 0.2 s)
+        where = sp.csr_matrix((np.arange(1, self._nnz + 1, dtype=np.int64), self._indices,
+                               self._indptr), shape=(nfree, nfree))[self._perm][:, self._perm]
+        where.sort_indices()
+        self._perm_gather = where.data - 1
+        self._perm_indices, self._perm_indptr = where.indices, where.indptr
 
     # -- residual and tangent ------------------------------------------------------------------
     def _internal_force(self, u: np.ndarray) -> np.ndarray:
@@ -512,6 +521,12 @@ class SkinModel:
         fint = self._internal_force(u)
         if not tangent:
             return fint, None
+        K = sp.csr_matrix((self._tangent_values(u), self._indices, self._indptr),
+                          shape=(self._free.size, self._free.size))
+        return fint, K
+
+    def _tangent_values(self, u: np.ndarray) -> np.ndarray:
+        """The free-free tangent's entries in the order of its CSR pattern."""
         start = time.perf_counter()
         p = self.params
         F = self._gradient.deformation(u[self._edofs])                # (3, 3, e, q)
@@ -525,10 +540,8 @@ class SkinModel:
         g = self._gradient.divergence(cof).reshape(-1, 24)            # (e, 24)
         ke += (p.bulk_modulus / self._vol)[:, None, None] * g[:, :, None] * g[:, None, :]
         data = np.bincount(self._scatter, weights=ke.ravel(), minlength=self._nnz + 1)
-        K = sp.csr_matrix((data[:-1], self._indices, self._indptr),
-                          shape=(self._free.size, self._free.size))
         self.stats["tangent_s"] += time.perf_counter() - start
-        return fint, K
+        return data[:-1]
 
     # -- solve -------------------------------------------------------------------------------
     def _prescribe(self, u: np.ndarray, t: float) -> None:
@@ -576,8 +589,7 @@ class SkinModel:
         lu = None
         for n in range(1, t_all.size):
             cuts_before = self.stats["cuts"]
-            u, lu = self._advance(history, lu, t_all[n], 0)
-            fint, _ = self._evaluate(u, tangent=False)
+            u, lu, fint = self._advance(history, lu, t_all[n], 0)
             forces.append(self.probe_force(fint))
             torques.append(self.probe_torque(fint, u, t_all[n]))
             bulges.append(self.bulges(u))
@@ -601,8 +613,9 @@ class SkinModel:
                            per_face, rotation, np.array(torques))
 
     def _advance(self, history: list[tuple[float, np.ndarray]], lu: object, d: float,
-                 depth: int) -> tuple[np.ndarray, object]:
-        """Equilibrium at load fraction d from the last one in ``history`` (appended to it)."""
+                 depth: int) -> tuple[np.ndarray, object, np.ndarray]:
+        """Equilibrium at load fraction d from the last one in ``history`` (appended to it),
+        the factorised tangent and the internal force there."""
         d0, u0 = history[-1]
         try:
             if len(history) == 1:
@@ -610,30 +623,35 @@ class SkinModel:
             else:
                 u = _extrapolate(history[-3:], d)
             self._prescribe(u, d)
-            u, lu = self._newton(u, lu, self._perm)
+            u, lu, fint = self._newton(u, lu, self._perm)
         except ConvergenceError:
             if depth >= _MAX_CUTS:
                 raise
             self.stats["cuts"] += 1
             self._stale = True       # the tangent may have been factorised at a bad state
-            _, lu = self._advance(history, lu, 0.5 * (d0 + d), depth + 1)
+            _, lu, _ = self._advance(history, lu, 0.5 * (d0 + d), depth + 1)
             return self._advance(history, lu, d, depth + 1)
         history.append((d, u))
         del history[:-3]
-        return u, lu
+        return u, lu, fint
 
     def _factorise(self, u: np.ndarray, perm: np.ndarray) -> object:
         self.stats["factorisations"] += 1
         self._stale = False
-        _, K = self._evaluate(u, tangent=True)
-        assert K is not None
-        if not np.all(np.isfinite(K.data)):
+        values = self._tangent_values(u)
+        if not np.all(np.isfinite(values)):
             raise ConvergenceError("The FEM state became invalid (an element inverted); use "
                                    "more load steps ('steps') or a finer mesh.")
         start = time.perf_counter()
+        n = self._free.size
+        if perm is self._perm:
+            K = sp.csc_matrix((values[self._perm_gather].astype(_LU_DTYPE),
+                               self._perm_indices, self._perm_indptr), shape=(n, n))
+        else:
+            K = sp.csr_matrix((values, self._indices, self._indptr), shape=(n, n))
+            K = K[perm][:, perm].tocsc().astype(_LU_DTYPE)
         try:
-            lu = (spla.splu(K[perm][:, perm].tocsc().astype(_LU_DTYPE), permc_spec="NATURAL",
-                            diag_pivot_thresh=_PIVOT_THRESHOLD,
+            lu = (spla.splu(K, permc_spec="NATURAL", diag_pivot_thresh=_PIVOT_THRESHOLD,
                             options={"SymmetricMode": True}), perm)
         except RuntimeError:
             raise ConvergenceError("The FEM tangent is singular (the skin lost stability); "
@@ -672,7 +690,7 @@ class SkinModel:
         return moved, lu
 
     def _newton(self, u: np.ndarray, lu: object, perm: np.ndarray
-                ) -> tuple[np.ndarray, object]:
+                ) -> tuple[np.ndarray, object, np.ndarray]:
         """Inexact Newton: each correction by GMRES on the exact Jacobian, preconditioned by a
         factorised tangent that is reused across iterations and load steps.
 
@@ -690,12 +708,13 @@ class SkinModel:
         free = self._free
         p = self.params
         tol_r = _RESIDUAL_TOL * p.shear_modulus * p.height**2    # [N], out-of-balance force
-        r = self._internal_force(u)[free]
+        fint = self._internal_force(u)
+        r = fint[free]
         r_start = max(float(np.linalg.norm(r)), tol_r)
         for n in range(_NEWTON_MAX):
             r_norm = float(np.linalg.norm(r))
             if r_norm < tol_r:
-                return u, lu
+                return u, lu, fint
             if r_norm > _NEWTON_DIVERGED * r_start:
                 break                    # diverging: a shorter load step is cheaper (sweep)
             refresh = lu is None or (self._stale and n == 0)
@@ -714,7 +733,8 @@ class SkinModel:
             self.stats["iterations"] += 1
             u = u.copy()
             u[free] += alpha * du
-            r = self._internal_force(u)[free]
+            fint = self._internal_force(u)
+            r = fint[free]
         raise ConvergenceError("The FEM Newton solve did not converge; use more load steps "
                                "('steps') or a smaller 'max_indentation'.")
 
@@ -973,21 +993,25 @@ class _GradientOperator:
 def _nested_dissection_order(points: np.ndarray, free: np.ndarray) -> np.ndarray:
     """Geometric nested-dissection permutation of the free dofs (a good fill-reducing order).
 
-    Recursively bisect the node cloud along its longest extent; separator nodes go last.
+    Recursively bisect the node cloud at its middle plane of nodes across the axis with the
+    most planes (the smallest separator on a structured mesh; the longest extent of a graded
+    mesh is not always it), down to groups of 24 dofs; separator nodes go last. On the default
+    mesh this fills the factors with 8 % fewer entries than bisecting the longest extent down
+    to 96 dofs (4.25 against 4.61 million), and factorises ~15 % faster.
     """
     nodes_of = free // 3
     X = points[:, nodes_of]
     order: list[np.ndarray] = []
 
     def recurse(idx: np.ndarray) -> None:
-        if idx.size <= 96:
+        if idx.size <= 24:
             order.append(idx)
             return
         pts = X[:, idx]
-        ext = np.ptp(pts, axis=1)
-        axis = int(np.argmax(ext))
+        planes = [np.unique(pts[k]) for k in range(3)]
+        axis = int(np.argmax([q.size for q in planes]))
         coords = pts[axis]
-        uniq = np.unique(coords)
+        uniq = planes[axis]
         if uniq.size < 3:
             order.append(idx)
             return
