@@ -529,15 +529,21 @@ class SkinModel:
                           shape=(self._free.size, self._free.size))
         return fint, K
 
-    def _tangent_values(self, u: np.ndarray) -> np.ndarray:
-        """The free-free tangent's entries in the order of its CSR pattern."""
+    def _tangent_values(self, u: np.ndarray, dtype: type = np.float64) -> np.ndarray:
+        """The free-free tangent's entries in the order of its CSR pattern.
+
+        ``dtype`` is the precision of the material tangent and element matrices: single
+        for the preconditioner, which is factorised in single precision anyway (its
+        rounding, ~1e-7 relative, is far below the factorisation's), at ~40 % less time.
+        """
         start = time.perf_counter()
         p = self.params
         F = self._gradient.deformation(u[self._edofs])                # (3, 3, e, q)
         w = self._w
         J = _det(F)
         pres = p.bulk_modulus * ((w * J).sum(axis=1) / self._vol - 1.0)
-        _, A = _mooney_rivlin_tangent(F, p.c10, p.c01, pres[:, None])
+        _, A = _mooney_rivlin_tangent(F.astype(dtype, copy=False), p.c10, p.c01,
+                                      pres[:, None].astype(dtype, copy=False))
         ke = self._gradient.stiffness(A)
         # mean dilatation: d(theta V_e)/du = sum_q w J F^-T dN
         cof = _cofactor(F)
@@ -642,7 +648,7 @@ class SkinModel:
     def _factorise(self, u: np.ndarray, perm: np.ndarray) -> object:
         self.stats["factorisations"] += 1
         self._stale = False
-        values = self._tangent_values(u)
+        values = self._tangent_values(u, _LU_DTYPE)
         if not np.all(np.isfinite(values)):
             raise ConvergenceError("The FEM state became invalid (an element inverted); use "
                                    "more load steps ('steps') or a finer mesh.")
@@ -988,9 +994,11 @@ class _GradientOperator:
                            optimize=True)
             return ke.reshape(ne, 24, 24)
         # weights and scalings in one pass that also lays A out for the GEMM
-        X = np.empty((ne, 3, 3, nq, 3, 3), dtype=np.result_type(A, self._w))
-        np.multiply(A.transpose(4, 0, 2, 5, 1, 3), self._w_hh, out=X)  # (e, i, k, q, K, L)
-        ke = (X.reshape(ne * 9, nq * 9) @ self._pairs).reshape(ne, 3, 3, 8, 8)  # (e,i,k,a,b)
+        X = np.empty((ne, 3, 3, nq, 3, 3), dtype=A.dtype)
+        w_hh, pairs = (self._w_hh, self._pairs) if A.dtype == np.float64 else \
+            (self._w_hh.astype(A.dtype), self._pairs.astype(A.dtype))
+        np.multiply(A.transpose(4, 0, 2, 5, 1, 3), w_hh, out=X)      # (e, i, k, q, K, L)
+        ke = (X.reshape(ne * 9, nq * 9) @ pairs).reshape(ne, 3, 3, 8, 8)  # (e, i, k, a, b)
         return ke.transpose(0, 3, 1, 4, 2).reshape(ne, 24, 24)
 
 
