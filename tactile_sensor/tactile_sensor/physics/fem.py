@@ -49,7 +49,11 @@ _KRYLOV_TARGET = 0.02  # ... or this fraction of the tolerance, whichever is lar
 #                        below it, so a load step converges in one correction (a second
 #                        costs more than the ~2 GMRES iterations per decade this takes)
 _KRYLOV_MAX = 40      # GMRES iterations after which a correction is given up (refactorise)
-_KRYLOV_REFRESH = 12  # a correction that took more GMRES iterations ages the tangent out
+_KRYLOV_REFRESH = 4   # a correction that took more GMRES iterations ages the tangent out:
+#                       on the default mesh 8 factorisations and 107 GMRES iterations
+#                       instead of 6 and 186 at 12 (a factorisation with its tangent
+#                       costs ~25 iterations since it is gathered in place and ordered
+#                       by node planes; 5-10 % less CPU per sweep)
 _PIVOT_THRESHOLD = 0.1  # SuperLU's diag_pivot_thresh (the tangent is symmetric, near SPD)
 _LU_DTYPE = np.float32  # the factorised tangent only preconditions GMRES on the float64
 #                         residual, and its ~1e-3 relative error is far below its ageing
@@ -480,6 +484,15 @@ class SkinModel:
         self._indices = c.astype(np.int32)
         self._nnz = uniq.size
         self._perm = _nested_dissection_order(self.mesh.p, self._free)
+        # the factorised matrix is the tangent with rows and columns in that order; where
+        # each of its entries sits in the tangent's data, found once, so that a factorisation
+        # gathers it (the tangent is symmetric: its permuted CSR is the permuted CSC) instead
+        # of permuting rows and columns and converting every time (13 ms of 0.2 s)
+        where = sp.csr_matrix((np.arange(1, self._nnz + 1, dtype=np.int64), self._indices,
+                               self._indptr), shape=(nfree, nfree))[self._perm][:, self._perm]
+        where.sort_indices()
+        self._perm_gather = where.data - 1
+        self._perm_indices, self._perm_indptr = where.indices, where.indptr
 
     # -- residual and tangent ------------------------------------------------------------------
     def _internal_force(self, u: np.ndarray) -> np.ndarray:
@@ -512,23 +525,33 @@ class SkinModel:
         fint = self._internal_force(u)
         if not tangent:
             return fint, None
+        K = sp.csr_matrix((self._tangent_values(u), self._indices, self._indptr),
+                          shape=(self._free.size, self._free.size))
+        return fint, K
+
+    def _tangent_values(self, u: np.ndarray, dtype: type = np.float64) -> np.ndarray:
+        """The free-free tangent's entries in the order of its CSR pattern.
+
+        ``dtype`` is the precision of the material tangent and element matrices: single
+        for the preconditioner, which is factorised in single precision anyway (its
+        rounding, ~1e-7 relative, is far below the factorisation's), at ~40 % less time.
+        """
         start = time.perf_counter()
         p = self.params
         F = self._gradient.deformation(u[self._edofs])                # (3, 3, e, q)
         w = self._w
         J = _det(F)
         pres = p.bulk_modulus * ((w * J).sum(axis=1) / self._vol - 1.0)
-        _, A = _mooney_rivlin_tangent(F, p.c10, p.c01, pres[:, None])
+        _, A = _mooney_rivlin_tangent(F.astype(dtype, copy=False), p.c10, p.c01,
+                                      pres[:, None].astype(dtype, copy=False))
         ke = self._gradient.stiffness(A)
         # mean dilatation: d(theta V_e)/du = sum_q w J F^-T dN
         cof = _cofactor(F)
         g = self._gradient.divergence(cof).reshape(-1, 24)            # (e, 24)
         ke += (p.bulk_modulus / self._vol)[:, None, None] * g[:, :, None] * g[:, None, :]
         data = np.bincount(self._scatter, weights=ke.ravel(), minlength=self._nnz + 1)
-        K = sp.csr_matrix((data[:-1], self._indices, self._indptr),
-                          shape=(self._free.size, self._free.size))
         self.stats["tangent_s"] += time.perf_counter() - start
-        return fint, K
+        return data[:-1]
 
     # -- solve -------------------------------------------------------------------------------
     def _prescribe(self, u: np.ndarray, t: float) -> None:
@@ -576,8 +599,7 @@ class SkinModel:
         lu = None
         for n in range(1, t_all.size):
             cuts_before = self.stats["cuts"]
-            u, lu = self._advance(history, lu, t_all[n], 0)
-            fint, _ = self._evaluate(u, tangent=False)
+            u, lu, fint = self._advance(history, lu, t_all[n], 0)
             forces.append(self.probe_force(fint))
             torques.append(self.probe_torque(fint, u, t_all[n]))
             bulges.append(self.bulges(u))
@@ -601,8 +623,9 @@ class SkinModel:
                            per_face, rotation, np.array(torques))
 
     def _advance(self, history: list[tuple[float, np.ndarray]], lu: object, d: float,
-                 depth: int) -> tuple[np.ndarray, object]:
-        """Equilibrium at load fraction d from the last one in ``history`` (appended to it)."""
+                 depth: int) -> tuple[np.ndarray, object, np.ndarray]:
+        """Equilibrium at load fraction d from the last one in ``history`` (appended to it),
+        the factorised tangent and the internal force there."""
         d0, u0 = history[-1]
         try:
             if len(history) == 1:
@@ -610,30 +633,35 @@ class SkinModel:
             else:
                 u = _extrapolate(history[-3:], d)
             self._prescribe(u, d)
-            u, lu = self._newton(u, lu, self._perm)
+            u, lu, fint = self._newton(u, lu, self._perm)
         except ConvergenceError:
             if depth >= _MAX_CUTS:
                 raise
             self.stats["cuts"] += 1
             self._stale = True       # the tangent may have been factorised at a bad state
-            _, lu = self._advance(history, lu, 0.5 * (d0 + d), depth + 1)
+            _, lu, _ = self._advance(history, lu, 0.5 * (d0 + d), depth + 1)
             return self._advance(history, lu, d, depth + 1)
         history.append((d, u))
         del history[:-3]
-        return u, lu
+        return u, lu, fint
 
     def _factorise(self, u: np.ndarray, perm: np.ndarray) -> object:
         self.stats["factorisations"] += 1
         self._stale = False
-        _, K = self._evaluate(u, tangent=True)
-        assert K is not None
-        if not np.all(np.isfinite(K.data)):
+        values = self._tangent_values(u, _LU_DTYPE)
+        if not np.all(np.isfinite(values)):
             raise ConvergenceError("The FEM state became invalid (an element inverted); use "
                                    "more load steps ('steps') or a finer mesh.")
         start = time.perf_counter()
+        n = self._free.size
+        if perm is self._perm:
+            K = sp.csc_matrix((values[self._perm_gather].astype(_LU_DTYPE),
+                               self._perm_indices, self._perm_indptr), shape=(n, n))
+        else:
+            K = sp.csr_matrix((values, self._indices, self._indptr), shape=(n, n))
+            K = K[perm][:, perm].tocsc().astype(_LU_DTYPE)
         try:
-            lu = (spla.splu(K[perm][:, perm].tocsc().astype(_LU_DTYPE), permc_spec="NATURAL",
-                            diag_pivot_thresh=_PIVOT_THRESHOLD,
+            lu = (spla.splu(K, permc_spec="NATURAL", diag_pivot_thresh=_PIVOT_THRESHOLD,
                             options={"SymmetricMode": True}), perm)
         except RuntimeError:
             raise ConvergenceError("The FEM tangent is singular (the skin lost stability); "
@@ -672,7 +700,7 @@ class SkinModel:
         return moved, lu
 
     def _newton(self, u: np.ndarray, lu: object, perm: np.ndarray
-                ) -> tuple[np.ndarray, object]:
+                ) -> tuple[np.ndarray, object, np.ndarray]:
         """Inexact Newton: each correction by GMRES on the exact Jacobian, preconditioned by a
         factorised tangent that is reused across iterations and load steps.
 
@@ -690,12 +718,13 @@ class SkinModel:
         free = self._free
         p = self.params
         tol_r = _RESIDUAL_TOL * p.shear_modulus * p.height**2    # [N], out-of-balance force
-        r = self._internal_force(u)[free]
+        fint = self._internal_force(u)
+        r = fint[free]
         r_start = max(float(np.linalg.norm(r)), tol_r)
         for n in range(_NEWTON_MAX):
             r_norm = float(np.linalg.norm(r))
             if r_norm < tol_r:
-                return u, lu
+                return u, lu, fint
             if r_norm > _NEWTON_DIVERGED * r_start:
                 break                    # diverging: a shorter load step is cheaper (sweep)
             refresh = lu is None or (self._stale and n == 0)
@@ -714,7 +743,8 @@ class SkinModel:
             self.stats["iterations"] += 1
             u = u.copy()
             u[free] += alpha * du
-            r = self._internal_force(u)[free]
+            fint = self._internal_force(u)
+            r = fint[free]
         raise ConvergenceError("The FEM Newton solve did not converge; use more load steps "
                                "('steps') or a smaller 'max_indentation'.")
 
@@ -964,30 +994,36 @@ class _GradientOperator:
                            optimize=True)
             return ke.reshape(ne, 24, 24)
         # weights and scalings in one pass that also lays A out for the GEMM
-        X = np.empty((ne, 3, 3, nq, 3, 3), dtype=np.result_type(A, self._w))
-        np.multiply(A.transpose(4, 0, 2, 5, 1, 3), self._w_hh, out=X)  # (e, i, k, q, K, L)
-        ke = (X.reshape(ne * 9, nq * 9) @ self._pairs).reshape(ne, 3, 3, 8, 8)  # (e,i,k,a,b)
+        X = np.empty((ne, 3, 3, nq, 3, 3), dtype=A.dtype)
+        w_hh, pairs = (self._w_hh, self._pairs) if A.dtype == np.float64 else \
+            (self._w_hh.astype(A.dtype), self._pairs.astype(A.dtype))
+        np.multiply(A.transpose(4, 0, 2, 5, 1, 3), w_hh, out=X)      # (e, i, k, q, K, L)
+        ke = (X.reshape(ne * 9, nq * 9) @ pairs).reshape(ne, 3, 3, 8, 8)  # (e, i, k, a, b)
         return ke.transpose(0, 3, 1, 4, 2).reshape(ne, 24, 24)
 
 
 def _nested_dissection_order(points: np.ndarray, free: np.ndarray) -> np.ndarray:
     """Geometric nested-dissection permutation of the free dofs (a good fill-reducing order).
 
-    Recursively bisect the node cloud along its longest extent; separator nodes go last.
+    Recursively bisect the node cloud at its middle plane of nodes across the axis with the
+    most planes (the smallest separator on a structured mesh; the longest extent of a graded
+    mesh is not always it), down to groups of 24 dofs; separator nodes go last. On the default
+    mesh this fills the factors with 8 % fewer entries than bisecting the longest extent down
+    to 96 dofs (4.25 against 4.61 million), and factorises ~15 % faster.
     """
     nodes_of = free // 3
     X = points[:, nodes_of]
     order: list[np.ndarray] = []
 
     def recurse(idx: np.ndarray) -> None:
-        if idx.size <= 96:
+        if idx.size <= 24:
             order.append(idx)
             return
         pts = X[:, idx]
-        ext = np.ptp(pts, axis=1)
-        axis = int(np.argmax(ext))
+        planes = [np.unique(pts[k]) for k in range(3)]
+        axis = int(np.argmax([q.size for q in planes]))
         coords = pts[axis]
-        uniq = np.unique(coords)
+        uniq = planes[axis]
         if uniq.size < 3:
             order.append(idx)
             return

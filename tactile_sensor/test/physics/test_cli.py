@@ -243,3 +243,35 @@ def test_real_process_prints_one_sentence_not_a_traceback():
         cwd=SOURCE, capture_output=True, text=True, timeout=60, check=False)
     assert proc.returncode == 2
     assert "unknown physics parameter 'widht'" in one_sentence(proc.stderr)
+
+
+_CHURN = """
+import resource, sys
+import numpy as np
+from tactile_sensor.physics.cli import keep_freed_memory
+if sys.argv[1] == "hint":
+    assert keep_freed_memory()
+def churn():
+    arrays = [np.ones(1_700_000) for _ in range(3)]   # three 13.6 MB arrays, then freed
+    del arrays
+churn()
+before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+for _ in range(10):
+    churn()
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's allocator")
+def test_the_allocator_keeps_freed_memory_for_the_next_arrays():
+    """Arrays of a sweep's size, freed and allocated again: with the hint they reuse the
+    heap; without it glibc trims the heap and faults pages back in (measured: ~10 600
+    page faults over ten rounds without it, none with it)."""
+    def faults(mode: str) -> int:
+        out = subprocess.run([sys.executable, "-c", _CHURN, mode], capture_output=True,
+                             text=True, check=True).stdout
+        return int(out)
+
+    plain, hinted = faults("plain"), faults("hint")
+    assert plain > 3_000
+    assert hinted < plain / 10

@@ -131,3 +131,35 @@ def test_fit_refuses_a_range_too_short_for_the_window():
     x = np.linspace(1e-3, 1.5e-3, 20)
     with pytest.raises(PhysicsError, match="wider distance range"):
         fit_optics(x, Photoreflector().voltage(x))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-5.0, 5.0), min_size=3, max_size=12),
+       st.lists(st.floats(0.05, 2.0), min_size=11, max_size=11))
+@example([-1.0, -0.9188, 0.0499, 1.0186, 1.9873, 2.90, 3.60, 4.40, 4.75, 4.93, 4.99, 5.0,
+          5.0], [0.5] * 12)
+@example([0.0, 1.0, 1.0, 0.0], [1.0, 0.1, 3.0])   # flat secant and an extremum
+def test_light_curve_interpolation_matches_scipy_pchip(values, widths):
+    """The numpy PCHIP behind the light curve gives SciPy's PchipInterpolator's values."""
+    from scipy.interpolate import PchipInterpolator
+
+    from tactile_sensor.physics.optics import _Pchip
+
+    y = np.asarray(values)
+    x = np.concatenate([[0.0], np.cumsum(widths[:y.size - 1])])
+    query = np.concatenate([np.linspace(x[0], x[-1], 501), x])
+    expected = PchipInterpolator(x, y)(query)
+    scale = max(1.0, float(np.abs(y).max()))
+    assert np.allclose(_Pchip(x, y)(query), expected, rtol=0.0, atol=1e-12 * scale)
+
+
+def test_the_light_curve_loads_without_scipy_interpolate():
+    """A cold model sweep does not pay for importing scipy.interpolate (its optics)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; import tactile_sensor.physics.optics; "
+            "print('scipy.interpolate' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "False"
