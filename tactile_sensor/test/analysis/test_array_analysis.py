@@ -208,6 +208,7 @@ def assert_one_sentence(code, err, *fragments):
         assert fragment in lines[0]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("press", [True, False])
 def test_cli_writes_the_array_metrics_figures_and_report(tmp_path, capsys, press):
     signals = shear_signals(dataclasses.replace(PROTOCOL, press=press, directions=8),

@@ -48,6 +48,7 @@ def assert_one_sentence(code, err, *fragments):
         assert fragment in lines[0]
 
 
+@pytest.mark.slow
 def test_fit_on_one_bag_evaluate_on_another_with_prediction_overlay(bags, tmp_path, capsys):
     a, b = bags
     d = np.linspace(0, PROTOCOL.depth_m, 50)

@@ -13,6 +13,9 @@ from pathlib import Path
 
 import pytest
 
+# Runs the AVR toolchain (a process per build).
+pytestmark = pytest.mark.slow
+
 REPO = Path(__file__).resolve().parents[3]
 SCRIPT = REPO / "firmware" / "build-avr.sh"
 has_avr = pytest.mark.skipif(shutil.which("avr-g++") is None,

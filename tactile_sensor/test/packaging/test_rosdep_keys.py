@@ -23,10 +23,10 @@ PROJECT_KEYS = REPO / "rosdep" / "tactile_sensor.yaml"
 ROSDEP = [sys.executable, "-c",
           "import sys; from rosdep2.main import rosdep_main; rosdep_main(sys.argv[1:])"]
 
-pytestmark = pytest.mark.skipif(
+pytestmark = [pytest.mark.skipif(
     not (ROSDISTRO / "index-v4.yaml").is_file(),
     reason=f"no rosdistro snapshot at {ROSDISTRO} (set TACTILE_ROSDISTRO)",
-)
+), pytest.mark.slow]  # rosdep runs as a process
 
 
 def _rosdep(tmp: Path, sources: list[Path], distro: str, *args: str) -> subprocess.CompletedProcess:

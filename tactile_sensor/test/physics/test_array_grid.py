@@ -134,6 +134,7 @@ def test_the_grid_is_cached_and_a_damaged_entry_recomputed(tiny_grid, tmp_path, 
     assert len(calls) == 3
 
 
+@pytest.mark.slow
 def test_two_workers_give_the_same_grid_with_progress(tiny_grid):
     seen: list[float] = []
     parallel = compute_grid(TINY, lambda f, _m: seen.append(f), workers=2)

@@ -43,6 +43,7 @@ def test_model_help_lists_sweep(capsys):
     assert code == 0 and "--set" in out and "max_indentation" in out
 
 
+@pytest.mark.slow
 def test_sweep_writes_json_and_plot_then_hits_the_cache(capsys, tmp_path):
     json_path, png_path = tmp_path / "curve.json", tmp_path / "curve.figure"  # PNG anyway
     code, out, err = run(capsys, "sweep", *COARSE, "--json", str(json_path), "--plot",
@@ -237,6 +238,7 @@ def test_convergence_error_exits_1(capsys, tmp_path, monkeypatch):
     assert "did not converge" in one_sentence(err)
 
 
+@pytest.mark.slow
 def test_real_process_prints_one_sentence_not_a_traceback():
     proc = subprocess.run(
         [sys.executable, "-m", "tactile_sensor.physics.cli", "sweep", "--set", "widht=0.02"],

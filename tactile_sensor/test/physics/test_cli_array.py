@@ -44,6 +44,7 @@ def test_a_sweep_without_indentation_is_refused(capsys, tmp_path):
     assert code == 2 and "needs max_indentation > 0" in err
 
 
+@pytest.mark.slow
 def test_array_calibration_writes_grid_fit_calibration_and_plot(capsys, tmp_path):
     paths = {name: tmp_path / name for name in ("grid.json", "cal.json", "fit.png")}
     code, out, err = run(capsys, "array-calibration", *TINY_GRID, "--degree", "2",

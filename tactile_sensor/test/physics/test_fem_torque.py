@@ -336,6 +336,7 @@ def test_the_torque_finding_names_the_numbers_either_way():
     assert lines[2].startswith("- design 1") and "observes FX, FY, FZ, TZ (4 of 6" in lines[2]
 
 
+@pytest.mark.slow
 def test_a_torque_study_runs_reports_and_reruns_from_the_cache(tmp_path):
     spec = parse_spec({"name": "torque", "fixed": {**COARSE, "modules": FOUR},
                        "vary": {"window_center_z": [0.003]},

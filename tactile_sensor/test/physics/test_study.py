@@ -148,6 +148,7 @@ def test_pareto_refuses_mismatched_senses():
 # -- running -------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_a_failing_design_is_a_row_and_the_cache_means_a_rerun_computes_nothing(tmp_path):
     """Rejected parameters (window outside the band) and a model error (the skin bulges
     past a 0.1 mm gap) become rows; the others are measured; a rerun solves nothing."""
@@ -185,6 +186,7 @@ def test_a_failing_design_is_a_row_and_the_cache_means_a_rerun_computes_nothing(
     assert any("1 to solve" in m for m in messages)                # only the new design
 
 
+@pytest.mark.slow
 def test_the_cli_writes_the_results_and_says_bad_specs_in_one_line(tmp_path, capsys):
     spec = tmp_path / "spec.yaml"
     spec.write_text(yaml.safe_dump(small(vary={"module_height": [0.006, 0.008]})))
@@ -214,6 +216,7 @@ def loopback_cluster(tmp_path):
         yield address
 
 
+@pytest.mark.slow
 def test_a_study_on_a_loopback_cluster_equals_a_local_run(loopback_cluster, tmp_path):
     spec = parse_spec(small(vary={"module_height": [0.006, 0.007, 0.008],
                                   "window_center_z": [0.003, 0.0035]}))
@@ -241,6 +244,7 @@ def test_an_unreachable_scheduler_is_one_sentence(tmp_path, capsys, monkeypatch)
     assert err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_a_cluster_process_that_exits_is_one_sentence(tmp_path, monkeypatch):
     """A scheduler that cannot start (here: an interpreter that exits at once) ends the wait
     with a sentence naming what was awaited and the fix, not a hang."""

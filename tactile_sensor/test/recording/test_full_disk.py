@@ -14,6 +14,9 @@ from tactile_sensor.recording import BagRecorder, RecordingError
 from tactile_sensor.recording.recovery import recover
 from tactile_sensor.recording.rosbag2_writer import WriterOptions
 
+# Mounts a small filesystem image (mkfs and mount run as processes).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture
 def small_disk(tmp_path: Path) -> Iterator[Path]:

@@ -113,6 +113,7 @@ def test_the_cli_recovers_beside_the_bag_and_says_what_it_found(cut_source, tmp_
     assert (tmp_path / "run-recovered" / "metadata.yaml").is_file()
 
 
+@pytest.mark.slow
 def test_the_tactile_sensor_command_dispatches_bag_recover(tmp_path):
     (tmp_path / "bag").mkdir()
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])}

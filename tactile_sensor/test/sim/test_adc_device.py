@@ -44,6 +44,7 @@ def collect(path, n, timeout_s=5.0, **reader_kw):
     return got
 
 
+@pytest.mark.slow
 def test_default_noise_gives_the_papers_dynamic_range(tmp_path):
     path = tmp_path / "adc"
     # the rate does not change per-sample noise; 10 kHz just keeps the test short
@@ -170,6 +171,7 @@ def _skin_table(tmp_path):
     return path
 
 
+@pytest.mark.slow
 def test_cli_streams_and_obeys_the_control_fifo(tmp_path):
     link, control = tmp_path / "adc", tmp_path / "adc.ctl"
     proc = _cli(["--link", str(link), "--skin-table", str(_skin_table(tmp_path)),
@@ -208,6 +210,7 @@ def test_cli_streams_and_obeys_the_control_fifo(tmp_path):
     assert not link.exists() and not control.exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("args", "match"), [
     (["--profile", "squeeze"], "Unknown profile"),
     (["--skin-table", "/nonexistent.json"], "skin table"),

@@ -25,8 +25,9 @@ from tactile_sensor.sim import firmware_host
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.firmware_host import PICO, UNO, Board, HostFirmware, build
 
-pytestmark = pytest.mark.skipif(firmware_host.compiler() is None,
-                                reason="no g++ on this computer (apt-get install g++)")
+pytestmark = [pytest.mark.skipif(firmware_host.compiler() is None,
+                                 reason="no g++ on this computer (apt-get install g++)"),
+              pytest.mark.slow]  # compiles the sketch and runs it as a process
 
 
 @pytest.fixture(scope="session")

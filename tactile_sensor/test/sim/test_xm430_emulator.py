@@ -321,6 +321,7 @@ def test_bad_constructor_arguments(tmp_path):
         Xm430Emulator(tmp_path / "x", servo_id=300)
 
 
+@pytest.mark.slow
 def test_cli_runs_takes_fifo_commands_and_cleans_up(tmp_path):
     link, control = tmp_path / "xm430", tmp_path / "control"
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
@@ -345,6 +346,7 @@ def test_cli_runs_takes_fifo_commands_and_cleans_up(tmp_path):
     assert not link.exists()
 
 
+@pytest.mark.slow
 def test_cli_reports_bad_baud_without_traceback(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     done = subprocess.run(
