@@ -108,9 +108,12 @@ def _driver() -> NodeInterface:
             Endpoint("~/reading", "tactile_sensor_interfaces/msg/TactileReading",
                      "voltage [V], inverted output [V], force [N] and contact of each "
                      "sample (with `modules`: each face's voltage and output too)"),
+            Endpoint("~/full_scale_force", "std_msgs/msg/Float64",
+                     "latched full-scale force [N] of the calibration in use (the curve's "
+                     "top; every larger output clamps there): the gripper's force ceiling"),
             Endpoint("/diagnostics", _DIAGNOSTICS, "the ADC's connection, frame rate, "
-                     "lost frames, tare and calibration state, `readings_published`, "
-                     "`reading_subscribers`, `wrench_subscribers`"),
+                     "lost frames, tare and calibration state, `full_scale_force_n`, "
+                     "`readings_published`, `reading_subscribers`, `wrench_subscribers`"),
         ],
         subscriptions=[
             Endpoint("calibration_curve", "tactile_sensor_interfaces/msg/CalibrationCurve",
@@ -170,7 +173,11 @@ def _gripper() -> NodeInterface:
                      "error bits, temperature, voltage and the running goal"),
         ],
         subscriptions=[Endpoint("tactile_wrench", _WRENCH, "the tactile force (remap to "
-                                "the driver's `~/wrench`)")],
+                                "the driver's `~/wrench`)"),
+                       Endpoint("tactile_full_scale", "std_msgs/msg/Float64",
+                                "the tactile sensor's latched full-scale force [N] (remap "
+                                "to the driver's `~/full_scale_force`): with "
+                                "`max_grasp_force`, the force ceiling of every goal")],
         services=[Endpoint("~/reboot", _TRIGGER, "reboot the servo after a hardware "
                            "error; ends the running goal")],
         actions=[
