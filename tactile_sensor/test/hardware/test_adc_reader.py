@@ -316,9 +316,9 @@ def test_a_raising_callback_stops_the_reader_visibly(tmp_path):
 class SlowSerialThread(AdcStreamReader):
     """The serial thread descheduled in the middle of its work (a busy machine)."""
 
-    def _ingest(self, data: bytes) -> None:
+    def _ingest(self, data: bytes, queue: bool = True) -> list:
         time.sleep(0.05)
-        super()._ingest(data)
+        return super()._ingest(data, queue)
 
 
 def test_a_reader_stopped_by_a_callback_stays_stopped(tmp_path):
