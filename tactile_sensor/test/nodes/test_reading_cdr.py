@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 from geometry_msgs.msg import WrenchStamped
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.time import Time
@@ -25,6 +25,7 @@ def same(a: float, b: float) -> bool:
     return a == b or (math.isnan(a) and math.isnan(b))
 
 
+@settings(deadline=None)  # a loaded machine: the first example also imports the types
 @given(frame_id=frame_ids, faces=st.sampled_from([(), FACES[:2], FACES, ("left",) * 3]),
        stamp_ns=stamps, values=st.lists(floats, min_size=11, max_size=11),
        contact=st.booleans())
@@ -45,6 +46,7 @@ def test_a_reading_decodes_to_the_message_rclpy_builds(frame_id, faces, stamp_ns
     assert len(data) <= len(serialize_message(msg))
 
 
+@settings(deadline=None)
 @given(frame_id=frame_ids, stamp_ns=stamps, force=st.lists(floats, min_size=3, max_size=3))
 def test_a_wrench_decodes_to_the_message_rclpy_builds(frame_id, stamp_ns, force):
     data = WrenchCdr(frame_id).encode(stamp_ns, *force)
