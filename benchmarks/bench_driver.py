@@ -14,6 +14,11 @@ The driver runs with a static calibration file, then with the same curve and two
 terms (calibration across speeds: the Prony estimator on every sample), then (``all``)
 with those terms and play (two branches and the direction tracker, file version 3).
 
+``--floor`` measures instead what one rclpy publish of ~/reading costs at this rate, in
+this process with a subscriber in another (the limit of rclpy and the middleware, which no
+driver code can go below): a message object built per sample as b36bc06 did, a message
+object reused, and the bytes the driver publishes now (nodes/reading_cdr.py).
+
 ``--compare REV`` runs the driver of commit REV (its sources unpacked by ``git archive``,
 this checkout's interfaces and mock ADC) and this checkout's, one after the other, for
 ``--rounds`` rounds whose order alternates, and prints a before/after table: on a shared
@@ -22,6 +27,7 @@ machine only figures measured in one run compare. The figures go to
 
     python benchmarks/bench_driver.py [--seconds 20] [--model static|rate|play|both|all]
                                       [--compare REV] [--rounds 2]
+    python benchmarks/bench_driver.py --floor [--seconds 20]
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,6 +60,7 @@ from side_by_side import (
 )
 
 from tactile_sensor.nodes.background_spin import BackgroundSpin
+from tactile_sensor.nodes.reading_cdr import ReadingCdr
 from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.msg import TactileReading
 
@@ -108,7 +116,11 @@ def main() -> int:
                         help="also run the driver of commit REV, alternating with this one")
     parser.add_argument("--rounds", type=int, default=None,
                         help="runs of each driver (default 2 with --compare, else 1)")
+    parser.add_argument("--floor", action="store_true",
+                        help="measure one rclpy publish of ~/reading in isolation instead")
     args = parser.parse_args()
+    if args.floor:
+        return publish_floor(args)
     rounds = args.rounds if args.rounds is not None else (2 if args.compare else 1)
     if rounds < 1:
         parser.error(f"--rounds must be at least 1, got {rounds}")
@@ -292,6 +304,91 @@ def measure(args: argparse.Namespace, model: str, variant: Variant) -> Run | Non
             except subprocess.TimeoutExpired:
                 proc.kill()
     return Run(cpu1 - cpu0, t1 - t0, both, (load0, load_average()))
+
+
+SUBSCRIBER = """
+import rclpy
+from tactile_sensor.nodes.ros_session import ros_session
+from tactile_sensor_interfaces.msg import TactileReading
+with ros_session():
+    node = rclpy.create_node("bench_publish_floor_listener")
+    node.create_subscription(TactileReading, "/bench_publish_floor/reading", lambda m: None,
+                             1000, raw=True)
+    try:
+        rclpy.spin(node)
+    except Exception:
+        pass
+"""
+
+
+def publish_floor(args: argparse.Namespace) -> int:
+    """CPU of this thread per publish of ~/reading at ``args.rate``, less the pacing's."""
+    from rclpy.time import Time
+
+    n = max(100, int(args.seconds * args.rate / 4))
+    cdr = ReadingCdr("tactile_sensor")
+    reused = TactileReading(voltage=2.0, output=0.25, force=3.5, contact=True)
+    reused.header.frame_id = "tactile_sensor"
+
+    def built(k: int) -> TactileReading:  # as b36bc06's driver, per sample
+        msg = TactileReading(voltage=2.0, output=0.25, force=3.5, contact=True)
+        msg.header.stamp = Time(nanoseconds=time.time_ns()).to_msg()
+        msg.header.frame_id = "tactile_sensor"
+        return msg
+
+    listener = subprocess.Popen([sys.executable, "-c", SUBSCRIBER], env=dict(os.environ),
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        with ros_session():
+            node = rclpy.create_node("bench_publish_floor")
+            pub = node.create_publisher(TactileReading, "/bench_publish_floor/reading", 10_000)
+            deadline = time.monotonic() + 60
+            while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+                time.sleep(0.05)
+            if pub.get_subscription_count() < 1:
+                print("the listener did not connect within 60 s", file=sys.stderr)
+                return 1
+            cases = {
+                "pacing only": lambda k: None,
+                "message built per sample": lambda k: pub.publish(built(k)),
+                "message reused": lambda k: pub.publish(reused),
+                "bytes (driver now)": lambda k: pub.publish(
+                    cdr.encode(time.time_ns(), 2.0, 0.25, 3.5, True)),
+            }
+            cost = {name: paced_cpu_us(fn, n, 1.0 / args.rate) for name, fn in cases.items()}
+            node.destroy_node()
+    finally:
+        listener.terminate()
+        listener.wait(10)
+    base = cost.pop("pacing only")
+    print(f"rclpy publish of ~/reading at {args.rate:g} Hz, one subscriber in another "
+          f"process, {n} publishes each (load average {load_average():.1f}); CPU of the "
+          f"publishing thread per publish, less the pacing's ({base:.1f} us):")
+    figures = []
+    for name, us in cost.items():
+        print(f"  {name:26s} {us - base:6.1f} us")
+        figures.append(Figure(f"publish ~/reading, {name}", round(us - base, 2), "us"))
+    figures.append(Figure("load average during the run", round(load_average(), 1),
+                          f"on {os.cpu_count()} cores"))
+    path = write_results("bench_driver_publish_floor", figures, notes=(
+        "thread CPU per publish at the driver's rate with one raw subscriber in another "
+        "process, less the cost of the pacing loop alone"))
+    print(f"figures written to {path.relative_to(ROOT)}")
+    return 0
+
+
+def paced_cpu_us(fn: Callable[[int], object], n: int, period_s: float) -> float:
+    """This thread's CPU per call of ``fn`` [µs], called every ``period_s`` (cold, as in
+    the driver: a tight loop keeps caches warm and measures a third of it)."""
+    next_at = time.monotonic()
+    cpu0 = time.thread_time()
+    for k in range(n):
+        next_at += period_s
+        delay = next_at - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        fn(k)
+    return (time.thread_time() - cpu0) / n * 1e6
 
 
 if __name__ == "__main__":
