@@ -104,6 +104,12 @@ class Totals:
     def received_per_s(self) -> float:
         return sum(len(r.latencies) for r in self.runs) / sum(r.span_s for r in self.runs)
 
+    @property
+    def cpu_per_reading_us(self) -> float:
+        """CPU per reading received: fair where a starved driver fell behind the device."""
+        return 1e6 * sum(r.cpu_s for r in self.runs) / max(
+            1, sum(len(r.latencies) for r in self.runs))
+
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -168,7 +174,8 @@ def report(args: argparse.Namespace, drivers: list[Variant], models: tuple[str, 
           f"and calibration (load average {min(loads):.1f} .. {max(loads):.1f} on "
           f"{os.cpu_count()} cores)")
     print(f"  {'driver':22s} {'calibration':11s} {'CPU % of one core':28s} "
-          f"{'DDS latency median / p99 / max [ms]':37s} callback p99 [ms]")
+          f"{'DDS latency median / p99 / max [ms]':37s} callback p99 [ms]  "
+          "CPU per reading [us]")
     figures: list[Figure] = []
     for model in models:
         for driver in drivers:
@@ -178,7 +185,7 @@ def report(args: argparse.Namespace, drivers: list[Variant], models: tuple[str, 
             each = ", ".join(f"{p:.1f}" for p in t.round_percents)
             print(f"  {driver.label:22s} {model:11s} {t.cpu_percent:5.1f} ({each})"
                   f"{'':{max(0, 21 - len(each))}s} {med:6.2f} / {p99:6.2f} / {worst:6.2f}"
-                  f"{'':16s} {cb_p99:6.2f}")
+                  f"{'':16s} {cb_p99:6.2f}{'':13s} {t.cpu_per_reading_us:6.1f}")
             name = f"{driver.label}, {model}"
             p99_goal = f"<= {P99_GOAL_MS:g} ms" if (model == "static"
                                                    and driver is drivers[-1]) else ""
@@ -189,17 +196,23 @@ def report(args: argparse.Namespace, drivers: list[Variant], models: tuple[str, 
                 Figure(f"latency max, {name}", round(worst, 3), "ms"),
                 Figure(f"callback latency p99, {name}", round(cb_p99, 3), "ms"),
                 Figure(f"readings received, {name}", round(t.received_per_s, 1), "1/s"),
+                Figure(f"driver CPU per reading received, {name}",
+                       round(t.cpu_per_reading_us, 1), "us"),
             ]
     if len(drivers) == 2:
         before, after = drivers
         for model in models:
-            ratio = (totals[(after.label, model)].cpu_percent
-                     / totals[(before.label, model)].cpu_percent)
+            a, b = totals[(after.label, model)], totals[(before.label, model)]
+            ratio = a.cpu_percent / b.cpu_percent
+            per_reading = a.cpu_per_reading_us / b.cpu_per_reading_us
             goal = f"<= {CPU_RATIO_GOAL:g}" if model == "static" else ""
             print(f"  CPU {after.label} / {before.label}, {model}: {ratio:.2f}"
-                  + (f" (goal {goal})" if goal else ""))
-            figures.append(Figure(f"CPU ratio {after.label} / {before.label}, {model}",
-                                  round(ratio, 3), "", goal))
+                  + (f" (goal {goal})" if goal else "")
+                  + f"; per reading received: {per_reading:.2f}")
+            figures += [Figure(f"CPU ratio {after.label} / {before.label}, {model}",
+                               round(ratio, 3), "", goal),
+                        Figure(f"CPU per reading ratio {after.label} / {before.label}, "
+                               f"{model}", round(per_reading, 3), "", goal)]
     for driver in drivers:
         static = totals.get((driver.label, "static"))
         for model, name in (("rate", "rate-aware"), ("play", "rate-aware with play")):
