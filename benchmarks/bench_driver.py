@@ -65,6 +65,7 @@ from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.msg import TactileReading
 
 ROOT = Path(__file__).resolve().parents[1]
+WARM_UP_S = 120  # for the first 2,000 readings: a loaded 2-core machine took over 60 s
 MOCK = Variant("mock", ROOT / "tactile_sensor")  # every driver reads this checkout's mock
 CPU_RATIO_GOAL = 0.37  # issue 35: at most 0.37 x b36bc06's CPU, static calibration
 P99_GOAL_MS = 1.0  # sample -> subscriber (DDS), static calibration
@@ -291,11 +292,11 @@ def measure(args: argparse.Namespace, model: str, variant: Variant) -> Run | Non
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             spin = BackgroundSpin(executor)
-            deadline = time.monotonic() + 60
+            deadline = time.monotonic() + WARM_UP_S
             while len(latencies) < 2000 and time.monotonic() < deadline:
                 time.sleep(0.1)
             if len(latencies) < 2000:
-                print(f"{variant.label}'s driver produced no data within 60 s",
+                print(f"{variant.label}'s driver produced no data within {WARM_UP_S:g} s",
                       file=sys.stderr)
                 return None
             with lock:
@@ -355,7 +356,7 @@ def publish_floor(args: argparse.Namespace) -> int:
         with ros_session():
             node = rclpy.create_node("bench_publish_floor")
             pub = node.create_publisher(TactileReading, "/bench_publish_floor/reading", 10_000)
-            deadline = time.monotonic() + 60
+            deadline = time.monotonic() + WARM_UP_S
             while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
                 time.sleep(0.05)
             if pub.get_subscription_count() < 1:
