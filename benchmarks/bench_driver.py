@@ -19,6 +19,11 @@ this process with a subscriber in another (the limit of rclpy and the middleware
 driver code can go below): a message object built per sample as b36bc06 did, a message
 object reused, and the bytes the driver publishes now (nodes/reading_cdr.py).
 
+``--mock-floor`` reads the mock ADC with a bare poll/read loop in this process instead (no
+driver, no ROS) and reports how late its frames arrive against the earliest one, the
+same measure as the latency above: the mock's own pacing jitter, which every driver's
+latency includes.
+
 ``--compare REV`` runs the driver of commit REV (its sources unpacked by ``git archive``,
 this checkout's interfaces and mock ADC) and this checkout's, one after the other, for
 ``--rounds`` rounds whose order alternates, and prints a before/after table: on a shared
@@ -28,6 +33,7 @@ machine only figures measured in one run compare. The figures go to
     python benchmarks/bench_driver.py [--seconds 20] [--model static|rate|play|both|all]
                                       [--compare REV] [--rounds 2]
     python benchmarks/bench_driver.py --floor [--seconds 20]
+    python benchmarks/bench_driver.py --mock-floor [--seconds 20]
 """
 
 from __future__ import annotations
@@ -125,9 +131,13 @@ def main() -> int:
                         help="runs of each driver (default 2 with --compare, else 1)")
     parser.add_argument("--floor", action="store_true",
                         help="measure one rclpy publish of ~/reading in isolation instead")
+    parser.add_argument("--mock-floor", action="store_true",
+                        help="measure the mock ADC's own arrival jitter instead")
     args = parser.parse_args()
     if args.floor:
         return publish_floor(args)
+    if args.mock_floor:
+        return mock_floor(args)
     rounds = args.rounds if args.rounds is not None else (2 if args.compare else 1)
     if rounds < 1:
         parser.error(f"--rounds must be at least 1, got {rounds}")
@@ -387,6 +397,64 @@ def publish_floor(args: argparse.Namespace) -> int:
     path = write_results("bench_driver_publish_floor", figures, notes=(
         "thread CPU per publish at the driver's rate with one raw subscriber in another "
         "process, less the cost of the pacing loop alone"))
+    print(f"figures written to {path.relative_to(ROOT)}")
+    return 0
+
+
+def mock_floor(args: argparse.Namespace) -> int:
+    """Arrival delay of the mock's frames read by a bare loop [ms], as the driver's
+    latency is computed: host time of the read less device time, less the smallest."""
+    import select
+
+    import serial
+
+    from tactile_sensor.hardware.adc_frame import Frame, FrameParser
+
+    tmp = Path(tempfile.mkdtemp(prefix="bench_mock_floor_"))
+    write_inputs(tmp, "static")
+    mock = subprocess.Popen(
+        [sys.executable, "-m", "tactile_sensor.cli", "mock", "adc", "--link",
+         str(tmp / "adc"), "--rate", str(args.rate), "--skin-table", str(tmp / "skin.json"),
+         "--loop", "--profile", "ramp:depth=0.003,speed=0.003,cycles=1,rest=0.5"],
+        env=MOCK.env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    arrivals: list[tuple[int, int]] = []  # (device time [us], host time [ns])
+    try:
+        deadline = time.monotonic() + WARM_UP_S
+        while not (tmp / "adc").exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        port = serial.serial_for_url(str(tmp / "adc"), baudrate=1_000_000, timeout=0.05)
+        poll = select.poll()
+        poll.register(port.fd, select.POLLIN)
+        parser = FrameParser()
+        start = time.monotonic()
+        warm_up_until = start + 2.0  # what waited in the port before it was opened
+        while time.monotonic() < warm_up_until + args.seconds:
+            if poll.poll(50):
+                data = os.read(port.fd, 1 << 16)
+                now = time.time_ns()
+                if time.monotonic() > warm_up_until:
+                    arrivals += [(f.t_us, now) for f in parser.feed(data) if type(f) is Frame]
+                else:
+                    parser.feed(data)
+        port.close()
+    finally:
+        mock.send_signal(signal.SIGINT)
+        mock.wait(10)
+    device_us = np.unwrap(np.array([a[0] for a in arrivals], dtype=float), period=2.0**32)
+    offset_ns = np.array([a[1] for a in arrivals], dtype=float) - device_us * 1e3
+    late_ms = (offset_ns - offset_ns.min()) * 1e-6
+    med, p99, worst = np.median(late_ms), np.percentile(late_ms, 99), late_ms.max()
+    print(f"mock ADC at {args.rate:g} Hz read by a bare poll/read loop for {args.seconds:g} s "
+          f"({len(arrivals)} frames, load average {load_average():.1f}): arrival after the "
+          f"earliest frame's delay: median {med:.2f} ms, p99 {p99:.2f} ms, max {worst:.2f} ms")
+    figures = [Figure("mock arrival delay median", round(float(med), 3), "ms"),
+               Figure("mock arrival delay p99", round(float(p99), 3), "ms"),
+               Figure("mock arrival delay max", round(float(worst), 3), "ms"),
+               Figure("load average during the run", round(load_average(), 1),
+                      f"on {os.cpu_count()} cores")]
+    path = write_results("bench_driver_mock_floor", figures, notes=(
+        "the mock ADC's frames read without a driver: its pacing jitter, which every "
+        "driver latency above includes"))
     print(f"figures written to {path.relative_to(ROOT)}")
     return 0
 
