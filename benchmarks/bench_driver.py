@@ -383,7 +383,11 @@ def publish_floor(args: argparse.Namespace) -> int:
             node.destroy_node()
     finally:
         listener.terminate()
-        listener.wait(10)
+        try:
+            listener.wait(10)
+        except subprocess.TimeoutExpired:  # a middleware teardown that hangs
+            listener.kill()
+            listener.wait()
     base = cost.pop("pacing only")
     print(f"rclpy publish of ~/reading at {args.rate:g} Hz, one subscriber in another "
           f"process, {n} publishes each (load average {load_average():.1f}); CPU of the "
