@@ -10,7 +10,13 @@ subscribes to both readings, so both pay the same DDS cost. CPU = user+system ti
 each driver process over the window; lost frames = the drivers' own diagnostics counters
 (sequence gaps and backlog overflows) at the end.
 
-    python benchmarks/bench_array_driver.py [--seconds 30]
+``--compare REV`` runs the same pair with the driver of commit REV (its sources unpacked by
+``git archive``; this checkout's interfaces and mock ADCs) and with this checkout's, one
+pair after the other for ``--rounds`` rounds whose order alternates, and prints the CPU
+of each before and after (issue 35's goal: the array driver at most 0.4 x REV's). The
+figures go to ``benchmarks/results/bench_array_driver.json``.
+
+    python benchmarks/bench_array_driver.py [--seconds 30] [--compare REV] [--rounds 2]
 
 Run with ``scripts/env.sh`` sourced. ROS domain: $ROS_DOMAIN_ID (default 216).
 """
@@ -27,12 +33,22 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
+from results import Figure, write_results
+from side_by_side import (
+    CompareError,
+    Variant,
+    cpu_seconds,
+    interleaved,
+    load_average,
+    variants,
+)
 
 from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
@@ -40,13 +56,12 @@ from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor_interfaces.msg import TactileReading
 
 ROOT = Path(__file__).resolve().parents[1]
+WARM_UP_S = 120  # for the first 2,000 readings: a loaded 2-core machine took over 60 s
+MOCK = Variant("mock", ROOT / "tactile_sensor")  # every driver reads this checkout's mock
 FACES = ("front", "back", "left", "right")
 LOST_KEYS = ("frames_dropped", "frames_overflowed")
-
-
-def cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+ARRAY_RATIO_GOAL = 0.4  # issue 35: the array driver at most 0.4 x REV's CPU
+SINGLE_RATIO_GOAL = 1.5  # issue 16: the array at most 1.5 x the single module's CPU
 
 
 def write_inputs(tmp: Path) -> None:
@@ -66,7 +81,7 @@ def write_inputs(tmp: Path) -> None:
 
 
 def start(tmp: Path, name: str, channels: int, modules: str, calibration: str,
-          rate: float, env: dict[str, str]) -> list[subprocess.Popen]:
+          rate: float, variant: Variant) -> list[subprocess.Popen]:
     py = sys.executable
     link = tmp / f"{name}_adc"
     driver = subprocess.Popen(
@@ -74,29 +89,119 @@ def start(tmp: Path, name: str, channels: int, modules: str, calibration: str,
          "-p", f"port:={link}", "-p", "calibration_source:=file",
          "-p", f"calibration_file:={tmp / calibration}", "-p", "autostart:=true",
          "-p", f"modules:='{modules}'", "-p", f"sample_rate:={rate}"],
-        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        env=variant.env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     mock = subprocess.Popen(
         [py, "-m", "tactile_sensor.cli", "mock", "adc", "--link", str(link), "--rate",
          str(rate), "--channels", str(channels), "--skin-table", str(tmp / "skin.json"),
          "--loop", "--profile", "ramp:depth=0.003,speed=0.003,cycles=1,rest=0.5"],
-        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        env=MOCK.env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return [driver, mock]
+
+
+@dataclass
+class PairRun:
+    """One run of a single-module and an array driver side by side."""
+
+    span_s: float
+    cpu_s: dict[str, float]
+    received: dict[str, int]
+    lost: dict[str, dict[str, int]]  # in the window
+    lost_since_start: dict[str, object]
+    lateral: int  # array readings with four outputs
+    load: tuple[float, float]
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=30.0)
     parser.add_argument("--rate", type=float, default=1000.0)
+    parser.add_argument("--compare", metavar="REV",
+                        help="also run the drivers of commit REV, alternating with these")
+    parser.add_argument("--rounds", type=int, default=None,
+                        help="runs of each version (default 2 with --compare, else 1)")
     args = parser.parse_args()
+    rounds = args.rounds if args.rounds is not None else (2 if args.compare else 1)
+    if rounds < 1:
+        parser.error(f"--rounds must be at least 1, got {rounds}")
     os.environ.setdefault("ROS_DOMAIN_ID", "216")
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    source = ROOT / "tactile_sensor"
-    env = dict(os.environ, PYTHONPATH=f"{source}:{os.environ.get('PYTHONPATH', '')}")
     tmp = Path(tempfile.mkdtemp(prefix="bench_array_driver_"))
     write_inputs(tmp)
-    runs = {"single": start(tmp, "single", 1, "", "curve.json", args.rate, env),
+    runs: dict[str, list[PairRun]] = {}
+    try:
+        with variants(args.compare) as versions:
+            for r, version in interleaved(versions, rounds):
+                run = measure(args, tmp, version)
+                if run is None:
+                    return 1
+                runs.setdefault(version.label, []).append(run)
+                print(f"  round {r + 1}, {version.label}: CPU array "
+                      f"{100 * run.cpu_s['array'] / run.span_s:.1f} %, single "
+                      f"{100 * run.cpu_s['single'] / run.span_s:.1f} % (load average "
+                      f"{run.load[0]:.1f} -> {run.load[1]:.1f})", flush=True)
+    except CompareError as exc:
+        print(f"bench_array_driver: {exc}", file=sys.stderr)
+        return 2
+    figures = report(args, [v.label for v in versions], rounds, runs)
+    path = write_results("bench_array_driver", figures, notes=(
+        f"{rounds} round(s) of {args.seconds:g} s per version, order alternating; the "
+        "single-module and the array driver of one version run side by side; CPU in % of "
+        "one core"))
+    print(f"figures written to {path.relative_to(ROOT)}")
+    return 0
+
+
+def report(args: argparse.Namespace, labels: list[str], rounds: int,
+           runs: dict[str, list[PairRun]]) -> list[Figure]:
+    loads = [x for rs in runs.values() for r in rs for x in r.load]
+    print(f"\nsingle-module and array driver side by side at {args.rate:g} Hz, {rounds} "
+          f"round(s) x {args.seconds:g} s per version (load average {min(loads):.1f} .. "
+          f"{max(loads):.1f} on {os.cpu_count()} cores)")
+    figures: list[Figure] = []
+    cpu: dict[tuple[str, str], float] = {}
+    for label in labels:
+        rs = runs[label]
+        span = sum(r.span_s for r in rs)
+        for name in ("single", "array"):
+            percent = 100 * sum(r.cpu_s[name] for r in rs) / span
+            cpu[(label, name)] = percent
+            each = ", ".join(f"{100 * r.cpu_s[name] / r.span_s:.1f}" for r in rs)
+            received = sum(r.received[name] for r in rs) / span
+            lost = {k: sum(r.lost[name].get(k, 0) for r in rs) for k in LOST_KEYS}
+            print(f"  {label:22s} {name:6s}: CPU {percent:5.1f} % of one core ({each}), "
+                  f"{received:6.0f} readings/s received, frames lost in the windows: {lost} "
+                  f"(since start, last round: {rs[-1].lost_since_start.get(name)})")
+            figures += [Figure(f"driver CPU, {label}, {name}", round(percent, 2),
+                               "% of one core"),
+                        Figure(f"readings received, {label}, {name}", round(received, 1),
+                               "1/s"),
+                        Figure(f"frames lost, {label}, {name}", sum(lost.values()), "",
+                               "0")]
+        ratio = cpu[(label, "array")] / max(cpu[(label, "single")], 1e-9)
+        print(f"  {label}: CPU ratio array / single: {ratio:.2f} (goal <= "
+              f"{SINGLE_RATIO_GOAL:g}); array readings with 4 outputs: "
+              f"{sum(r.lateral for r in runs[label])}")
+        figures.append(Figure(f"CPU ratio array / single, {label}", round(ratio, 3), "",
+                              f"<= {SINGLE_RATIO_GOAL:g}"))
+    if len(labels) == 2:
+        before, after = labels
+        for name in ("array", "single"):
+            ratio = cpu[(after, name)] / max(cpu[(before, name)], 1e-9)
+            goal = f"<= {ARRAY_RATIO_GOAL:g}" if name == "array" else ""
+            print(f"  CPU {after} / {before}, {name}: {ratio:.2f}"
+                  + (f" (goal {goal})" if goal else ""))
+            figures.append(Figure(f"CPU ratio {after} / {before}, {name}", round(ratio, 3),
+                                  "", goal))
+    figures.append(Figure("load average during the run", f"{min(loads):.1f} .. "
+                          f"{max(loads):.1f}", f"on {os.cpu_count()} cores"))
+    return figures
+
+
+def measure(args: argparse.Namespace, tmp: Path, version: Variant) -> PairRun | None:
+    """One run of ``version``'s single-module and array drivers side by side."""
+    runs = {"single": start(tmp, "single", 1, "", "curve.json", args.rate, version),
             "array": start(tmp, "array", 4, ",".join(f"{i}:{f}" for i, f in enumerate(FACES)),
-                           "array.json", args.rate, env)}
+                           "array.json", args.rate, version)}
     counts = {name: 0 for name in runs}
     lost: dict[str, dict[str, int]] = {}
     lateral = {"array": 0}
@@ -128,14 +233,17 @@ def main() -> int:
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             spin = BackgroundSpin(executor)
-            deadline = time.monotonic() + 60
+            deadline = time.monotonic() + WARM_UP_S
             while min(counts.values()) < 2000 and time.monotonic() < deadline:
                 time.sleep(0.1)
             if min(counts.values()) < 2000:
-                print(f"a driver produced no data within 60 s: {counts}", file=sys.stderr)
-                return 1
+                print(f"{version.label}: a driver produced no data within {WARM_UP_S:g} s: "
+                      f"{counts}", file=sys.stderr)
+                return None
             with lock:
                 start_counts, start_lost = dict(counts), {k: dict(v) for k, v in lost.items()}
+                lateral["array"] = 0
+            load0 = load_average()
             cpu0 = {name: cpu_seconds(procs[0].pid) for name, procs in runs.items()}
             t0 = time.monotonic()
             time.sleep(args.seconds)
@@ -158,27 +266,13 @@ def main() -> int:
                     proc.wait(5)
                 except subprocess.TimeoutExpired:
                     proc.kill()
-    span = t1 - t0
-    cpu = {name: 100 * (cpu1[name] - cpu0[name]) / span for name in runs}
-    print(f"two drivers at {args.rate:g} Hz side by side for {span:.1f} s "
-          f"(load average {os.getloadavg()[0]:.1f})")
-    for name in runs:
-        received = (end_counts[name] - start_counts[name]) / span
-        window_lost = {k: end_lost.get(name, {}).get(k, 0) - start_lost.get(name, {}).get(k, 0)
-                       for k in LOST_KEYS}
-        print(f"  {name:6s}: CPU {cpu[name]:5.1f} % of one core, {received:6.0f} readings/s "
-              f"received, frames lost in the window: {window_lost} (since start: "
-              f"{end_lost.get(name, 'no diagnostics')})")
-    print(f"  CPU ratio array / single: {cpu['array'] / max(cpu['single'], 1e-9):.2f} "
-          f"(goal <= 1.5); array readings with 4 outputs: {lateral['array']}")
-    from results import Figure, write_results
-
-    ratio = cpu["array"] / max(cpu["single"], 1e-9)
-    write_results("array_driver", [
-        *(Figure(f"{name} driver CPU", cpu[name], "% of one core") for name in runs),
-        Figure("CPU ratio array / single", ratio, "", "<= 1.5", ratio <= 1.5)],
-        notes=f"Two drivers at {args.rate:g} Hz side by side for {span:.1f} s.")
-    return 0
+    return PairRun(
+        t1 - t0, {name: cpu1[name] - cpu0[name] for name in runs},
+        {name: end_counts[name] - start_counts[name] for name in runs},
+        {name: {k: end_lost.get(name, {}).get(k, 0) - start_lost.get(name, {}).get(k, 0)
+                for k in LOST_KEYS} for name in runs},
+        {name: end_lost.get(name, "no diagnostics") for name in runs},
+        lateral["array"], (load0, load_average()))
 
 
 if __name__ == "__main__":

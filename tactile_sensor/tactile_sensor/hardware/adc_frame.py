@@ -25,14 +25,20 @@ and every 0.25 s, saying what its codes mean, so firmware and host cannot disagr
     4+L 2  crc         CRC-16/CCITT-FALSE over header..payload
 
 Info frames are not numbered (``seq`` counts samples only). The CRC is
-``binascii.crc_hqx`` (C speed), so parsing costs a few microseconds per frame.
+``binascii.crc_hqx`` (C speed), so parsing costs a few microseconds per frame. A chunk
+that holds a long run of data frames of one kind (a port read after the consumer was
+busy, a high rate) is checked and decoded as one numpy array: ``RUN_MIN_FRAMES`` frames
+or more, where the array's fixed cost is repaid (about 0.5 us per frame against 4 us).
 """
 
 from __future__ import annotations
 
 import binascii
 import struct
+from itertools import repeat
 from typing import NamedTuple
+
+import numpy as np
 
 from tactile_sensor.hardware.errors import FrameError
 
@@ -55,6 +61,46 @@ _CRC = struct.Struct("<H")
 _COUNTS = [struct.Struct(f"<{n}H") for n in range(MAX_CHANNELS + 1)]
 _INFO = struct.Struct("<BBHIB")
 _VERSIONS = frozenset(SUPPORTED_VERSIONS)
+RUN_MIN_FRAMES = 32  # a run of data frames this long is decoded as one array
+
+
+def _crc_table() -> np.ndarray:
+    """CRC-16/CCITT-FALSE of every byte value, for the table-driven vectorised CRC."""
+    table = np.zeros(256, dtype=np.uint16)
+    for b in range(256):
+        crc = b << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else crc << 1
+        table[b] = crc & 0xFFFF
+    return table
+
+
+_CRC_TABLE = _crc_table()
+_RUN_DTYPES = [None] + [np.dtype([("sync", "<u2"), ("header", "u1"), ("seq", "<u2"),
+                                  ("t_us", "<u4"), ("counts", "<u2", (n,)), ("crc", "<u2")])
+                        for n in range(1, MAX_CHANNELS + 1)]
+
+
+def _decode_run(buf: bytearray, start: int, header: int, count: int) -> list[Frame]:
+    """The leading valid frames of ``count`` data frames with ``header`` from ``start``:
+    decoding stops before the first whose sync, header or CRC is wrong (the caller's
+    byte-wise search takes over there)."""
+    n = header & 0x0F
+    dtype = _RUN_DTYPES[n]
+    frames = np.frombuffer(buf, dtype=dtype, count=count, offset=start)
+    raw = np.frombuffer(buf, dtype=np.uint8, count=count * dtype.itemsize,
+                        offset=start).reshape(count, dtype.itemsize)
+    good = (frames["sync"] == 0x5AA5) & (frames["header"] == header)
+    crc = np.full(count, CRC_INIT, dtype=np.uint16)
+    for column in raw[:, 2:dtype.itemsize - CRC_SIZE].T:
+        crc = (crc << 8) ^ _CRC_TABLE[(crc >> 8) ^ column]
+    good &= crc == frames["crc"]
+    valid = count if good.all() else int(np.argmin(good))
+    run = frames[:valid]
+    out = list(map(Frame, run["seq"].tolist(), run["t_us"].tolist(),
+                   map(tuple, run["counts"].tolist()), repeat(header >> 4)))
+    del frames, raw, run  # release the views: the caller resizes ``buf``
+    return out
 
 
 class Frame(NamedTuple):
@@ -271,6 +317,7 @@ class FrameParser:
         i = 0
         frames = 0
         want = self._channels
+        run_from = 0  # where a run of frames may be decoded as one array again
         while True:
             j = buf.find(SYNC, i)
             if j < 0:
@@ -303,6 +350,17 @@ class FrameParser:
                 continue
             if end - j < size:
                 break
+            if header != INFO_HEADER and j >= run_from and end - j >= RUN_MIN_FRAMES * size:
+                count = (end - j) // size
+                run = _decode_run(buf, j, header, count)
+                if len(run) < count:  # broken off: not again for a run's length
+                    run_from = j + (len(run) + RUN_MIN_FRAMES) * size
+                if run:
+                    out += run
+                    frames += len(run)
+                    self._in_sync = True
+                    i = j + len(run) * size
+                    continue
             crc_at = j + size - CRC_SIZE
             if buf[crc_at] | (buf[crc_at + 1] << 8) != binascii.crc_hqx(
                     buf[j + 2:crc_at], CRC_INIT):

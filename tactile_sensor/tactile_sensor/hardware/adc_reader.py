@@ -1,25 +1,34 @@
 """Threaded reader of the ADC frame stream on a serial port (pyserial), unplug-proof.
 
-The reader owns two threads. The serial thread opens the port, parses frames
-(``adc_frame.FrameParser``), numbers them (sequence gaps, 64-bit device time) and queues
-them; the dispatch thread hands them, in order and with the state changes between them,
-to ``on_sample`` / ``on_state``. What the device says about its codes (``DeviceInfo``:
-resolution, reference, channels, rate) goes to ``on_info`` before the first sample it
-describes: a version-2 device's samples wait (in order, up to ``MAX_AWAITING_INFO``) for
-its next info frame, sent every 0.25 s; a version-1 stream gets an info that states only
-the version and channel count. The serial thread does nothing slow, so it drains the
-port even when the consumer (signal chain, ROS publishing: ~100x the cost of parsing) is
-starved of CPU: the device's and the OS's buffers hold only seconds, and a device whose
-host buffer is full drops whole batches of frames. The queue (``SampleBacklog``) holds
-a minute by default; beyond its capacity new samples are dropped and counted
-(``ReaderStats.backlog_dropped``), never silently. Any port failure (cable pulled,
-device reset, port missing at start) becomes state ``DISCONNECTED`` with a reason, and
-the serial thread retries every ``reopen_interval_s`` until the device is back. Nothing
-here raises after construction.
+The reader's thread waits for the port, reads everything it holds in one chunk, parses
+every frame of the chunk (``adc_frame.FrameParser``), numbers them (sequence gaps, 64-bit
+device time) and hands them to the consumer in the same thread: one ``SampleBatch`` (the
+chunk's samples as columns) to ``on_batch``, or one ``Sample`` at a time to
+``on_sample``, in stream order and with the state changes between them (``on_state``). No
+thread sits between the port and the consumer: at 1 kHz the port delivers about one frame
+per read, and a hand-off per chunk to another thread (a condition variable, a context
+switch and the GIL changing hands) cost more CPU than parsing and publishing the frame.
+
+What the device says about its codes (``DeviceInfo``: resolution, reference, channels,
+rate) goes to ``on_info`` before the first sample it describes: a version-2 device's
+samples wait (in order, up to ``MAX_AWAITING_INFO``) for its next info frame, sent every
+0.25 s; a version-1 stream gets an info that states only the version and channel count.
+
+A consumer starved of CPU or stuck in a callback must not lose frames: the device's and
+the OS's buffers hold only seconds (the pseudo-terminal ~1.4 s of frames, a USB serial
+port less), and a device whose host buffer is full drops whole batches of frames. So a
+second thread, the drain thread, wakes every ``drain_after_s`` and, when the consumer
+has been inside its callbacks that long, reads the port itself into a queue
+(``SampleBacklog``); the reader's thread empties that queue, in order, before it reads
+the port again. The queue holds a minute by default; beyond its capacity new samples are
+dropped and counted (``ReaderStats.backlog_dropped``), never silently. Any port failure
+(cable pulled, device reset, port missing at start) becomes state ``DISCONNECTED`` with a
+reason, and the reader retries every ``reopen_interval_s`` until the device is back.
+Nothing here raises after construction.
 
 A ROS node uses it like this::
 
-    reader = AdcStreamReader("/dev/ttyACM0", on_sample=queue.put_nowait,
+    reader = AdcStreamReader("/dev/ttyACM0", on_batch=process_and_publish,
                              on_state=lambda state, reason: ...)
     reader.start()   # on_activate
     reader.stop()    # on_deactivate / on_cleanup
@@ -31,9 +40,11 @@ import collections
 import contextlib
 import enum
 import errno
+import os
+import select
 import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Generic, NamedTuple, TypeVar
@@ -54,7 +65,9 @@ DEFAULT_BAUDRATE = 1_000_000
 MIN_BAUDRATE = 50
 MAX_BAUDRATE = 12_000_000
 DEFAULT_BACKLOG = 60_000  # samples: 1 min at 1 kHz (~16 MB); a process starved longer is mis-sized
-DISPATCH_BATCH = 256  # samples handed over per lock acquisition
+DISPATCH_BATCH = 256  # queued items (batches, state changes) taken per lock acquisition
+READ_CHUNK = 1 << 16  # bytes per read: 5,000 one-channel frames, whatever the port holds
+DRAIN_AFTER_S = 0.05  # a consumer busy this long has the drain thread read the port
 MAX_AWAITING_INFO = 10_000  # samples held per connection until the device's info arrives
 
 
@@ -120,45 +133,118 @@ InfoCallback = Callable[[DeviceInfo], None]
 T = TypeVar("T")
 
 
-class SampleBacklog(Generic[T]):
-    """Bounded FIFO from the serial thread to the consumer's thread (pure, testable).
+class SampleBatch:
+    """Consecutive samples of one connection, as columns (what one read of the port held).
 
-    ``put`` never blocks: samples beyond ``capacity`` are refused and counted in
-    ``dropped`` (the newest go, so what was delivered stays contiguous); items for which
-    ``is_sample`` is False (state changes) are always taken, so the consumer sees every
-    connection change in order with the data.
+    Columns rather than ``Sample`` objects: one list append per field and frame, where a
+    consumer that keeps only a few fields would otherwise pay for an object per sample.
+    ``host_time_ns`` is per sample because samples held for the device's info frame join
+    the batch of the chunk that brought the info.
     """
 
-    def __init__(self, capacity: int, is_sample: Callable[[T], bool] = lambda _: True
-                 ) -> None:
+    __slots__ = ("counts", "device_time_us", "epoch", "host_time_ns", "seq")
+
+    def __init__(self, epoch: int) -> None:
+        self.epoch = epoch
+        self.seq: list[int] = []
+        self.device_time_us: list[int] = []
+        self.host_time_ns: list[int] = []
+        self.counts: list[tuple[int, ...]] = []
+
+    def __len__(self) -> int:
+        return len(self.seq)
+
+    def __iter__(self) -> Iterator[Sample]:
+        epoch = self.epoch
+        for seq, t_us, host_ns, counts in zip(self.seq, self.device_time_us,
+                                              self.host_time_ns, self.counts, strict=True):
+            yield Sample(seq, t_us, host_ns, counts, epoch)
+
+    def append(self, seq: int, device_time_us: int, host_time_ns: int,
+               counts: tuple[int, ...]) -> None:
+        self.seq.append(seq)
+        self.device_time_us.append(device_time_us)
+        self.host_time_ns.append(host_time_ns)
+        self.counts.append(counts)
+
+    def head(self, n: int) -> SampleBatch:
+        """The first ``n`` samples (a full backlog keeps what fits)."""
+        out = SampleBatch(self.epoch)
+        out.seq, out.device_time_us = self.seq[:n], self.device_time_us[:n]
+        out.host_time_ns, out.counts = self.host_time_ns[:n], self.counts[:n]
+        return out
+
+    @classmethod
+    def of(cls, samples: Iterable[Sample]) -> SampleBatch:
+        """A batch of ``samples`` (all of one epoch, the first one's)."""
+        batch: SampleBatch | None = None
+        for s in samples:
+            if batch is None:
+                batch = cls(s.epoch)
+            batch.append(s.seq, s.device_time_us, s.host_time_ns, s.counts)
+        return batch if batch is not None else cls(0)
+
+    def __repr__(self) -> str:
+        return f"SampleBatch({len(self)} samples, epoch {self.epoch})"
+
+
+BatchCallback = Callable[[SampleBatch], None]
+
+
+def _one(_: object) -> int:
+    return 1
+
+
+class SampleBacklog(Generic[T]):
+    """Bounded FIFO from the drain thread to the consumer's thread (pure, testable).
+
+    An item holds ``size_of(item)`` samples (a batch holds many; a state change none).
+    ``put`` never blocks: samples beyond ``capacity`` are refused and counted in
+    ``dropped`` (the newest go, so what was delivered stays contiguous; a batch that fits
+    only in part is cut to its first samples by ``head``); items without samples (state
+    changes) are always taken, so the consumer sees every connection change in order with
+    the data. ``held`` is set by the consumer: samples it took but has not passed on yet
+    (a batch delivered one sample at a time); they count in ``len``, the peak and against
+    the capacity, and ``clear`` throws them away too.
+    """
+
+    def __init__(self, capacity: int, size_of: Callable[[T], int] = _one,
+                 head: Callable[[T, int], T] | None = None) -> None:
         if isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 1:
             raise SerialPortError(f"backlog capacity must be a positive number of samples, "
                                   f"got {capacity!r}.")
         self.capacity = capacity
-        self._is_sample = is_sample
+        self._size_of = size_of
+        self._head = head
         self._items: collections.deque[T] = collections.deque()
         self._samples = 0
         self._ready = threading.Condition(threading.Lock())
         self._closed = False
+        self.held = 0
         self.dropped = 0
         self.peak = 0
 
     def __len__(self) -> int:
-        return self._samples
+        return self._samples + self.held
 
     def put(self, items: Iterable[T]) -> int:
         """Queue ``items`` in order; returns how many samples were refused (backlog full)."""
         refused = 0
+        size_of = self._size_of
         with self._ready:
             for item in items:
-                if self._is_sample(item):
-                    if self._samples >= self.capacity:
-                        refused += 1
-                        continue
-                    self._samples += 1
+                n = size_of(item)
+                if n:
+                    room = self.capacity - self._samples - self.held
+                    if n > room:
+                        refused += n - max(room, 0)
+                        if room <= 0 or self._head is None:
+                            continue
+                        item, n = self._head(item, room), room
+                    self._samples += n
                 self._items.append(item)
             self.dropped += refused
-            self.peak = max(self.peak, self._samples)
+            self.peak = max(self.peak, self._samples + self.held)
             self._ready.notify()
         return refused
 
@@ -166,11 +252,14 @@ class SampleBacklog(Generic[T]):
         """Up to ``limit`` items in order, waiting up to ``timeout_s`` for the first;
         [] on timeout or once closed and empty."""
         with self._ready:
-            if not self._items and not self._closed:
+            if not self._items and not self._closed and timeout_s > 0:
                 self._ready.wait(timeout_s)
-            n = min(limit, len(self._items))
-            out = [self._items.popleft() for _ in range(n)]
-            self._samples -= sum(1 for item in out if self._is_sample(item))
+            items = self._items
+            n = min(limit, len(items))
+            if not n:
+                return []
+            out = [items.popleft() for _ in range(n)]
+            self._samples -= sum(map(self._size_of, out))
             return out
 
     def close(self) -> None:
@@ -183,12 +272,17 @@ class SampleBacklog(Generic[T]):
         with self._ready:
             self._closed = False
 
+    @property
+    def empty(self) -> bool:
+        """Nothing queued or held: no item, not even a state change."""
+        return not self._items and not self.held
+
     def clear(self) -> int:
         """Forget every queued item; returns how many samples were thrown away."""
         with self._ready:
-            n = self._samples
+            n = self._samples + self.held
             self._items.clear()
-            self._samples = 0
+            self._samples = self.held = 0
             return n
 
 
@@ -294,9 +388,10 @@ class AdcStreamReader:
 
     ``port`` is a device path or any pyserial URL. ``channels`` (if given) rejects frames
     with another channel count. ``on_info`` (if given) receives the device's info before
-    the first sample of each connection and whenever it changes. Callbacks run in the
-    reader's dispatch thread, one at a time and in stream order; they may be slow (the
-    serial thread keeps reading meanwhile, up to ``backlog`` samples ahead) but must not
+    the first sample of each connection and whenever it changes. Give ``on_batch`` (a
+    ``SampleBatch`` per chunk read) or ``on_sample`` (one ``Sample`` at a time). Callbacks
+    run in the reader's thread, one at a time and in stream order; they may be slow (the
+    drain thread keeps reading meanwhile, up to ``backlog`` samples ahead) but must not
     raise: an exception escaping a callback stops the reader (state STOPPED, reason says
     why).
     """
@@ -304,7 +399,7 @@ class AdcStreamReader:
     def __init__(
         self,
         port: str,
-        on_sample: SampleCallback,
+        on_sample: SampleCallback | None = None,
         on_state: StateCallback | None = None,
         baudrate: int = DEFAULT_BAUDRATE,
         reopen_interval_s: float = 0.2,
@@ -313,6 +408,8 @@ class AdcStreamReader:
         silence_timeout_s: float = 1.0,
         backlog: int = DEFAULT_BACKLOG,
         on_info: InfoCallback | None = None,
+        on_batch: BatchCallback | None = None,
+        drain_after_s: float = DRAIN_AFTER_S,
     ) -> None:
         if not isinstance(port, str) or not port:
             raise SerialPortError(f"port must be a device path such as /dev/ttyACM0, got {port!r}.")
@@ -324,34 +421,46 @@ class AdcStreamReader:
             )
         for name, value in (("reopen_interval_s", reopen_interval_s),
                             ("read_timeout_s", read_timeout_s),
-                            ("silence_timeout_s", silence_timeout_s)):
+                            ("silence_timeout_s", silence_timeout_s),
+                            ("drain_after_s", drain_after_s)):
             if not isinstance(value, int | float) or not 0.0 < value <= 60.0:
                 raise SerialPortError(f"{name} must be in (0, 60] s, got {value!r}.")
         if channels is not None and (not isinstance(channels, int)
                                      or not 1 <= channels <= MAX_CHANNELS):
             raise SerialPortError(f"channels must be 1..{MAX_CHANNELS} or None, got {channels!r}.")
-        if not callable(on_sample) or any(cb is not None and not callable(cb)
-                                          for cb in (on_state, on_info)):
-            raise SerialPortError("on_sample, on_state and on_info must be callables.")
+        if (on_sample is None) == (on_batch is None):
+            raise SerialPortError("give one of on_sample (a Sample at a time) and on_batch (a "
+                                  "SampleBatch per chunk read), as a callable.")
+        if any(cb is not None and not callable(cb)
+               for cb in (on_sample, on_batch, on_state, on_info)):
+            raise SerialPortError("on_sample, on_batch, on_state and on_info must be "
+                                  "callables.")
         self.port = port
         self.baudrate = baudrate
         self._on_sample = on_sample
+        self._on_batch = on_batch
         self._on_state = on_state
         self._on_info = on_info
         self._reopen_s = float(reopen_interval_s)
+        self._read_timeout_ms = max(1, round(float(read_timeout_s) * 1000))
         self._read_timeout_s = float(read_timeout_s)
         self._silence_s = float(silence_timeout_s)
-        self._backlog: SampleBacklog[Sample | _StateChange | _InfoChange] = SampleBacklog(
-            backlog, lambda item: type(item) is Sample)
+        self._drain_after_s = float(drain_after_s)
+        self._backlog: SampleBacklog[SampleBatch | _StateChange | _InfoChange] = SampleBacklog(
+            backlog, _samples_in, SampleBatch.head)  # type: ignore[arg-type]
         self._parser = FrameParser(channels)
         self._seq = _Sequencer()
         self._gate = _InfoGate()
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # counters, state
+        self._port_lock = threading.Lock()  # the port, the parser: reads stay in order
+        self._port: serial.SerialBase | None = None
+        self._fd: int | None = None  # a POSIX port's descriptor, read without pyserial
+        self._poll: select.poll | None = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self._dispatcher: threading.Thread | None = None
-        self._dispatch_stop = threading.Event()
-        self._abandon = False  # stop() ran out of time: deliver nothing more
+        self._drainer: threading.Thread | None = None
+        self._generation = 0  # a thread of an earlier start() delivers nothing more
+        self._busy_since: float | None = None  # the consumer is in a callback since then
         self._discarded = 0
         self._state = ConnectionState.STOPPED
         self._reason = "not started"
@@ -399,16 +508,15 @@ class AdcStreamReader:
         if self._thread is not None and self._thread.is_alive():
             return
         self._stop.clear()
-        self._dispatch_stop.clear()
-        self._abandon = False
+        self._generation += 1
         self._backlog.reopen()
-        self._dispatcher = threading.Thread(target=self._dispatch,
-                                            name=f"adc-dispatch:{self.port}", daemon=True)
-        self._dispatcher.start()
         self._set_state(ConnectionState.CONNECTING, f"opening {self.port}")
-        self._thread = threading.Thread(target=self._loop, name=f"adc-reader:{self.port}",
-                                        daemon=True)
+        self._thread = threading.Thread(target=self._run, args=(self._generation,),
+                                        name=f"adc-reader:{self.port}", daemon=True)
+        self._drainer = threading.Thread(target=self._drain, args=(self._generation,),
+                                         name=f"adc-drain:{self.port}", daemon=True)
         self._thread.start()
+        self._drainer.start()
 
     def stop(self, timeout_s: float = 2.0) -> None:
         """Stop reading, close the port and deliver what is still queued, for at most
@@ -416,20 +524,22 @@ class AdcStreamReader:
         (``ReaderStats.discarded_at_stop``)."""
         deadline = time.monotonic() + timeout_s
         self._stop.set()
+        me = threading.current_thread()
+        drainer, self._drainer = self._drainer, None
+        if drainer is not None and drainer is not me:
+            drainer.join(timeout_s)
         thread, self._thread = self._thread, None
-        if thread is not None and thread is not threading.current_thread():
-            thread.join(timeout_s)
-        dispatcher, self._dispatcher = self._dispatcher, None
-        self._dispatch_stop.set()
-        self._backlog.close()
-        if dispatcher is not None and dispatcher is not threading.current_thread():
-            dispatcher.join(max(0.0, deadline - time.monotonic()))
-            if dispatcher.is_alive():
-                self._abandon = True
+        if thread is not None and thread is not me:
+            thread.join(max(0.0, deadline - time.monotonic()))
+            if thread.is_alive():  # stuck in a callback: give up what it has not delivered
+                self._generation += 1
                 discarded = self._backlog.clear()
                 with self._lock:
                     self._discarded += discarded
-                dispatcher.join(0.5)
+                thread.join(0.5)
+        self._backlog.close()
+        with self._port_lock:
+            self._close()
         with self._lock:
             changed = self._state is not ConnectionState.STOPPED
             self._state, self._reason = ConnectionState.STOPPED, "stopped"
@@ -444,42 +554,36 @@ class AdcStreamReader:
                  tb: TracebackType | None) -> None:
         self.stop()
 
-    # -- thread ----------------------------------------------------------------------------
+    # -- the reader's thread ---------------------------------------------------------------
 
     def _set_state(self, state: ConnectionState, reason: str) -> None:
-        """New state now; its callback in order with the samples (dispatch thread)."""
+        """New state now; its callback in order with the samples (the reader's thread)."""
         if state is self._state and reason == self._reason:
             return
         with self._lock:
             if self._stop.is_set():
-                # stopping: stop() or the dispatcher's error has the last word (the serial
-                # thread, still inside _ingest, turned a STOPPED back into CONNECTED)
+                # stopping: stop() or the callback's error has the last word (the drain
+                # thread, still inside _ingest, would turn a STOPPED back into CONNECTED)
                 return
             self._state, self._reason = state, reason
         if self._on_state is not None:
             self._backlog.put((_StateChange(state, reason),))
 
-    def _dispatch(self) -> None:
-        """Dispatch thread: hand queued samples and state changes to the callbacks."""
-        backlog, on_sample, on_state = self._backlog, self._on_sample, self._on_state
-        on_info = self._on_info
+    def _run(self, generation: int) -> None:
+        """The reader's thread: read the port, parse, deliver; then what is left queued."""
         try:
-            while not self._abandon:
-                items = backlog.take(DISPATCH_BATCH, 0.1)
-                if not items:
-                    if self._dispatch_stop.is_set():
-                        return
-                    continue
-                for item in items:
-                    if self._abandon:
-                        return
-                    if type(item) is Sample:
-                        on_sample(item)
-                    elif type(item) is _InfoChange:
-                        if on_info is not None:
-                            on_info(item.info)
-                    elif on_state is not None:
-                        on_state(*item)
+            while not self._stop.is_set() and generation == self._generation:
+                items = self._read_port()
+                self._busy_since = time.monotonic()
+                try:
+                    if items:
+                        self._deliver(items, generation, queued=False)
+                    while queued := self._backlog.take(DISPATCH_BATCH, 0.0):
+                        self._deliver(queued, generation)
+                finally:
+                    self._busy_since = None
+            while queued := self._backlog.take(DISPATCH_BATCH, 0.0):
+                self._deliver(queued, generation)
         except BaseException as exc:
             # Make the dead consumer visible in the state and stop reading (nobody would
             # take the samples), then let threading.excepthook print the traceback.
@@ -488,22 +592,141 @@ class AdcStreamReader:
                 self._reason = f"reader stopped by an error in a callback: {exc!r}"
             self._stop.set()
             raise
+        finally:
+            if generation == self._generation:
+                with self._port_lock:
+                    self._close()
 
-    def _open(self) -> serial.SerialBase | None:
+    def _deliver(self, items: list[SampleBatch | _StateChange | _InfoChange],
+                 generation: int, queued: bool = True) -> None:
+        """Hand ``items`` to the callbacks, in order (nothing once ``stop`` gave up);
+        ``queued``: they came from the backlog, whose count keeps their samples until
+        each is handed over."""
+        backlog = self._backlog
+        for item in items:
+            if generation != self._generation:
+                return
+            kind = type(item)
+            if kind is SampleBatch:
+                if self._on_batch is not None:
+                    self._on_batch(item)
+                    continue
+                on_sample = self._on_sample
+                if queued:
+                    backlog.held = len(item)  # still counted until handed over
+                for sample in item:
+                    if generation != self._generation:
+                        return
+                    if queued:
+                        backlog.held -= 1
+                    on_sample(sample)  # type: ignore[misc]
+            elif kind is _InfoChange:
+                if self._on_info is not None:
+                    self._on_info(item.info)  # type: ignore[union-attr]
+            elif self._on_state is not None:
+                self._on_state(*item)  # type: ignore[misc]
+
+    def _read_port(self) -> list[SampleBatch | _InfoChange] | None:
+        """Open the port if needed, else wait up to ``read_timeout_s`` for data and parse
+        what it brings. Returns the items to deliver at once when nothing is queued before
+        them (the usual case: no hand-off through the backlog), else queues them."""
+        if self._port is None:
+            with self._port_lock:
+                opened = self._open()
+            if not opened:
+                self._stop.wait(self._reopen_s)
+            return None
+        with self._port_lock:
+            port = self._port
+            if port is None:  # the drain thread lost it meanwhile
+                return None
+            try:
+                data = self._read(port, self._read_timeout_ms)
+            except (serial.SerialException, OSError) as exc:
+                self._lost(exc)
+                return None
+            if data:
+                items = self._ingest(data, queue=False)
+                if not items or self._backlog.empty:
+                    return items
+                self._backlog.put(items)
+                return None
+        if (self._state is ConnectionState.CONNECTED
+                and time.monotonic() - self._last_frame_mono > self._silence_s):
+            self._set_state(
+                ConnectionState.CONNECTING,
+                f"no valid frame for {self._silence_s:g} s on {self.port} "
+                "(device silent, wrong baud rate or wrong firmware?)",
+            )
+        return None
+
+    def _read(self, port: serial.SerialBase, wait_ms: int) -> bytes:
+        """What the port holds, up to ``READ_CHUNK`` bytes, after waiting up to
+        ``wait_ms`` for the first byte (0: do not wait). A POSIX port is read by its
+        descriptor: one poll and one read per chunk, where pyserial's ``read`` asks the
+        size first and loops over ``select``."""
+        fd = self._fd
+        if fd is not None and self._poll is not None:
+            if not self._poll.poll(wait_ms):
+                return b""
+            try:
+                data = os.read(fd, READ_CHUNK)
+            except BlockingIOError:
+                return b""
+            except InterruptedError:
+                return b""
+            if not data:  # Linux: a vanished device is readable and reads nothing
+                raise serial.SerialException("device reports readiness to read but returned "
+                                             "no data (device disconnected?)")
+            return data
+        waiting = port.in_waiting
+        if not waiting and not wait_ms:
+            return b""
+        data = port.read(min(waiting, READ_CHUNK) or 1)
+        more = port.in_waiting if data else 0
+        return data + port.read(min(more, READ_CHUNK)) if more else data
+
+    def _drain(self, generation: int) -> None:
+        """The drain thread: read the port into the backlog while the consumer is busy."""
+        while not self._stop.wait(self._drain_after_s) and generation == self._generation:
+            since = self._busy_since
+            if since is None or time.monotonic() - since < self._drain_after_s:
+                continue
+            with self._port_lock:
+                port = self._port
+                if port is None:
+                    continue
+                try:
+                    while data := self._read(port, 0):
+                        self._ingest(data)
+                        if len(data) < READ_CHUNK:
+                            break
+                except (serial.SerialException, OSError) as exc:
+                    self._lost(exc)
+
+    def _open(self) -> bool:
+        """Open the port (call with the port lock held); False with the state saying why."""
         try:
             port = serial.serial_for_url(self.port, baudrate=self.baudrate,
                                          timeout=self._read_timeout_s, do_not_open=True)
             port.open()
         except (serial.SerialException, OSError, ValueError) as exc:
             self._set_state(ConnectionState.DISCONNECTED, self._open_failure(exc))
-            return None
+            return False
+        fd = getattr(port, "fd", None)
+        if isinstance(port, serial.Serial) and isinstance(fd, int):
+            self._fd, self._poll = fd, select.poll()
+            self._poll.register(fd, select.POLLIN)
+        else:
+            self._fd = self._poll = None
+        self._port = port
         with self._lock:
             self._connections += 1
             self._parser.reset()
             self._seq.restart()
             self._gate.restart()
         self._set_state(ConnectionState.CONNECTING, f"{self.port} open, waiting for frames")
-        return port
+        return True
 
     def _open_failure(self, exc: BaseException) -> str:
         code = getattr(exc, "errno", None)
@@ -517,61 +740,78 @@ class AdcStreamReader:
             return f"{self.port} is busy (another program has it open); {retry}"
         return f"cannot open {self.port}: {exc}; {retry}"
 
-    def _loop(self) -> None:
-        port: serial.SerialBase | None = None
-        try:
-            while not self._stop.is_set():
-                if port is None:
-                    port = self._open()
-                    if port is None:
-                        self._stop.wait(self._reopen_s)
-                    continue
-                try:
-                    data = port.read(port.in_waiting or 1)
-                except (serial.SerialException, OSError) as exc:
-                    self._close(port)
-                    port = None
-                    self._set_state(
-                        ConnectionState.DISCONNECTED,
-                        f"{self.port} failed ({exc.__class__.__name__}: {exc}); device "
-                        f"unplugged or reset? retrying every {self._reopen_s:g} s",
-                    )
-                    continue
-                if data:
-                    self._ingest(data)
-                elif (self._state is ConnectionState.CONNECTED
-                      and time.monotonic() - self._last_frame_mono > self._silence_s):
-                    self._set_state(
-                        ConnectionState.CONNECTING,
-                        f"no valid frame for {self._silence_s:g} s on {self.port} "
-                        "(device silent, wrong baud rate or wrong firmware?)",
-                    )
-        finally:
-            if port is not None:
-                self._close(port)
+    def _lost(self, exc: BaseException) -> None:
+        """The port failed while reading (call with the port lock held)."""
+        self._close()
+        self._set_state(
+            ConnectionState.DISCONNECTED,
+            f"{self.port} failed ({exc.__class__.__name__}: {exc}); device "
+            f"unplugged or reset? retrying every {self._reopen_s:g} s",
+        )
 
-    @staticmethod
-    def _close(port: serial.SerialBase) -> None:
-        with contextlib.suppress(serial.SerialException, OSError):  # device already gone
-            port.close()
+    def _close(self) -> None:
+        """Close the port if open (call with the port lock held)."""
+        port, self._port = self._port, None
+        self._fd = self._poll = None
+        if port is not None:
+            with contextlib.suppress(serial.SerialException, OSError):  # device already gone
+                port.close()
 
-    def _ingest(self, data: bytes) -> None:
+    def _ingest(self, data: bytes, queue: bool = True) -> list[SampleBatch | _InfoChange]:
+        """Parse a chunk into batches (call with the port lock held); queue them, or with
+        ``queue`` False return them (a state change it causes is queued first)."""
         host_ns = time.time_ns()
         with self._lock:
             self._bytes += len(data)
             frames = self._parser.feed(data)
             if not frames:
-                return
-            seqr, gate = self._seq, self._gate
-            epoch = self._connections
-            samples: list[Sample | _InfoChange] = []
-            for f in frames:
-                if type(f) is Frame:
-                    samples += gate.on_sample(Sample(f.seq, seqr.advance(f.seq, f.t_us),
-                                                     host_ns, f.counts, epoch), f.version)
-                else:
-                    samples += gate.on_info(f)
+                return []
+            items = self._batches(frames, host_ns)
             self._last_frame_mono = time.monotonic()
         if self._state is not ConnectionState.CONNECTED:
             self._set_state(ConnectionState.CONNECTED, f"receiving frames from {self.port}")
-        self._backlog.put(samples)
+        if queue and items:
+            self._backlog.put(items)
+            return []
+        return items
+
+    def _batches(self, frames: list[Frame | DeviceInfo], host_ns: int
+                 ) -> list[SampleBatch | _InfoChange]:
+        """Frames -> batches of samples and info changes, in stream order. A frame that
+        its connection's info describes goes straight into the batch; the rest pass the
+        info gate (the first frames, a version-1 stream, a contradicting channel count)."""
+        seqr, gate, epoch = self._seq, self._gate, self._connections
+        out: list[SampleBatch | _InfoChange] = []
+        batch: SampleBatch | None = None
+        info = gate.info
+        for f in frames:
+            if type(f) is Frame:
+                t_us = seqr.advance(f.seq, f.t_us)
+                if (info is not None and f.version == info.version
+                        and len(f.counts) == info.channels):
+                    if batch is None:
+                        batch = SampleBatch(epoch)
+                        out.append(batch)
+                    batch.append(f.seq, t_us, host_ns, f.counts)
+                    continue
+                released = gate.on_sample(Sample(f.seq, t_us, host_ns, f.counts, epoch),
+                                          f.version)
+            else:
+                released = gate.on_info(f)
+            info = gate.info
+            for item in released:
+                if type(item) is Sample:
+                    if batch is None:
+                        batch = SampleBatch(epoch)
+                        out.append(batch)
+                    batch.append(item.seq, item.device_time_us, item.host_time_ns,
+                                 item.counts)
+                else:
+                    out.append(item)
+                    batch = None
+        return out
+
+
+def _samples_in(item: object) -> int:
+    """Samples an item of the reader's backlog holds (0 for state and info changes)."""
+    return len(item) if type(item) is SampleBatch else 0

@@ -1,7 +1,7 @@
 """Spin a node until SIGINT or SIGTERM, then stop it while its ROS context is still valid.
 
 rclpy's own signal handler shuts the context down the moment Ctrl-C arrives, before
-``main`` gets control back: threads that publish on their own (the driver's ADC dispatch,
+``main`` gets control back: threads that publish on their own (the driver's ADC reader,
 the mock rig's gauge) then publish on a dead context ("publisher's context is invalid"),
 and the last log lines cannot reach /rosout. Here a signal only asks for a stop: the
 node's ``finish`` (join its threads, close its bag, the lifecycle shutdown transition) runs

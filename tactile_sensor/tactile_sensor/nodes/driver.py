@@ -1,10 +1,11 @@
 """Driver node: photoreflector ADC on a serial port -> calibrated contact force.
 
 Wiring only: parameters, the reader (hardware/), the signal chain (sensing/), topics,
-the tare service and diagnostics. Samples are processed and published from the reader's
-dispatch thread, so the executor never sits between the serial port and the force topic,
-and the reader's serial thread keeps draining the port while publishing is starved.
-ADC frames lost anyway (sequence gaps, a full backlog) are counted in /diagnostics and
+the tare service and diagnostics. The reader's thread reads the port, and the same thread
+runs each chunk's samples through the chain and publishes them as pre-serialised CDR
+(nodes/reading_cdr.py): no executor and no thread hand-off between the serial port and
+the force topic, while the reader's drain thread keeps the port emptied if publishing is
+starved. ADC frames lost anyway (sequence gaps, a full backlog) are counted in /diagnostics and
 logged as a warning. The ADC's resolution and reference come from the device's info
 frame unless configured (sensing/adc_settings.py); a contradiction is a diagnostics ERROR
 and no force is published.
@@ -12,7 +13,6 @@ and no force is published.
 
 from __future__ import annotations
 
-import threading
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -21,7 +21,6 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import Node, State, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.time import Time
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
@@ -29,7 +28,7 @@ from tactile_sensor.hardware.adc_frame import DeviceInfo
 from tactile_sensor.hardware.adc_reader import (
     AdcStreamReader,
     ConnectionState,
-    Sample,
+    SampleBatch,
 )
 from tactile_sensor.hardware.errors import HardwareError
 from tactile_sensor.nodes import array_calibration_msg, calibration_curve_msg
@@ -41,6 +40,7 @@ from tactile_sensor.nodes.parameters import (
     declare_parameters,
     read_parameters,
 )
+from tactile_sensor.nodes.reading_cdr import ReadingCdr, WrenchCdr
 from tactile_sensor.sensing.adc_health import FrameRate, LossCounter, adc_health
 from tactile_sensor.sensing.adc_settings import AdcSettings, resolve_adc
 from tactile_sensor.sensing.array_chain import (
@@ -88,7 +88,7 @@ class DriverNode(Node):
         self._publish_every_ns = 0
         self._next_publish_ns = 0
         self._frame_rate = FrameRate()
-        self._lock = threading.Lock()
+        self._cdr: tuple[ReadingCdr, WrenchCdr] | None = None  # swapped whole: frame_id
         self.published_readings = 0  # ~/reading messages published since construction
         self.published_until_ns = 0  # stamp of the newest reading published
         self._loss = LossCounter()  # ADC frames lost, as last logged
@@ -111,8 +111,8 @@ class DriverNode(Node):
             modules = parse_modules(values["modules"])
             chain = build_chain(chain_config(values), modules, values["calibration_file"]
                                 if values["calibration_source"] == "file" else None)
-            reader = AdcStreamReader(values["port"], self._on_sample, self._on_state,
-                                     baudrate=values["baud_rate"],
+            reader = AdcStreamReader(values["port"], on_batch=self._on_batch,
+                                     on_state=self._on_state, baudrate=values["baud_rate"],
                                      backlog=values["reader_backlog"],
                                      on_info=self._on_info)
         except (ParameterError, SensingError, HardwareError) as exc:
@@ -124,6 +124,7 @@ class DriverNode(Node):
         self._loss = LossCounter()
         self._adc = self._info_logged = None
         self._publish_every_ns = publish_period_ns(values)
+        self._cdr = _encoders(values["frame_id"], self._faces)
         self._wrench_pub = self.create_lifecycle_publisher(WrenchStamped, "~/wrench",
                                                              SAMPLE_QUEUE_DEPTH)
         self._reading_pub = self.create_lifecycle_publisher(TactileReading, "~/reading",
@@ -219,50 +220,50 @@ class DriverNode(Node):
         values = self._runtime_values(changed)
         chain.reconfigure(chain_config(values))
         self._publish_every_ns = publish_period_ns(values)
+        if values["frame_id"] != self._values["frame_id"]:
+            self._cdr = _encoders(values["frame_id"], self._faces)
         self._values = values
         self.get_logger().info("changed while running: " + ", ".join(
             f"{p.name} = {values[p.name]}" for p in changed))
 
     # -- data path (reader thread) -----------------------------------------------------------
-    def _on_sample(self, sample: Sample) -> None:
+    def _on_batch(self, batch: SampleBatch) -> None:
         chain, adc = self._chain, self._adc
         if chain is None or adc is None or not adc.usable:
             return  # the device contradicts the configuration: no force (diagnostics ERROR)
         try:
-            reading = chain.process(sample)
+            readings = chain.process_batch(batch)
         except SensingError as exc:
             self.get_logger().error(str(exc), throttle_duration_sec=5.0)
             return
-        stamp_ns = self._clock_map.stamp_ns(sample.epoch, sample.device_time_us,
-                                            sample.host_time_ns)
-        with self._lock:
+        stamp, epoch, every = self._clock_map.stamp_ns, batch.epoch, self._publish_every_ns
+        for reading in readings:
+            stamp_ns = stamp(epoch, reading.device_time_us, reading.host_time_ns)
             if stamp_ns < self._next_publish_ns:
-                return
-            self._next_publish_ns = stamp_ns + self._publish_every_ns
-        self._publish(reading, stamp_ns)
+                continue
+            self._next_publish_ns = stamp_ns + every
+            self._publish(reading, stamp_ns)
 
     def _publish(self, reading: Reading | ArrayReading, stamp_ns: int) -> None:
         self.published_until_ns = stamp_ns
-        stamp = Time(nanoseconds=stamp_ns).to_msg()
-        frame = self._values["frame_id"]
-        msg = TactileReading(voltage=reading.voltage_v, output=reading.output_v,
-                             force=reading.force_n, contact=reading.contact)
-        msg.header.stamp, msg.header.frame_id = stamp, frame
-        array = isinstance(reading, ArrayReading)
-        if array:
-            msg.faces, msg.voltages, msg.outputs = (self._faces, list(reading.voltages_v),
-                                                    list(reading.outputs_v))
-        if self._reading_pub is not None:
-            self._reading_pub.publish(msg)
+        encoders, reading_pub, wrench_pub = self._cdr, self._reading_pub, self._wrench_pub
+        if encoders is None:
+            return
+        force = reading.force_n
+        if type(reading) is ArrayReading:
+            fx, fy = reading.force_x_n, reading.force_y_n
+            message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v, force,
+                                         reading.contact, reading.voltages_v,
+                                         reading.outputs_v)
+        else:
+            fx = fy = 0.0
+            message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v, force,
+                                         reading.contact)
+        if reading_pub is not None:
+            reading_pub.publish(message)
             self.published_readings += 1
-        if reading.force_n == reading.force_n and self._wrench_pub is not None:  # not NaN
-            wrench = WrenchStamped()
-            wrench.header.stamp, wrench.header.frame_id = stamp, frame
-            wrench.wrench.force.z = reading.force_n
-            if array:
-                wrench.wrench.force.x, wrench.wrench.force.y = (reading.force_x_n,
-                                                                reading.force_y_n)
-            self._wrench_pub.publish(wrench)
+        if force == force and wrench_pub is not None:  # not NaN
+            wrench_pub.publish(encoders[1].encode(stamp_ns, fx, fy, force))
 
     def _on_info(self, info: DeviceInfo) -> None:
         """The device said what its codes mean (before its first sample, on each connection)."""
@@ -359,6 +360,11 @@ class DriverNode(Node):
         pub.publish(diagnostic_array(f"{self.get_fully_qualified_name()}: tactile ADC",
                                      str(self._values["port"]), health,
                                      self.get_clock().now().to_msg()))
+
+
+def _encoders(frame_id: str, faces: list[str]) -> tuple[ReadingCdr, WrenchCdr]:
+    """~/reading's and ~/wrench's byte layouts for this frame and these faces."""
+    return ReadingCdr(frame_id, faces), WrenchCdr(frame_id)
 
 
 def main(args: list[str] | None = None) -> None:

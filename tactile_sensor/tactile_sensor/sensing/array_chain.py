@@ -9,8 +9,8 @@ Tare zeroes every module at once: one decision over all the channels' windows, r
 any module is not at rest (naming it), so the outputs the calibration sees always share one
 rest state. Forces are NaN until tared and calibrated.
 
-Threading as ``SignalChain``: ``process`` in the reader's thread; ``tare``,
-``set_calibration`` and the properties from any other; one lock guards the state.
+Threading as ``SignalChain``: ``process`` and ``process_batch`` in the reader's thread;
+``tare``, ``set_calibration`` and the properties from any other; one lock guards the state.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from typing import NamedTuple
 
 from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration
 from tactile_sensor.sensing.chain import (
+    BatchLike,
     ChainConfig,
     SampleLike,
     SignalChain,
@@ -254,41 +255,58 @@ class ArrayChain:
         try:
             volts = tuple([counts[c] * scale for c in self.channels])
         except IndexError:
-            raise SensingError(
-                f"The sample has {len(counts)} channel(s) but the modules use channel "
-                f"{max(self.channels)}; wire fewer modules or raise CHANNELS in the "
-                "firmware.") from None
-        t_us = sample.device_time_us
+            raise self._missing_channel(len(counts)) from None
         with self._lock:
-            filtered = [f.update(v) for f, v in zip(self._filters, volts)]  # noqa: B905
-            for window, v in zip(self._tares, volts):  # noqa: B905 - one per module
-                window.add(v)
-            if self._baselines is None and self.config.auto_tare and self._tares[0].ready:
-                self._auto_tare_countdown -= 1
-                if self._auto_tare_countdown <= 0:
-                    self._auto_tare_countdown = self._auto_tare_every
-                    with contextlib.suppress(TareError):  # not all at rest yet: retry later
-                        self._baselines = tuple(w.evaluate().baseline_v for w in self._tares)
-            baselines = self._baselines
-            if baselines is None:
-                outputs = (NAN,) * len(volts)
-                reading = ArrayReading(volts[0], NAN, NAN, False, False, t_us,
-                                       sample.host_time_ns, NAN, NAN, volts, outputs)
-            else:
-                outputs = tuple([b - f for b, f in zip(baselines, filtered)])  # noqa: B905
-                cal = self._calibration
-                if cal is None:
-                    fx = fy = fz = NAN
-                    saturated = False
-                else:
-                    fx, fy, fz = cal.force(outputs)
-                    saturated = not cal.in_range(outputs)
-                contact = self._contact.update(math.sqrt(fx * fx + fy * fy + fz * fz),
-                                               t_us * 1e-6)
-                reading = ArrayReading(volts[0], outputs[0], fz, contact, saturated, t_us,
-                                       sample.host_time_ns, fx, fy, volts, outputs)
+            reading = self._step(volts, sample.device_time_us, sample.host_time_ns)
         self.last = reading
         return reading
+
+    def process_batch(self, batch: BatchLike) -> list[ArrayReading]:
+        """Run a batch of consecutive samples through every module, one lock for all."""
+        scale, channels = self._volts_per_count, self.channels
+        try:
+            volts = [tuple([counts[c] * scale for c in channels]) for counts in batch.counts]
+        except IndexError:
+            raise self._missing_channel(min(map(len, batch.counts))) from None
+        step = self._step
+        with self._lock:
+            readings = [step(v, t_us, host_ns) for v, t_us, host_ns
+                        in zip(volts, batch.device_time_us, batch.host_time_ns, strict=True)]
+        if readings:
+            self.last = readings[-1]
+        return readings
+
+    def _missing_channel(self, channels: int) -> SensingError:
+        return SensingError(
+            f"The sample has {channels} channel(s) but the modules use channel "
+            f"{max(self.channels)}; wire fewer modules or raise CHANNELS in the firmware.")
+
+    def _step(self, volts: tuple[float, ...], t_us: int, host_ns: int) -> ArrayReading:
+        """One sample of every module (call with the lock held)."""
+        filtered = [f.update(v) for f, v in zip(self._filters, volts)]  # noqa: B905
+        for window, v in zip(self._tares, volts):  # noqa: B905 - one per module
+            window.add(v)
+        if self._baselines is None and self.config.auto_tare and self._tares[0].ready:
+            self._auto_tare_countdown -= 1
+            if self._auto_tare_countdown <= 0:
+                self._auto_tare_countdown = self._auto_tare_every
+                with contextlib.suppress(TareError):  # not all at rest yet: retry later
+                    self._baselines = tuple(w.evaluate().baseline_v for w in self._tares)
+        baselines = self._baselines
+        if baselines is None:
+            return ArrayReading(volts[0], NAN, NAN, False, False, t_us, host_ns, NAN, NAN,
+                                volts, (NAN,) * len(volts))
+        outputs = tuple([b - f for b, f in zip(baselines, filtered)])  # noqa: B905
+        cal = self._calibration
+        if cal is None:
+            fx = fy = fz = NAN
+            saturated = False
+        else:
+            fx, fy, fz = cal.force(outputs)
+            saturated = not cal.in_range(outputs)
+        contact = self._contact.update(math.sqrt(fx * fx + fy * fy + fz * fz), t_us * 1e-6)
+        return ArrayReading(volts[0], outputs[0], fz, contact, saturated, t_us, host_ns, fx,
+                            fy, volts, outputs)
 
 
 def build_chain(config: ChainConfig, modules: Sequence[Module],

@@ -10,9 +10,9 @@ A ``RateCalibration`` (static curve plus relaxing rate terms, ``sensing.rate_cal
 makes the force depend on the output's history: its terms run on the device's sample
 times and start from rest at every tare, baseline change, reset and calibration change.
 
-Threading: ``process`` runs in one thread (the reader's); ``tare``, ``set_calibration``
-and the properties may be called from another (a service callback). A lock guards the
-shared state.
+Threading: ``process`` and ``process_batch`` run in one thread (the reader's); ``tare``,
+``set_calibration`` and the properties may be called from another (a service callback). A
+lock guards the shared state, taken once per batch.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from __future__ import annotations
 import contextlib
 import math
 import threading
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple, Protocol
 
@@ -46,6 +46,20 @@ class SampleLike(Protocol):
 
     @property
     def counts(self) -> tuple[int, ...]: ...
+
+
+class BatchLike(Protocol):
+    """What the chain needs of ``hardware.adc_reader.SampleBatch``: consecutive samples as
+    columns."""
+
+    @property
+    def device_time_us(self) -> Sequence[int]: ...
+
+    @property
+    def host_time_ns(self) -> Sequence[int]: ...
+
+    @property
+    def counts(self) -> Sequence[tuple[int, ...]]: ...
 
 
 class Reading(NamedTuple):
@@ -254,41 +268,61 @@ class SignalChain:
     def process(self, sample: SampleLike) -> Reading:
         """Run one sample through the chain; ``SensingError`` if it lacks our channel."""
         try:
-            volts = sample.counts[self.config.channel] * self._volts_per_count
+            code = sample.counts[self.config.channel]
         except IndexError:
-            raise SensingError(
-                f"The sample has {len(sample.counts)} channel(s) but the chain reads channel "
-                f"{self.config.channel}; set the channel parameter to match the firmware."
-            ) from None
-        t_us = sample.device_time_us
+            raise self._missing_channel(len(sample.counts)) from None
         with self._lock:
-            filtered = self._filter.update(volts)
-            tare = self._tare
-            tare.add(volts)
-            if self._baseline_v is None and self.config.auto_tare and tare.ready:
-                self._auto_tare_countdown -= 1
-                if self._auto_tare_countdown <= 0:
-                    self._auto_tare_countdown = self._auto_tare_every
-                    with contextlib.suppress(TareError):  # not at rest yet: retry later
-                        self._baseline_v = tare.evaluate().baseline_v
-                        self._restart_rate_terms()
-            baseline = self._baseline_v
-            if baseline is None:
-                reading = Reading(volts, NAN, NAN, False, False, t_us, sample.host_time_ns)
-            else:
-                output = baseline - filtered
-                estimator = self._estimator
-                if estimator is not None:
-                    force, saturated = estimator.update(output, t_us * 1e-6)
-                elif self._static is not None:
-                    force, saturated = self._static.evaluate(output)
-                else:
-                    force, saturated = NAN, False
-                contact = self._contact.update(force, t_us * 1e-6)
-                reading = Reading(volts, output, force, contact, saturated, t_us,
-                                  sample.host_time_ns)
+            reading = self._step(code * self._volts_per_count, sample.device_time_us,
+                                 sample.host_time_ns)
         self.last = reading
         return reading
+
+    def process_batch(self, batch: BatchLike) -> list[Reading]:
+        """Run a batch of consecutive samples through the chain, one lock for all of them
+        (the reader hands over what one read of the port held)."""
+        channel = self.config.channel
+        try:
+            codes = [counts[channel] for counts in batch.counts]
+        except IndexError:
+            raise self._missing_channel(min(map(len, batch.counts))) from None
+        scale, step = self._volts_per_count, self._step
+        with self._lock:
+            readings = [step(code * scale, t_us, host_ns) for code, t_us, host_ns
+                        in zip(codes, batch.device_time_us, batch.host_time_ns, strict=True)]
+        if readings:
+            self.last = readings[-1]
+        return readings
+
+    def _missing_channel(self, channels: int) -> SensingError:
+        return SensingError(
+            f"The sample has {channels} channel(s) but the chain reads channel "
+            f"{self.config.channel}; set the channel parameter to match the firmware.")
+
+    def _step(self, volts: float, t_us: int, host_ns: int) -> Reading:
+        """One sample's filter, tare window, force and contact (call with the lock held)."""
+        filtered = self._filter.update(volts)
+        tare = self._tare
+        tare.add(volts)
+        if self._baseline_v is None and self.config.auto_tare and tare.ready:
+            self._auto_tare_countdown -= 1
+            if self._auto_tare_countdown <= 0:
+                self._auto_tare_countdown = self._auto_tare_every
+                with contextlib.suppress(TareError):  # not at rest yet: retry later
+                    self._baseline_v = tare.evaluate().baseline_v
+                    self._restart_rate_terms()
+        baseline = self._baseline_v
+        if baseline is None:
+            return Reading(volts, NAN, NAN, False, False, t_us, host_ns)
+        output = baseline - filtered
+        estimator = self._estimator
+        if estimator is not None:
+            force, saturated = estimator.update(output, t_us * 1e-6)
+        elif self._static is not None:
+            force, saturated = self._static.evaluate(output)
+        else:
+            force, saturated = NAN, False
+        contact = self._contact.update(force, t_us * 1e-6)
+        return Reading(volts, output, force, contact, saturated, t_us, host_ns)
 
 
 def _force_parts(calibration: Calibration | RateCalibration | None

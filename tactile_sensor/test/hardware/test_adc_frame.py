@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tactile_sensor.hardware import adc_frame
 from tactile_sensor.hardware.adc_frame import (
     DeviceInfo,
     Frame,
@@ -283,3 +284,45 @@ def test_parser_keeps_a_split_sync_byte():
     parser = FrameParser()
     assert parser.feed(b"\x00\x01" + data[:1]) == []
     assert parser.feed(data[1:]) == [Frame(5, 6, (7,))]
+
+
+# A stream as a device sends it: runs of one kind of data frame (the array path's case),
+# info frames between them, and damage: junk bytes, a flipped bit, a lost byte.
+run_st = st.tuples(st.integers(1, 80), st.integers(1, 8), st.sampled_from((1, 2)),
+                   st.sampled_from(("none", "junk", "flip", "cut")), st.integers(0, 10**6))
+
+
+@settings(max_examples=150, deadline=None)
+@given(runs=st.lists(run_st, min_size=1, max_size=6), chunks=st.lists(
+    st.integers(1, 3000), min_size=1, max_size=8), info=info_st)
+def test_runs_decoded_as_arrays_give_what_the_byte_wise_search_gives(runs, chunks, info):
+    stream = bytearray()
+    for length, channels, version, damage, seed in runs:
+        rng = random.Random(seed)
+        start = len(stream)
+        for k in range(length):
+            stream += encode_frame(seed + k, seed * 1000 + k, [rng.randrange(65536)
+                                                                for _ in range(channels)],
+                                   version)
+        at = start + rng.randrange(max(1, len(stream) - start))
+        if damage == "junk":
+            stream[at:at] = rng.randbytes(rng.randrange(1, 30))
+        elif damage == "flip" and at < len(stream):
+            stream[at] ^= 1 << rng.randrange(8)
+        elif damage == "cut" and at < len(stream):
+            del stream[at]
+        stream += encode(info)
+
+    def parse(run_min: int) -> tuple[list, object]:
+        default, adc_frame.RUN_MIN_FRAMES = adc_frame.RUN_MIN_FRAMES, run_min
+        try:
+            parser, got, pos, k = FrameParser(), [], 0, 0
+            while pos < len(stream):
+                size = chunks[k % len(chunks)]
+                got += parser.feed(bytes(stream[pos:pos + size]))
+                pos, k = pos + size, k + 1
+            return got, parser.stats()
+        finally:
+            adc_frame.RUN_MIN_FRAMES = default
+
+    assert parse(2) == parse(10**9)

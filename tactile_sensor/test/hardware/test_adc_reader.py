@@ -288,6 +288,9 @@ def test_silence_sends_the_state_back_to_connecting(tmp_path):
     ({"channels": 0}, "channels"),
     ({"port": ""}, "port"),
     ({"on_sample": None}, "callable"),
+    ({"on_batch": print}, "give one of on_sample .* and on_batch"),
+    ({"on_sample": None, "on_batch": 3}, "must be callables"),
+    ({"drain_after_s": 0.0}, "drain_after_s"),
     ({"backlog": 0}, "backlog capacity"),
 ])
 def test_bad_configuration_is_refused_at_construction(kwargs, match):
@@ -316,9 +319,9 @@ def test_a_raising_callback_stops_the_reader_visibly(tmp_path):
 class SlowSerialThread(AdcStreamReader):
     """The serial thread descheduled in the middle of its work (a busy machine)."""
 
-    def _ingest(self, data: bytes) -> None:
+    def _ingest(self, data: bytes, queue: bool = True) -> list:
         time.sleep(0.05)
-        super()._ingest(data)
+        return super()._ingest(data, queue)
 
 
 def test_a_reader_stopped_by_a_callback_stays_stopped(tmp_path):
@@ -423,3 +426,22 @@ def test_stop_delivers_what_is_queued_or_counts_it(tmp_path):
     assert stats.backlog_dropped == 0
     assert rec2.count() == stats.frames  # everything parsed was delivered
     assert rec2.states[-1][1] is ConnectionState.STOPPED
+
+
+def test_batches_carry_every_frame_in_order_with_the_chunks_read_time(tmp_path):
+    path = tmp_path / "adc"
+    batches: list = []
+    lock = threading.Lock()
+
+    def on_batch(batch) -> None:
+        with lock:
+            batches.append(batch)
+
+    with MockAdcDevice(path, code_ramp, noise=QUIET), \
+            AdcStreamReader(str(path), on_batch=on_batch) as reader:
+        assert wait_until(lambda: reader.stats().frames > 300)
+    samples = [s for b in batches for s in b]
+    assert len(samples) == reader.stats().frames
+    assert np.all(np.diff([s.seq for s in samples]) % 65536 == 1)
+    assert all(s.counts[0] == (s.device_time_us // 1000) % 4096 for s in samples)
+    assert all(len(set(b.host_time_ns)) == 1 for b in batches[1:])  # one read, one time

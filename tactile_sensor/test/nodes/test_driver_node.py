@@ -17,6 +17,8 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
@@ -494,3 +496,21 @@ def test_a_device_whose_info_is_unusable_is_a_warning_that_says_why(spawn, ros, 
     warn = next(s for _, s in ros.diagnostics if "unusable" in s.message)
     assert warn.level == DiagnosticStatus.WARN
     assert ros.wrenches == [] and ros.readings == []
+
+
+def test_a_frame_id_set_while_running_names_every_later_reading(spawn, ros, files):
+    """The messages are serialised from a template per frame id: a new one takes effect."""
+    driver = start_driver(spawn, files["link"], files["calibration"])
+    assert driver.wait_for_output("active", PATIENCE_S), driver.output()
+    start_mock(spawn, files)
+    assert ros.wait_for(lambda: len(ros.readings) > 200, PATIENCE_S)
+    assert ros.readings[-1][1].header.frame_id == "tactile_sensor"
+    client = ros.node.create_client(SetParameters, "/driver/set_parameters")
+    assert client.wait_for_service(timeout_sec=PATIENCE_S)
+    future = client.call_async(SetParameters.Request(parameters=[
+        Parameter("frame_id", value="left_fingertip").to_parameter_msg()]))
+    assert ros.wait_for(future.done, PATIENCE_S)
+    assert future.result().results[0].successful
+    count = len(ros.readings)
+    assert ros.wait_for(lambda: len(ros.readings) > count + 200, PATIENCE_S)
+    assert ros.readings[-1][1].header.frame_id == "left_fingertip"

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactile_sensor.hardware.adc_reader import Sample
+from tactile_sensor.hardware.adc_reader import Sample, SampleBatch
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor.sensing.array_chain import ArrayChain, Module, parse_modules
 from tactile_sensor.sensing.chain import ChainConfig
@@ -204,3 +204,25 @@ def test_a_bad_modules_string_gets_one_sentence(text, sentence):
 def test_an_array_chain_needs_two_modules():
     with pytest.raises(SensingError, match="two or more modules"):
         ArrayChain(ChainConfig(), MODULES[:1])
+
+
+def test_a_batch_gives_what_the_same_samples_give_one_by_one():
+    rng = np.random.default_rng(4)
+    rows = [[2.0, 2.1, 1.9, 2.2]] * 600 + [[2.0 - d, 2.1, 1.9 - d / 2, 2.2] for d in
+                                          np.linspace(0, 0.3, 200)]
+    rows = (np.array(rows) + rng.normal(0, 0.002, (len(rows), 4))).tolist()
+    expected = run(ArrayChain(ChainConfig(), MODULES, CAL), rows)
+    batched = ArrayChain(ChainConfig(), MODULES, CAL)
+    stream = list(samples(rows))
+    got = [r for k in range(0, len(stream), 50)
+           for r in batched.process_batch(SampleBatch.of(stream[k:k + 50]))]
+    assert [r.outputs_v for r in got] == [r.outputs_v for r in expected]
+    assert [(r.force_x_n, r.force_y_n, r.force_n, r.contact) for r in got] == [
+        (r.force_x_n, r.force_y_n, r.force_n, r.contact) for r in expected]
+    assert batched.last == expected[-1]
+
+
+def test_a_batch_with_too_few_channels_is_refused_naming_the_top_one():
+    chain = ArrayChain(ChainConfig(), MODULES, CAL)
+    with pytest.raises(SensingError, match="3 channel\\(s\\) but the modules use channel 3"):
+        chain.process_batch(SampleBatch.of(samples([[2.0, 2.0, 2.0]] * 2, channels=3)))

@@ -6,7 +6,7 @@ import threading
 import numpy as np
 import pytest
 
-from tactile_sensor.hardware.adc_reader import Sample
+from tactile_sensor.hardware.adc_reader import Sample, SampleBatch
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import ChainConfig, SignalChain
 from tactile_sensor.sensing.conversion import AdcConversion
@@ -151,3 +151,24 @@ def test_reconfigure_refuses_what_cannot_change_or_is_invalid(change, message):
     with pytest.raises(SensingError, match=message):
         chain.reconfigure(ChainConfig(**change))
     assert chain.config == ChainConfig()
+
+
+@pytest.mark.parametrize("filter_name", ["savgol", "butterworth", "one_euro"])
+def test_a_batch_gives_what_the_same_samples_give_one_by_one(filter_name):
+    rng = np.random.default_rng(3)
+    volts = np.concatenate([np.full(700, 2.0), 2.0 - np.linspace(0, 0.4, 300)])
+    volts += rng.normal(0, 0.002, len(volts))
+    one = SignalChain(ChainConfig(filter_name=filter_name), CAL)
+    expected = run(one, volts)
+    batched = SignalChain(ChainConfig(filter_name=filter_name), CAL)
+    stream = list(samples(volts))
+    got = [r for k in range(0, len(stream), 37)
+           for r in batched.process_batch(SampleBatch.of(stream[k:k + 37]))]
+    assert got == expected  # NaNs compare as the same object: the same Reading tuples
+    assert batched.last == expected[-1] and batched.tared
+
+
+def test_a_batch_without_our_channel_is_refused_naming_it():
+    chain = SignalChain(ChainConfig(channel=1))
+    with pytest.raises(SensingError, match="1 channel\\(s\\) but the chain reads channel 1"):
+        chain.process_batch(SampleBatch.of(samples([2.0] * 3)))
