@@ -264,6 +264,7 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
 """
 
 
+@pytest.mark.slow  # a fresh process, whose page faults are counted
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's allocator")
 def test_the_allocator_keeps_freed_memory_for_the_next_arrays():
     """Arrays of a sweep's size, freed and allocated again: with the hint they reuse the

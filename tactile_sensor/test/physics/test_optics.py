@@ -153,6 +153,7 @@ def test_light_curve_interpolation_matches_scipy_pchip(values, widths):
     assert np.allclose(_Pchip(x, y)(query), expected, rtol=0.0, atol=1e-12 * scale)
 
 
+@pytest.mark.slow  # a fresh interpreter, to see what importing the optics imports
 def test_the_light_curve_loads_without_scipy_interpolate():
     """A cold model sweep does not pay for importing scipy.interpolate (its optics)."""
     import subprocess
