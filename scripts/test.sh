@@ -21,7 +21,9 @@ export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
 # are built once) and its own share of the domain ids (conftest.py: worker_domains).
 workers=${TACTILE_TEST_WORKERS:-2}
 xdist=()
-[ "$workers" -gt 1 ] && xdist=(-n "$workers" --dist loadfile)
+# --no-loadscope-reorder: files in the order conftest.py sorts them (longest first), not by
+# their number of tests.
+[ "$workers" -gt 1 ] && xdist=(-n "$workers" --dist loadfile --no-loadscope-reorder)
 echo "[test] pytest on ROS 2 $DISTRO (ROS_DOMAIN_ID base $base, localhost discovery," \
   "$workers worker(s))" >&2
 # A rerun attempt's failure is printed too, so a flaky test shows why it failed.

@@ -215,11 +215,13 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.skip(reason=f"ros2 launch/CLI test: {missing}"))
         if _starts_processes(item):
             item.add_marker(pytest.mark.slow)
-    # Files with slow tests first: pytest-xdist hands out whole files in this order, so the
-    # long ones start early and the short ones fill the gaps instead of one long file
-    # running alone at the end.
+    # Files with slow tests first, the nodes' (whole protocols at device pace) first of all:
+    # pytest-xdist hands out whole files in this order (scripts/test.sh), so the long ones
+    # start early and the short ones fill the gaps instead of one long file running alone
+    # at the end.
     slow_files = {item.path for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: item.path not in slow_files)
+    items.sort(key=lambda item: (item.path not in slow_files,
+                                 "/test/nodes/" not in str(item.path)))
 
 
 #: Fixtures that start processes: a test using one is slow by definition.
