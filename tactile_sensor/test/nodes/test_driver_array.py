@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.srv import SetParameters
@@ -73,18 +74,20 @@ def fit_calibration(path: Path, faces=FACES) -> None:
     ArrayCalibration.fit(faces, o, forces, 3, "synthetic").to_file(path)
 
 
+def _seconds(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
 class Listener:
     def __init__(self) -> None:
         self.node = rclpy.create_node("array_listener")
         self.readings: list[TactileReading] = []
         self.wrenches: list[tuple[float, float, float]] = []
+        self.wrench_stamps: list[float] = []  # [s], the samples' host-clock stamps
         self.diagnostics: list[DiagnosticStatus] = []
         self.node.create_subscription(TactileReading, "/driver/reading",
                                       self.readings.append, 1000)
-        self.node.create_subscription(
-            WrenchStamped, "/driver/wrench",
-            lambda m: self.wrenches.append((m.wrench.force.x, m.wrench.force.y,
-                                            m.wrench.force.z)), 1000)
+        self.node.create_subscription(WrenchStamped, "/driver/wrench", self._on_wrench, 1000)
         self.node.create_subscription(
             DiagnosticArray, "/diagnostics",
             lambda m: self.diagnostics.extend(s for s in m.status if "tactile ADC" in s.name),
@@ -92,6 +95,10 @@ class Listener:
         self.executor = rclpy.executors.SingleThreadedExecutor()
         self.executor.add_node(self.node)
         self.spin = BackgroundSpin(self.executor)
+
+    def _on_wrench(self, m: WrenchStamped) -> None:
+        self.wrenches.append((m.wrench.force.x, m.wrench.force.y, m.wrench.force.z))
+        self.wrench_stamps.append(_seconds(m.header.stamp))
 
     @staticmethod
     def wait_for(predicate, timeout_s: float) -> bool:
@@ -170,8 +177,12 @@ def test_four_modules_give_the_wrench_and_every_module_in_the_reading(spawn, ros
     answer = ros.call_tare()
     assert answer.success, answer.message
     assert answer.message.startswith("baselines front ")
-    count = len(ros.readings)
-    assert ros.wait_for(lambda: len(ros.readings) > count + 300, PATIENCE_S)
+    # Samples taken 0.3 s after the answer: this listener may still be reading older ones
+    # (stamps are the device's time mapped to this clock).
+    tared_at = time.time()
+    assert ros.wait_for(lambda: bool(ros.readings and ros.wrench_stamps)
+                        and _seconds(ros.readings[-1].header.stamp) > tared_at + 0.3
+                        and ros.wrench_stamps[-1] > tared_at + 0.3, PATIENCE_S)
     after = ros.readings[-1]
     np.testing.assert_allclose(after.outputs, 0.0, atol=0.01)
     np.testing.assert_allclose(ros.wrenches[-1], 0.0, atol=0.15)
