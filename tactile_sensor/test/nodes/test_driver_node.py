@@ -511,6 +511,9 @@ def test_a_frame_id_set_while_running_names_every_later_reading(spawn, ros, file
         Parameter("frame_id", value="left_fingertip").to_parameter_msg()]))
     assert ros.wait_for(future.done, PATIENCE_S)
     assert future.result().results[0].successful
-    count = len(ros.readings)
-    assert ros.wait_for(lambda: len(ros.readings) > count + 200, PATIENCE_S)
-    assert ros.readings[-1][1].header.frame_id == "left_fingertip"
+    # Samples stamped 0.3 s after the answer (this listener may still be reading older
+    # ones; stamps are the device's time mapped to this clock).
+    set_at = time.time()
+    assert ros.wait_for(lambda: _stamp(ros.readings[-1][1]) > set_at + 0.3, PATIENCE_S)
+    later = [m for _, m in list(ros.readings) if _stamp(m) > set_at + 0.3]
+    assert later and {m.header.frame_id for m in later} == {"left_fingertip"}
