@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate bench bench-report clean
+.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate demo-wrench bench bench-report clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -40,6 +40,9 @@ demo-gripper: setup  ## grasp the rod, hold, release on mock hardware
 
 demo-rate: setup  ## fit force across speeds on 'speeds', check it on unseen speeds with holds
 	@bash scripts/demo.sh rate
+
+demo-wrench: setup  ## press, shear, tilt and twist on the 8-module layout; print the six errors
+	@bash scripts/demo.sh wrench
 
 bench: setup  ## every benchmark in benchmarks/: prints its figures, writes benchmarks/results/
 	@. scripts/env.sh && for b in benchmarks/bench_*.py; do echo "== $$b"; python "$$b" || exit 1; done

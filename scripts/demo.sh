@@ -4,6 +4,7 @@
 #   scripts/demo.sh bench [PROTOCOL]   (default compression)
 #   scripts/demo.sh gripper
 #   scripts/demo.sh rate [SPEEDS_PROTOCOL]   (default speeds:cycles=1,hold=2)
+#   scripts/demo.sh wrench [WRENCH_PROTOCOL]   (default wrench)
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -53,6 +54,36 @@ YAML
     sed -n '/[Rr]ate/,$p' "$run/check-analysis/report.md"
     echo "== report: $run/check-analysis/report.md"
     ;;
+  wrench)
+    # Six-axis wrench: press, shear, tilt, twist and combine them on the 8-module layout, then
+    # compare the driver's force and torque with the six-component gauge.
+    protocol="${2:-wrench}"
+    echo "== wrench '$protocol' on mock hardware -> $run/bag"
+    tactile-sensor bringup wrench --protocol "$protocol" --record "$run/bag" \
+      --port "adc_port=/tmp/tactile_sensor/demo_wadc_$$"
+    echo "== analysing $run/bag"
+    tactile-sensor analyze "$run/bag" --out "$run/analysis" --quiet
+    echo "== the six errors (rmse against the gauge, in % of each component's range)"
+    python - "$run/analysis/metrics.json" <<'PY'
+import json
+import sys
+
+m = json.load(open(sys.argv[1]))
+for kind, unit in (("force", "n"), ("torque", "nm")):
+    rmse, span = m.get(f"{kind}_rmse_{unit}") or {}, m.get(f"{kind}_range_{unit}") or {}
+    for axis in "xyz":
+        r, s = rmse.get(axis), span.get(axis)
+        label = f"{kind[0].upper()}{axis}"
+        if r is None or not s:
+            print(f"  {label}: not estimated")
+        else:
+            print(f"  {label}: rmse {r:.4g} {'N' if unit == 'n' else 'N m'} over a "
+                  f"{s:.4g} range = {100 * r / s:.1f} %")
+PY
+    echo "== plots"
+    ls -1 "$run"/analysis/*.png
+    echo "== report: $run/analysis/report.md, metrics: $run/analysis/metrics.json"
+    ;;
   gripper)
     echo "== gripper grasp/hold/release on mock hardware -> $run/bag"
     tactile-sensor bringup gripper --protocol grasp --record "$run/bag" \
@@ -61,7 +92,7 @@ YAML
     ;;
   *)
     echo "usage: scripts/demo.sh bench [compression|repeatability|speeds] | gripper |" \
-      "rate [SPEEDS_PROTOCOL]" >&2
+      "rate [SPEEDS_PROTOCOL] | wrench [WRENCH_PROTOCOL]" >&2
     exit 2
     ;;
 esac

@@ -105,7 +105,23 @@ ARRAY = Configuration(
     record_topics=BENCH.record_topics,
 )
 
-CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER, ARRAY)}
+WRENCH = Configuration(
+    name="wrench",
+    description="Two modules on each side face of one skin, with a graded pigment under each "
+                "window, on the bench with a stage that presses, shears, tilts and twists and a "
+                "six-component gauge: force and torque (the paper's future work).",
+    nodes=(
+        replace(BENCH.nodes[0], config_files=("physics.yaml", "bench.yaml", "wrench.yaml")),
+        replace(_MODEL, config_files=(*_MODEL.config_files, "wrench.yaml")),
+        replace(_DRIVER, config_files=(*SENSOR_FILES, "wrench.yaml")),
+    ),
+    ports={"adc_port": ("/tmp/tactile_sensor/wrench_adc",
+                        "serial device of the wrench layout's 8-input ADC (one channel per "
+                        "module)")},
+    record_topics=BENCH.record_topics,
+)
+
+CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER, ARRAY, WRENCH)}
 
 
 def config_dir() -> Path:

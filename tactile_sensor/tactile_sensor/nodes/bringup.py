@@ -1,4 +1,4 @@
-"""``tactile-sensor bringup bench|gripper|array``: a launch file's job for machines without launch.
+"""``tactile-sensor bringup bench|gripper|array|wrench``: a launch file's job for machines without launch.
 
 Composes the configuration's nodes in one process and one executor (as ros2/demos composes
 nodes), loads the same config files as ``launch/*.launch.py`` (both read
@@ -27,7 +27,7 @@ class BringupError(Exception):
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="tactile-sensor bringup",
-        description="Run the bench, gripper or array configuration in one process (no launch "
+        description="Run the bench, gripper, array or wrench configuration in one process (no launch "
                     "needed).")
     parser.add_argument("configuration", choices=sorted(CONFIGURATIONS))
     parser.add_argument("--duration", type=float, default=None,
@@ -37,7 +37,8 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
                         help="record the configuration's topics to this rosbag2 (MCAP) folder")
     parser.add_argument("--protocol", default=None,
                         help="bench: compression | repeatability | speeds | rest; "
-                             "gripper: grasp | idle; array: compression | shear "
+                             "gripper: grasp | idle; array: compression | shear; "
+                             "wrench: wrench "
                              "(config/protocols.yaml); "
                              "NAME:key=value,... overrides its fields, e.g. "
                              "repeatability:cycles=5 or speeds:cycles=1,rest=0.5")
