@@ -265,7 +265,7 @@ def array_profile(depth_m: float = 0.003, speeds_m_s: tuple[float, ...] = (0.001
         if len(tuple(speeds_m_s)) != 1 or preload_m:
             raise SimError("A wrench protocol runs at one speed from contact; give "
                            "protocol.speeds one value and protocol.preload 0.")
-        return WrenchProfile(depth_m=depth_m, speed_m_s=tuple(speeds_m_s)[0],
+        return WrenchProfile(depth_m=depth_m, speed_m_s=next(iter(speeds_m_s)),
                              shear_m=shear_m, tilt_rad=tilt_rad, twist_rad=twist_rad,
                              angular_speed_rad_s=angular_speed_rad_s, cycles=cycles,
                              hold_s=hold_s, rest_s=rest_s)
