@@ -209,9 +209,12 @@ def _mock_hardware() -> NodeInterface:
         publishers=[
             Endpoint("~/stage/joint_states", _JOINTS, "stage joints `stage_z` "
                      "(indentation [m], + into the skin), `stage_x`, `stage_y` (lateral "
-                     "probe displacement [m])", bench),
+                     "probe displacement [m]); with a wrench protocol also `stage_rx`, "
+                     "`stage_ry`, `stage_rz` (probe tilt about x, y and twist about z "
+                     "[rad])", bench),
             Endpoint("~/gauge/wrench", _WRENCH, "the probe's force on the skin [N], "
-                     "+z pressing in", bench),
+                     "+z pressing in; with a wrench protocol also its torque on the skin "
+                     "about the probe's centre [N m]", bench),
             Endpoint("~/ground_truth", _WRENCH, "finger A's true skin force [N]", gripper),
         ],
         services=[Endpoint("~/start", _TRIGGER, "start the protocol now (with "

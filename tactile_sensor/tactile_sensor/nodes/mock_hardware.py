@@ -10,7 +10,11 @@ servo and the reference instruments agree:
   force on the skin, +z pressing in, with the viscoelastic rate effect) are published at
   the gauge rate with the sample times. When the physics parameter ``modules`` names
   several faces, the skin is the FEM array grid (``sim/array_world.py``) and ADC channel i
-  carries the i-th face; ``protocol.shear`` > 0 runs the shear sweep. The protocol
+  carries the i-th face; ``protocol.shear`` > 0 runs the shear sweep. ``protocol.tilt``
+  or ``protocol.twist`` > 0 runs the wrench protocol on the six-axis bench
+  (``sim/wrench_world.py``): the stage adds ``stage_rx``, ``stage_ry``, ``stage_rz``
+  [rad] and the gauge torque.x/y/z [N m] (the probe's torque on the skin about its centre,
+  with the rate effect). The protocol
   (config/protocols.yaml) starts ``protocol.start_delay`` s after start-up, or on
   ``~/start``.
 - ``world: gripper`` — the soft gripper: an emulated XM430 moves the fingers, the rod
@@ -52,6 +56,8 @@ from tactile_sensor.sim.bench_world import BenchWorld
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.profiles import MAX_SHEAR_M, LoadProfile, array_profile
 from tactile_sensor.sim.skin_response import TabulatedSkin
+from tactile_sensor.sim.wrench_profile import MAX_ROTATION_RAD
+from tactile_sensor.sim.wrench_world import WRENCH_MIN_MODULES, WrenchBenchWorld, WrenchSkin
 
 SPECS = [
     ParamSpec("world", "bench", "which rig to simulate", choices=("bench", "gripper")),
@@ -85,6 +91,13 @@ SPECS = [
     ParamSpec("protocol.shear_directions", 8, "directions of the shear sweep: 4 = +x, -x, "
               "+y, -y; 8 = then the diagonals +x+y, -x-y, -x+y, +x-y", minimum=4, maximum=8,
               check=lambda n: None if n in (4, 8) else "give 4 or 8."),
+    ParamSpec("protocol.tilt", 0.0, "largest probe tilt about x and y of the wrench protocol "
+              "[rad] (needs >= 6 modules); 0 with twist 0 = no wrench protocol", minimum=0.0,
+              maximum=MAX_ROTATION_RAD),
+    ParamSpec("protocol.twist", 0.0, "largest probe twist about z of the wrench protocol [rad]",
+              minimum=0.0, maximum=MAX_ROTATION_RAD),
+    ParamSpec("protocol.angular_speed", 0.05, "tilt and twist speed of the wrench protocol "
+              "[rad/s]", minimum=1e-4, maximum=1.0),
     ParamSpec("protocol.start_delay", 5.0, "start the protocol this long after start-up "
               "[s] (time for the driver to tare); < 0 = wait for ~/start"),
     # gripper
@@ -117,6 +130,19 @@ class MockHardwareError(Exception):
     """The mock rig cannot start; the message names the parameter or file to fix."""
 
 
+def wrench_refusal(world: str, modules: int) -> str | None:
+    """Why a wrench protocol cannot run on this rig, in one sentence (None: it can)."""
+    if world != "bench":
+        return ("A wrench protocol (protocol.tilt or protocol.twist > 0) needs the bench "
+                "world; set world to bench or protocol.tilt and protocol.twist to 0.")
+    if modules < WRENCH_MIN_MODULES:
+        return (f"A wrench protocol needs at least {WRENCH_MIN_MODULES} modules to tell six "
+                f"wrench components apart, the physics parameter modules names {modules}; "
+                "set e.g. modules to front@-0.0055,front@0.0055,back@-0.0055,back@0.0055,"
+                "left@-0.0055,left@0.0055,right@-0.0055,right@0.0055.")
+    return None
+
+
 class ProtocolSource:
     """The ADC's voltage source: the world at rest until the protocol starts, then its run.
 
@@ -138,12 +164,18 @@ class ProtocolSource:
 
 #: The stage's joints: indentation (+ into the skin), lateral probe displacement along +x, +y.
 STAGE_JOINTS = ("stage_z", "stage_x", "stage_y")
+#: The six-axis stage adds the probe's tilt about x and y and twist about z [rad].
+WRENCH_STAGE_JOINTS = (*STAGE_JOINTS, "stage_rx", "stage_ry", "stage_rz")
 
 
 def stage_and_gauge(world: BenchWorld | ArrayBenchWorld, t: float
-                    ) -> tuple[list[float], tuple[float, float, float]]:
-    """Stage positions (d, sx, sy) [m] and gauge force (Fx, Fy, Fz) [N] at protocol time t;
-    a single-module bench has no lateral axis (0)."""
+                    ) -> tuple[list[float], tuple[float, ...]]:
+    """Stage positions (d, sx, sy [m], and rx, ry, rz [rad] on the six-axis bench) and gauge
+    (Fx, Fy, Fz [N], then Tx, Ty, Tz [N m] on the six-axis bench) at protocol time t; a
+    single-module bench has no lateral axis (0)."""
+    if isinstance(world, WrenchBenchWorld):
+        return ([float(x) for x in world.stage_m(t)],
+                tuple(float(x) for x in world.wrench_n(t)))
     if isinstance(world, ArrayBenchWorld):
         d, sx, sy = (float(x) for x in world.stage_m(t))
         fx, fy, fz = (float(x) for x in world.force_n(t))
@@ -168,6 +200,10 @@ class MockHardwareNode(Node):
         self.values = values
         self.faces: tuple[str, ...] = physics.module_faces
         array = values["world"] == "bench" and len(self.faces) > 1
+        wrench = values["protocol.tilt"] > 0 or values["protocol.twist"] > 0
+        refusal = wrench_refusal(values["world"], len(self.faces)) if wrench else None
+        if refusal:
+            raise MockHardwareError(refusal)
         if values["world"] == "bench" and values["protocol.shear"] > 0 and not array:
             raise MockHardwareError(
                 "A shear protocol needs a module array; set the physics parameter modules "
@@ -179,7 +215,8 @@ class MockHardwareNode(Node):
                 self.get_logger().info(
                     f"loading the array skin ({', '.join(self.faces)}; a first run computes "
                     "the FEM grid)")
-                skin = ArraySkin.from_params(physics, cache, self._grid_progress)
+                skin = (WrenchSkin if wrench else ArraySkin).from_params(
+                    physics, cache, self._grid_progress)
             else:
                 self.get_logger().info(
                     "loading the skin model (a first run computes the FEM sweep)")
@@ -227,17 +264,21 @@ class MockHardwareNode(Node):
                                throttle_duration_sec=2.0)
 
     # -- bench ---------------------------------------------------------------------------------
-    def _build_bench(self, skin: TabulatedSkin | ArraySkin, physics: Any) -> None:
+    def _build_bench(self, skin: TabulatedSkin | ArraySkin | WrenchSkin, physics: Any) -> None:
         v = self.values
         rate = RateDependentForce.from_params(physics)
         self.world: BenchWorld | ArrayBenchWorld
-        if isinstance(skin, ArraySkin):
+        if isinstance(skin, ArraySkin | WrenchSkin):
             profile = array_profile(depth_m=v["protocol.depth"],
                                     speeds_m_s=tuple(v["protocol.speeds"]),
                                     cycles=v["protocol.cycles"], hold_s=v["protocol.hold"],
                                     rest_s=v["protocol.rest"], shear_m=v["protocol.shear"],
-                                    shear_directions=v["protocol.shear_directions"])
-            self.world = ArrayBenchWorld(profile, skin, rate, output_play_m=physics.output_play)
+                                    shear_directions=v["protocol.shear_directions"],
+                                    tilt_rad=v["protocol.tilt"], twist_rad=v["protocol.twist"],
+                                    angular_speed_rad_s=v["protocol.angular_speed"])
+            world = WrenchBenchWorld if isinstance(skin, WrenchSkin) else ArrayBenchWorld
+            self.world = world(profile, skin, rate,  # type: ignore[arg-type]
+                               output_play_m=physics.output_play)
         else:
             profile = LoadProfile(depth_m=v["protocol.depth"],
                                   speeds_m_s=tuple(v["protocol.speeds"]),
@@ -309,12 +350,16 @@ class MockHardwareNode(Node):
                 t = 0.0 if start is None else max(0.0, (next_ns - start) * 1e-9)
                 stamp = Time(nanoseconds=next_ns).to_msg()
                 position, force = stage_and_gauge(self.world, t)
-                stage = JointState(name=list(STAGE_JOINTS), position=position)
+                stage = JointState(name=list(WRENCH_STAGE_JOINTS[:len(position)]),
+                                   position=position)
                 stage.header.stamp = stamp
                 gauge = WrenchStamped()
                 gauge.header.stamp, gauge.header.frame_id = stamp, "force_gauge"
                 f = gauge.wrench.force
-                f.x, f.y, f.z = force
+                f.x, f.y, f.z = force[:3]
+                if len(force) == 6:
+                    tq = gauge.wrench.torque
+                    tq.x, tq.y, tq.z = force[3:]
                 self._stage_pub.publish(stage)
                 self._gauge_pub.publish(gauge)
                 self.published_until_ns = next_ns

@@ -30,6 +30,7 @@ import numpy.typing as npt
 import yaml
 
 from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.wrench_profile import MAX_ROTATION_RAD, WrenchProfile
 
 MAX_DEPTH_M = 0.02
 
@@ -243,18 +244,31 @@ class ShearProfile:
         return self._knots[0].copy(), self._knots[1].copy()
 
 
-_ARRAY_KEYS = {**_KEYS, "shear": "shear_m", "shear_directions": "shear_directions"}
+_ARRAY_KEYS = {**_KEYS, "shear": "shear_m", "shear_directions": "shear_directions",
+               "tilt": "tilt_rad", "twist": "twist_rad", "angular_speed": "angular_speed_rad_s"}
 
 ARRAY_PROTOCOLS: dict[str, dict[str, Any]] = _load_protocols("array", _ARRAY_KEYS)
 
 
 def array_profile(depth_m: float = 0.003, speeds_m_s: tuple[float, ...] = (0.001,),
                   cycles: int = 1, hold_s: float = 0.0, rest_s: float = 1.0,
-                  preload_m: float = 0.0, shear_m: float = 0.0, shear_directions: int = 8
-                  ) -> LoadProfile | ShearProfile:
-    """The array bench's profile from the mock rig's protocol parameters: a shear sweep
-    when ``shear_m`` > 0, the plain load profile otherwise."""
+                  preload_m: float = 0.0, shear_m: float = 0.0, shear_directions: int = 8,
+                  tilt_rad: float = 0.0, twist_rad: float = 0.0,
+                  angular_speed_rad_s: float = 0.05) -> LoadProfile | ShearProfile | WrenchProfile:
+    """The array bench's profile from the mock rig's protocol parameters: the wrench
+    protocol when ``tilt_rad`` or ``twist_rad`` > 0, a shear sweep when ``shear_m`` > 0,
+    the plain load profile otherwise."""
     _check("shear", shear_m, 0.0, MAX_SHEAR_M, "m")
+    _check("tilt", tilt_rad, 0.0, MAX_ROTATION_RAD, "rad")
+    _check("twist", twist_rad, 0.0, MAX_ROTATION_RAD, "rad")
+    if tilt_rad or twist_rad:
+        if len(tuple(speeds_m_s)) != 1 or preload_m:
+            raise SimError("A wrench protocol runs at one speed from contact; give "
+                           "protocol.speeds one value and protocol.preload 0.")
+        return WrenchProfile(depth_m=depth_m, speed_m_s=next(iter(speeds_m_s)),
+                             shear_m=shear_m, tilt_rad=tilt_rad, twist_rad=twist_rad,
+                             angular_speed_rad_s=angular_speed_rad_s, cycles=cycles,
+                             hold_s=hold_s, rest_s=rest_s)
     if shear_m == 0:
         return LoadProfile(depth_m=depth_m, speeds_m_s=speeds_m_s, cycles=cycles,
                            hold_s=hold_s, rest_s=rest_s, preload_m=preload_m)
@@ -269,7 +283,8 @@ def array_profile(depth_m: float = 0.003, speeds_m_s: tuple[float, ...] = (0.001
                         rest_s=rest_s)
 
 
-def array_profile_from_protocol(name: str, **overrides: Any) -> LoadProfile | ShearProfile:
+def array_profile_from_protocol(name: str, **overrides: Any
+                                ) -> LoadProfile | ShearProfile | WrenchProfile:
     """A protocol of the ``array`` section of config/protocols.yaml, with overrides."""
     if name not in ARRAY_PROTOCOLS:
         raise SimError(f"Unknown array protocol '{name}'; choose one of "

@@ -64,7 +64,7 @@ def test_lateral_motion_only_at_depth(t):
 
 
 def test_array_protocols_and_the_bench_table_are_both_loaded():
-    assert set(ARRAY_PROTOCOLS) == {"compression", "shear"}
+    assert set(ARRAY_PROTOCOLS) == {"compression", "shear", "wrench"}
     assert ARRAY_PROTOCOLS["shear"]["shear_m"] == 0.006
     assert set(PROTOCOLS) >= {"compression", "repeatability", "speeds", "rest"}
     compression = array_profile_from_protocol("compression")
