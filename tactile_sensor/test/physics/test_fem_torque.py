@@ -97,6 +97,111 @@ def test_a_small_twist_of_a_block_without_module_matches_saint_venant_torsion():
     assert 1.0 < ratio < 1.3
 
 
+LAYER_SIDE = 0.04                                   # a [m]
+LAYER_HEIGHTS = (0.002, 0.001, 0.0005)              # H [m]: H / a = 1/20, 1/40, 1/80
+
+
+def thin_layer(height: float, mesh: tuple[int, int, int], **load: float) -> PhysicsParams:
+    """A bonded square layer a x a x H without module, loaded by ``load`` in one step."""
+    return PhysicsParams(height=height, width=LAYER_SIDE, depth=LAYER_SIDE, module_height=0.0,
+                         window_center_z=height / 2, steps=1, mesh_nx=mesh[0],
+                         mesh_ny=mesh[1], mesh_nz=mesh[2], **load)
+
+
+def thin_layer_twist_ratio(height: float, mesh: tuple[int, int, int] = (10, 10, 4)) -> float:
+    """FEM / closed form of a thin layer twisted by 1 % shear at its edges' midpoints."""
+    theta = 0.01 * height / (LAYER_SIDE / 2)
+    p = thin_layer(height, mesh, max_indentation=0.0, max_twist_z=theta)
+    torque = SkinModel(p).sweep().torque_nm[-1]
+    closed = p.shear_modulus * theta * LAYER_SIDE**4 / (6 * height)
+    assert np.abs(torque[:2]).max() < 1e-6 * torque[2]
+    return float(torque[2] / closed)
+
+
+def test_a_thin_bonded_layer_twists_with_the_polar_moment_of_its_square():
+    """Bonded faces stop the section warping in a thin layer, so each point shears by
+    r theta / H and T = mu theta J / H with the square's polar moment J = a^4 / 6. Only
+    the free edges differ (the closed form's shear stress crosses them): a layer of width
+    ~H whose share falls with H / a, the same edge effect as in simple shear. The
+    10 x 10 x 4 mesh (per quarter) under-resolves that layer and reads it smaller than a
+    20 x 20 x 8 one (-0.77, -0.23, -0.05 %), both well inside the 0.5 % tolerance."""
+    ratios = [thin_layer_twist_ratio(h) for h in LAYER_HEIGHTS]
+    print("twist torque / mu theta a^4 / (6 H) at H = 2, 1, 0.5 mm:", ratios)
+    errors = [abs(r - 1.0) for r in ratios]
+    assert all(r < 1.0 for r in ratios)             # free edges only soften
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 0.005
+
+
+def bonded_layer_tilt_moment(mu: float, bulk: float, side: float, height: float,
+                             theta: float, terms: int = 1000) -> float:
+    """Moment [N m] of a thin bonded square layer whose top turns by theta about a centre
+    line: lubrication theory of a bonded layer (as Gent & Meinecke 1970 for incompressible
+    blocks, here with the bulk modulus K).
+
+    The faces are bonded, so the lateral displacement is parabolic through the thickness,
+    its mean u = -(H^2 / 12 mu) grad p; the mean pressure p = K (delta / H - div u) with the
+    thinning delta = theta y. Hence p - l^2 lap p = K theta y / H, l^2 = K H^2 / (12 mu),
+    p = 0 on the free edges; on the square [0, a]^2 a double sine series solves it (y - a/2
+    has the coefficients -8a / (m n pi^2), m odd, n even). The normal stress is
+    (1 - 2 mu / 3K) p + 2 mu delta / H, so M = (1 - 2 mu / 3K) int p y dA + 2 mu theta I / H,
+    I = a^4 / 12. Limits: l << a gives uniaxial strain, (K + 4 mu / 3) theta I / H; l >> a
+    the incompressible block, mu theta a^5 / (60 H^3) per unit depth for a long strip.
+    Error O(H / a): the edge layer where the pressure drops to zero. The series, cut after
+    ``terms`` terms per axis, reads ~0.1 % low when l << a, far less at the tests' l."""
+    ell2 = bulk * height**2 / (12 * mu)
+    m = np.arange(1, 2 * terms, 2)[:, None]
+    n = np.arange(2, 2 * terms + 1, 2)[None, :]
+    coefficients = (8 * side / (m * n * np.pi**2)) ** 2
+    decay = 1.0 + ell2 * np.pi**2 * (m**2 + n**2) / side**2
+    pressure = bulk * theta / height * side**2 / 4 * np.sum(coefficients / decay)
+    return float((1 - 2 * mu / (3 * bulk)) * pressure + 2 * mu * theta * side**4 / (12 * height))
+
+
+def test_the_tilt_series_reaches_its_uniaxial_and_incompressible_limits():
+    mu, a, theta = 1e4, 0.04, 1e-3
+    h = 1e-6                                                    # l << a: uniaxial strain
+    assert bonded_layer_tilt_moment(mu, 10 * mu, a, h, theta) == pytest.approx(
+        (10 + 4 / 3) * mu * theta * a**4 / 12 / h, rel=2e-3)
+    # l >> a: the incompressible block, whose pressure's moment grows as 1 / H^3 (Gent &
+    # Meinecke); the shear stress' 2 mu theta I / H comes on top
+    thick, thin = (bonded_layer_tilt_moment(mu, 1e9 * mu, a, h, theta)
+                   - 2 * mu * theta * a**4 / (12 * h) for h in (2e-3, 1e-3))
+    assert thin / thick == pytest.approx(8.0, rel=1e-3)
+
+
+def test_a_thin_bonded_layer_tilts_as_lubrication_theory_says():
+    """Tilt of the default, nearly incompressible material (K = 1000 mu): l / a = 0.46, 0.23,
+    0.11 from the thickest to the thinnest layer, so the layer passes from the
+    incompressible block toward uniaxial strain (the closed form is 5 %, 17 % and 39 % of
+    (K + 4 mu / 3) theta I / H). The top turns by 0.1 % strain at its edge, pressed as deep
+    as the tilt lifts it. The parabolic lateral flow needs elements through the thickness
+    (4 read 13 % stiff at H / a = 1/20, 8 read 7 %, 16 read 6 %); a 20 x 20 x 16 mesh reads
+    1.046, 1.021, 1.012. A sign or a factor 2 off fails by far."""
+    ratios = []
+    for h in LAYER_HEIGHTS:
+        theta = 0.001 * h / (LAYER_SIDE / 2)
+        p = thin_layer(h, (10, 10, 16), max_indentation=theta * LAYER_SIDE / 2,
+                       max_tilt_x=theta)
+        torque = SkinModel(p).sweep().torque_nm[-1]
+        closed = bonded_layer_tilt_moment(p.shear_modulus, p.bulk_modulus, LAYER_SIDE, h,
+                                          theta)
+        ratios.append(float(torque[0] / closed))
+    print("tilt torque / lubrication theory at H = 2, 1, 0.5 mm:", ratios)
+    errors = [abs(r - 1.0) for r in ratios]
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 0.03
+
+
+def test_a_tilt_about_x_on_the_full_model_has_no_other_torque():
+    """The tilt's model spans y only, where Ty and Tz vanish by the mirror; the full block
+    must find them zero on its own."""
+    p = PhysicsParams(**{**SMALL, "max_tilt_x": 0.1})
+    torque = SkinModel(p, (True, True)).sweep().torque_nm[-1]
+    assert torque[0] > 0
+    assert np.abs(torque[1:]).max() < 1e-6 * torque[0]
+
+
 def test_torques_of_symmetric_models_cancel_where_a_mirror_copy_would():
     p = PhysicsParams(**{**SMALL, "max_shear_x": 0.001})
     res = SkinModel(p).sweep()                        # half model, spans x
