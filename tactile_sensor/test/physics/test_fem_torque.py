@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from tactile_sensor.physics.array_grid import face_image, symmetries
+from tactile_sensor.physics.cli import main
 from tactile_sensor.physics.design_metrics import (
     OBSERVE_SNR,
     WRENCH_AXES,
@@ -19,8 +20,16 @@ from tactile_sensor.physics.design_metrics import (
     wrench_metrics,
 )
 from tactile_sensor.physics.errors import PhysicsError
-from tactile_sensor.physics.fem import SkinModel, rotation_matrix
+from tactile_sensor.physics.fem import SkinModel, SweepResult, rotation_matrix
 from tactile_sensor.physics.params import PhysicsParams
+from tactile_sensor.physics.prediction import (
+    ROTATION_ARRAYS,
+    PredictionCurve,
+    cache_path,
+    cached_curve,
+    curve_from_sweep,
+    store_curve,
+)
 from tactile_sensor.physics.study import DesignRow, run_study
 from tactile_sensor.physics.study_report import wrench_finding, wrench_lines, write_results
 from tactile_sensor.physics.study_spec import parse_spec
@@ -245,6 +254,92 @@ def test_wrench_tilt_that_lifts_the_probe_is_refused_before_solving():
     p = PhysicsParams(wrench_tilt=0.4)
     with pytest.raises(PhysicsError, match=r"'wrench_tilt' .* lower wrench_tilt below 0.273"):
         wrench_paths(p)
+
+
+# -- the torque in the sweep JSON -----------------------------------------------------------
+
+SWEEP = ["--set", "mesh_nx=4", "mesh_ny=4", "mesh_nz=16", "max_indentation=0.002", "steps=2"]
+#: What 'model sweep --json' writes for a load path without rotation.
+PLAIN_KEYS = {"indentation_m", "force_n", "bulge_m", "distance_m", "voltage_v", "output_v",
+              "shear_x_m", "shear_y_m", "force_x_n", "force_y_n", "module_bulges_m",
+              "module_outputs_v", "nodes", "seconds", "digest", "params"}
+
+
+def test_a_twisting_sweep_writes_the_torque_along_the_path(capsys, tmp_path):
+    """Negative twist, so a sign lost to abs() or to a flipped axis shows."""
+    path = tmp_path / "twist.json"
+    code = main(["sweep", *SWEEP, "max_twist_z=-0.1", "--json", str(path), "--cache-dir",
+                 str(tmp_path / "cache")])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    data = json.loads(path.read_text())
+    assert set(data) == PLAIN_KEYS | set(ROTATION_ARRAYS)
+    assert data["twist_z_rad"] == pytest.approx([0.0, -0.05, -0.1])
+    assert data["tilt_x_rad"] == data["tilt_y_rad"] == [0.0] * 3
+    tz = data["torque_z_nm"]
+    assert len(tz) == len(data["torque_x_nm"]) == len(data["indentation_m"]) == 3
+    assert tz[2] < tz[1] < 0                         # along the probe's own rotation
+    assert max(map(abs, data["torque_x_nm"] + data["torque_y_nm"])) < 1e-6 * abs(tz[2])
+    assert "rotation        (0.0000, 0.0000, -0.1000) rad, torque" in out
+
+
+def test_a_sweep_without_rotation_writes_what_it_wrote_before(capsys, tmp_path):
+    path = tmp_path / "press.json"
+    code = main(["sweep", *SWEEP, "--json", str(path), "--cache-dir", str(tmp_path)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert set(json.loads(path.read_text())) == PLAIN_KEYS
+    assert "torque" not in out
+
+
+def twisting_curve(params: PhysicsParams) -> PredictionCurve:
+    """A prediction curve from a made-up two-step sweep whose torque columns differ."""
+    steps = np.array([0.0, 1.0])
+    rotation = np.outer(steps, [params.max_tilt_x, params.max_tilt_y, params.max_twist_z])
+    torque = np.outer(steps, [1e-3, -2e-3, 3e-3])
+    zero = np.zeros(2)
+    sweep = SweepResult(steps * params.max_indentation, steps, steps * 1e-5, 100, 1.0, zero,
+                        zero, zero, zero, {"front": steps * 1e-5}, rotation, torque)
+    return curve_from_sweep(params, sweep.indentation_m, sweep.force_n, sweep.bulge_m,
+                            sweep.nodes, sweep.seconds, sweep)
+
+
+def test_the_curve_keeps_each_torque_column_under_its_name(tmp_path):
+    p = PhysicsParams(max_indentation=0.002, max_tilt_y=0.05, max_twist_z=0.2)
+    curve = twisting_curve(p)
+    assert curve.rotates
+    np.testing.assert_allclose(curve.tilt_y_rad, [0.0, 0.05])
+    np.testing.assert_allclose(curve.twist_z_rad, [0.0, 0.2])
+    np.testing.assert_allclose([curve.torque_x_nm[-1], curve.torque_y_nm[-1],
+                                curve.torque_z_nm[-1]], [1e-3, -2e-3, 3e-3])
+    store_curve(p, curve, tmp_path)
+    again = cached_curve(p, tmp_path)
+    assert again is not None
+    for name in ROTATION_ARRAYS:
+        np.testing.assert_array_equal(getattr(again, name), getattr(curve, name))
+
+
+def test_a_cached_rotating_curve_from_before_the_torque_is_recomputed(tmp_path):
+    """Old cache entries lack the rotation: read as none, they would report zero torque."""
+    p = PhysicsParams(max_indentation=0.002, max_twist_z=0.2)
+    old = twisting_curve(p).to_dict()
+    for name in ROTATION_ARRAYS:
+        del old[name]
+    cache_path(p, tmp_path).write_text(json.dumps(old))
+    assert cached_curve(p, tmp_path) is None
+    # the same file for a path without rotation is still good, and has no torque
+    plain = PhysicsParams(max_indentation=0.002)
+    cache_path(plain, tmp_path).write_text(json.dumps(old))
+    curve = cached_curve(plain, tmp_path)
+    assert curve is not None and not curve.rotates
+    assert not np.any(curve.torque_z_nm) and set(curve.to_dict()) == PLAIN_KEYS - {"params"}
+
+
+def test_a_prediction_file_with_a_short_torque_list_is_refused(tmp_path):
+    data = twisting_curve(PhysicsParams(max_indentation=0.002, max_twist_z=0.2)).to_dict()
+    data["torque_z_nm"] = data["torque_z_nm"][:1]
+    with pytest.raises(PhysicsError, match="differ in length"):
+        PredictionCurve.from_dict(data)
 
 
 # -- module windows off the face's centre ------------------------------------------------------
