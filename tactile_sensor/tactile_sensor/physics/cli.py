@@ -294,6 +294,11 @@ def summary(curve: PredictionCurve, cache: str) -> str:
         extra.append(f"shear           ({curve.shear_x_m[-1] * 1e3:.3f}, "
                      f"{curve.shear_y_m[-1] * 1e3:.3f}) mm, lateral force "
                      f"({curve.force_x_n[-1]:.3f}, {curve.force_y_n[-1]:.3f}) N")
+    if curve.rotates:
+        extra.append(f"rotation        ({curve.tilt_x_rad[-1]:.4f}, {curve.tilt_y_rad[-1]:.4f}, "
+                     f"{curve.twist_z_rad[-1]:.4f}) rad, torque "
+                     f"({curve.torque_x_nm[-1] * 1e3:.3f}, {curve.torque_y_nm[-1] * 1e3:.3f}, "
+                     f"{curve.torque_z_nm[-1] * 1e3:.3f}) mN m")
     if len(curve.module_outputs_v) > 1 or extra:
         extra.append("module outputs  " + ", ".join(
             f"{face} {values[-1]:.4f} V" for face, values in curve.module_outputs_v.items()))

@@ -32,6 +32,11 @@ Progress = Callable[[float, str], None]
 ARRAYS = ("indentation_m", "force_n", "bulge_m", "distance_m", "voltage_v", "output_v")
 #: Per load step too, added with shear load paths; a file without them has them all zero.
 SHEAR_ARRAYS = ("shear_x_m", "shear_y_m", "force_x_n", "force_y_n")
+#: Per load step, added with tilt/twist load paths: the probe's rotation vector [rad] and its
+#: torque on the skin about its centre [N m]. Written only when the path rotates (so the JSON
+#: of a path without rotation is what it was); a file without them has them all zero.
+ROTATION_ARRAYS = ("tilt_x_rad", "tilt_y_rad", "twist_z_rad",
+                   "torque_x_nm", "torque_y_nm", "torque_z_nm")
 
 
 @dataclass(frozen=True)
@@ -67,16 +72,29 @@ class PredictionCurve:
     # every module's bulge [m] and output [V] by face; the first module's are the above
     module_bulges_m: dict[str, np.ndarray] = field(default=None)  # type: ignore[assignment]
     module_outputs_v: dict[str, np.ndarray] = field(default=None)  # type: ignore[assignment]
+    # probe's rotation vector [rad] and torque on the skin about its centre [N m]
+    tilt_x_rad: np.ndarray = field(default=None)  # type: ignore[assignment]
+    tilt_y_rad: np.ndarray = field(default=None)  # type: ignore[assignment]
+    twist_z_rad: np.ndarray = field(default=None)  # type: ignore[assignment]
+    torque_x_nm: np.ndarray = field(default=None)  # type: ignore[assignment]
+    torque_y_nm: np.ndarray = field(default=None)  # type: ignore[assignment]
+    torque_z_nm: np.ndarray = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         zeros = np.zeros_like(self.indentation_m)
-        for name in SHEAR_ARRAYS:
+        for name in SHEAR_ARRAYS + ROTATION_ARRAYS:
             if getattr(self, name) is None:
                 object.__setattr__(self, name, zeros)
         if self.module_bulges_m is None:
             object.__setattr__(self, "module_bulges_m", {"front": self.bulge_m})
         if self.module_outputs_v is None:
             object.__setattr__(self, "module_outputs_v", {"front": self.output_v})
+
+    @property
+    def rotates(self) -> bool:
+        """Whether the load path tilts or twists the probe (then the JSON has the torque)."""
+        return bool(np.any(self.tilt_x_rad) or np.any(self.tilt_y_rad)
+                    or np.any(self.twist_z_rad))
 
     @property
     def max_indentation_m(self) -> float:
@@ -116,8 +134,8 @@ class PredictionCurve:
         return np.interp(output_v, output, force)
 
     def to_dict(self) -> dict[str, Any]:
-        data: dict[str, Any] = {name: getattr(self, name).tolist()
-                                for name in ARRAYS + SHEAR_ARRAYS}
+        names = ARRAYS + SHEAR_ARRAYS + (ROTATION_ARRAYS if self.rotates else ())
+        data: dict[str, Any] = {name: getattr(self, name).tolist() for name in names}
         data.update(module_bulges_m={k: v.tolist() for k, v in self.module_bulges_m.items()},
                     module_outputs_v={k: v.tolist() for k, v in self.module_outputs_v.items()},
                     nodes=self.nodes, seconds=self.seconds, digest=self.digest)
@@ -130,8 +148,8 @@ class PredictionCurve:
                                "'tactile-sensor model sweep --json'.")
         try:
             arrays = {name: np.asarray(data[name], dtype=float) for name in ARRAYS}
-            arrays.update({name: np.asarray(data[name], dtype=float) for name in SHEAR_ARRAYS
-                           if name in data})
+            arrays.update({name: np.asarray(data[name], dtype=float)
+                           for name in SHEAR_ARRAYS + ROTATION_ARRAYS if name in data})
             faces = {key: {str(k): np.asarray(v, dtype=float) for k, v in data[key].items()}
                      for key in ("module_bulges_m", "module_outputs_v") if key in data}
             curve = cls(**arrays, **faces, nodes=int(data["nodes"]),
@@ -167,11 +185,15 @@ def module_output(params: PhysicsParams, bulge_m: npt.ArrayLike
 def curve_from_sweep(params: PhysicsParams, indentation_m: np.ndarray, force_n: np.ndarray,
                      bulge_m: np.ndarray, nodes: int, seconds: float,
                      sweep: SweepResult | None = None) -> PredictionCurve:
-    """Apply the optics to a mechanical sweep (``sweep``: its lateral load and modules)."""
+    """Apply the optics to a mechanical sweep (``sweep``: its lateral load, rotation,
+    torque and modules)."""
     distance, voltage, output = module_output(params, bulge_m)
     extra: dict[str, Any] = {}
     if sweep is not None:
         extra = {name: np.asarray(getattr(sweep, name), float) for name in SHEAR_ARRAYS}
+        columns = np.concatenate([sweep.rotation_rad, sweep.torque_nm], axis=1)
+        extra.update({name: np.asarray(columns[:, k], float)
+                      for k, name in enumerate(ROTATION_ARRAYS)})
         extra["module_bulges_m"] = {k: np.asarray(v, float) for k, v in sweep.bulges_m.items()}
         extra["module_outputs_v"] = {k: module_output(params, v)[2]
                                      for k, v in sweep.bulges_m.items()}
@@ -229,8 +251,13 @@ def cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:
 
 def cached_curve(params: PhysicsParams, cache_dir: Path | None = None
                  ) -> PredictionCurve | None:
-    """The cached curve for ``params``, or None (missing or damaged: recompute it)."""
-    return read_cache(cache_path(params, cache_dir), PredictionCurve.from_dict)
+    """The cached curve for ``params``, or None (missing or damaged: recompute it). A
+    rotating load path's entry written before the torque was stored has no rotation: it is
+    stale and recomputed too."""
+    curve = read_cache(cache_path(params, cache_dir), PredictionCurve.from_dict)
+    if curve is not None and params.is_rotation and not curve.rotates:
+        return None
+    return curve
 
 
 def store_curve(params: PhysicsParams, curve: PredictionCurve,

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from tactile_sensor.physics.array_grid import face_image, symmetries
+from tactile_sensor.physics.cli import main
 from tactile_sensor.physics.design_metrics import (
     OBSERVE_SNR,
     WRENCH_AXES,
@@ -19,8 +20,16 @@ from tactile_sensor.physics.design_metrics import (
     wrench_metrics,
 )
 from tactile_sensor.physics.errors import PhysicsError
-from tactile_sensor.physics.fem import SkinModel, rotation_matrix
+from tactile_sensor.physics.fem import SkinModel, SweepResult, rotation_matrix
 from tactile_sensor.physics.params import PhysicsParams
+from tactile_sensor.physics.prediction import (
+    ROTATION_ARRAYS,
+    PredictionCurve,
+    cache_path,
+    cached_curve,
+    curve_from_sweep,
+    store_curve,
+)
 from tactile_sensor.physics.study import DesignRow, run_study
 from tactile_sensor.physics.study_report import wrench_finding, wrench_lines, write_results
 from tactile_sensor.physics.study_spec import parse_spec
@@ -97,6 +106,114 @@ def test_a_small_twist_of_a_block_without_module_matches_saint_venant_torsion():
     assert 1.0 < ratio < 1.3
 
 
+LAYER_SIDE = 0.04                                   # a [m]
+LAYER_HEIGHTS = (0.002, 0.001, 0.0005)              # H [m]: H / a = 1/20, 1/40, 1/80
+
+
+def thin_layer(height: float, mesh: tuple[int, int, int], **load: float) -> PhysicsParams:
+    """A bonded square layer a x a x H without module, loaded by ``load`` in one step."""
+    return PhysicsParams(height=height, width=LAYER_SIDE, depth=LAYER_SIDE, module_height=0.0,
+                         window_center_z=height / 2, steps=1, mesh_nx=mesh[0],
+                         mesh_ny=mesh[1], mesh_nz=mesh[2], **load)
+
+
+def thin_layer_twist_ratio(height: float, mesh: tuple[int, int, int] = (10, 10, 4)) -> float:
+    """FEM / closed form of a thin layer twisted by 1 % shear at its edges' midpoints."""
+    theta = 0.01 * height / (LAYER_SIDE / 2)
+    p = thin_layer(height, mesh, max_indentation=0.0, max_twist_z=theta)
+    torque = SkinModel(p).sweep().torque_nm[-1]
+    closed = p.shear_modulus * theta * LAYER_SIDE**4 / (6 * height)
+    assert np.abs(torque[:2]).max() < 1e-6 * torque[2]
+    return float(torque[2] / closed)
+
+
+def test_a_thin_bonded_layer_twists_with_the_polar_moment_of_its_square():
+    """Bonded faces stop the section warping in a thin layer, so each point shears by
+    r theta / H and T = mu theta J / H with the square's polar moment J = a^4 / 6. Only
+    the free edges differ (the closed form's shear stress crosses them): a layer of width
+    ~H whose share falls with H / a, the same edge effect as in simple shear. The
+    10 x 10 x 4 mesh (per quarter) under-resolves that layer and reads it smaller than a
+    20 x 20 x 8 one (-0.77, -0.23, -0.05 %), both well inside the 0.5 % tolerance."""
+    ratios = [thin_layer_twist_ratio(h) for h in LAYER_HEIGHTS]
+    print("twist torque / mu theta a^4 / (6 H) at H = 2, 1, 0.5 mm:", ratios)
+    errors = [abs(r - 1.0) for r in ratios]
+    assert all(r < 1.0 for r in ratios)             # free edges only soften
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 0.005
+
+
+def bonded_layer_tilt_moment(mu: float, bulk: float, side: float, height: float,
+                             theta: float, terms: int = 1000) -> float:
+    """Moment [N m] of a thin bonded square layer whose top turns by theta about a centre
+    line: lubrication theory of a bonded layer (as Gent & Meinecke 1970 for incompressible
+    blocks, here with the bulk modulus K).
+
+    The faces are bonded, so the lateral displacement is parabolic through the thickness,
+    its mean u = -(H^2 / 12 mu) grad p; the mean pressure p = K (delta / H - div u) with the
+    thinning delta = theta y. Hence p - l^2 lap p = K theta y / H, l^2 = K H^2 / (12 mu),
+    p = 0 on the free edges; on the square [0, a]^2 a double sine series solves it (y - a/2
+    has the coefficients -8a / (m n pi^2), m odd, n even). The normal stress is
+    (1 - 2 mu / 3K) p + 2 mu delta / H, so M = (1 - 2 mu / 3K) int p y dA + 2 mu theta I / H,
+    I = a^4 / 12. Limits: l << a gives uniaxial strain, (K + 4 mu / 3) theta I / H; l >> a
+    the incompressible block, mu theta a^5 / (60 H^3) per unit depth for a long strip.
+    Error O(H / a): the edge layer where the pressure drops to zero. The series, cut after
+    ``terms`` terms per axis, reads ~0.1 % low when l << a, far less at the tests' l."""
+    ell2 = bulk * height**2 / (12 * mu)
+    m = np.arange(1, 2 * terms, 2)[:, None]
+    n = np.arange(2, 2 * terms + 1, 2)[None, :]
+    coefficients = (8 * side / (m * n * np.pi**2)) ** 2
+    decay = 1.0 + ell2 * np.pi**2 * (m**2 + n**2) / side**2
+    pressure = bulk * theta / height * side**2 / 4 * np.sum(coefficients / decay)
+    return float((1 - 2 * mu / (3 * bulk)) * pressure + 2 * mu * theta * side**4 / (12 * height))
+
+
+def test_the_tilt_series_reaches_its_uniaxial_and_incompressible_limits():
+    mu, a, theta = 1e4, 0.04, 1e-3
+    h = 1e-6                                                    # l << a: uniaxial strain
+    assert bonded_layer_tilt_moment(mu, 10 * mu, a, h, theta) == pytest.approx(
+        (10 + 4 / 3) * mu * theta * a**4 / 12 / h, rel=2e-3)
+    # l >> a: the incompressible block, whose pressure's moment grows as 1 / H^3 (Gent &
+    # Meinecke); the shear stress' 2 mu theta I / H comes on top
+    thick, thin = (bonded_layer_tilt_moment(mu, 1e9 * mu, a, h, theta)
+                   - 2 * mu * theta * a**4 / (12 * h) for h in (2e-3, 1e-3))
+    assert thin / thick == pytest.approx(8.0, rel=1e-3)
+
+
+def thin_layer_tilt_ratio(height: float, mesh: tuple[int, int, int] = (10, 10, 16)) -> float:
+    """FEM / lubrication theory of a thin layer tilted about x by 0.1 % strain at its edge,
+    pressed as deep as the tilt lifts it (the least the probe may press)."""
+    theta = 0.001 * height / (LAYER_SIDE / 2)
+    p = thin_layer(height, mesh, max_indentation=theta * LAYER_SIDE / 2, max_tilt_x=theta)
+    torque = SkinModel(p).sweep().torque_nm[-1]
+    closed = bonded_layer_tilt_moment(p.shear_modulus, p.bulk_modulus, LAYER_SIDE, height,
+                                      theta)
+    return float(torque[0] / closed)
+
+
+def test_a_thin_bonded_layer_tilts_as_lubrication_theory_says():
+    """Tilt of the default, nearly incompressible material (K = 1000 mu): l / a = 0.46, 0.23,
+    0.11 from the thickest to the thinnest layer, so the layer passes from the
+    incompressible block toward uniaxial strain (the closed form is 5 %, 17 % and 39 % of
+    (K + 4 mu / 3) theta I / H). The top turns by 0.1 % strain at its edge, pressed as deep
+    as the tilt lifts it. The parabolic lateral flow needs elements through the thickness
+    (4 read 13 % stiff at H / a = 1/20, 8 read 7 %, 16 read 6 %); a 20 x 20 x 16 mesh reads
+    1.046, 1.021, 1.012. A sign or a factor 2 off fails by far."""
+    ratios = [thin_layer_tilt_ratio(h) for h in LAYER_HEIGHTS]
+    print("tilt torque / lubrication theory at H = 2, 1, 0.5 mm:", ratios)
+    errors = [abs(r - 1.0) for r in ratios]
+    assert errors[0] > errors[1] > errors[2]
+    assert errors[2] < 0.03
+
+
+def test_a_tilt_about_x_on_the_full_model_has_no_other_torque():
+    """The tilt's model spans y only, where Ty and Tz vanish by the mirror; the full block
+    must find them zero on its own."""
+    p = PhysicsParams(**{**SMALL, "max_tilt_x": 0.1})
+    torque = SkinModel(p, (True, True)).sweep().torque_nm[-1]
+    assert torque[0] > 0
+    assert np.abs(torque[1:]).max() < 1e-6 * torque[0]
+
+
 def test_torques_of_symmetric_models_cancel_where_a_mirror_copy_would():
     p = PhysicsParams(**{**SMALL, "max_shear_x": 0.001})
     res = SkinModel(p).sweep()                        # half model, spans x
@@ -140,6 +257,92 @@ def test_wrench_tilt_that_lifts_the_probe_is_refused_before_solving():
     p = PhysicsParams(wrench_tilt=0.4)
     with pytest.raises(PhysicsError, match=r"'wrench_tilt' .* lower wrench_tilt below 0.273"):
         wrench_paths(p)
+
+
+# -- the torque in the sweep JSON -----------------------------------------------------------
+
+SWEEP = ["--set", "mesh_nx=4", "mesh_ny=4", "mesh_nz=16", "max_indentation=0.002", "steps=2"]
+#: What 'model sweep --json' writes for a load path without rotation.
+PLAIN_KEYS = {"indentation_m", "force_n", "bulge_m", "distance_m", "voltage_v", "output_v",
+              "shear_x_m", "shear_y_m", "force_x_n", "force_y_n", "module_bulges_m",
+              "module_outputs_v", "nodes", "seconds", "digest", "params"}
+
+
+def test_a_twisting_sweep_writes_the_torque_along_the_path(capsys, tmp_path):
+    """Negative twist, so a sign lost to abs() or to a flipped axis shows."""
+    path = tmp_path / "twist.json"
+    code = main(["sweep", *SWEEP, "max_twist_z=-0.1", "--json", str(path), "--cache-dir",
+                 str(tmp_path / "cache")])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    data = json.loads(path.read_text())
+    assert set(data) == PLAIN_KEYS | set(ROTATION_ARRAYS)
+    assert data["twist_z_rad"] == pytest.approx([0.0, -0.05, -0.1])
+    assert data["tilt_x_rad"] == data["tilt_y_rad"] == [0.0] * 3
+    tz = data["torque_z_nm"]
+    assert len(tz) == len(data["torque_x_nm"]) == len(data["indentation_m"]) == 3
+    assert tz[2] < tz[1] < 0                         # along the probe's own rotation
+    assert max(map(abs, data["torque_x_nm"] + data["torque_y_nm"])) < 1e-6 * abs(tz[2])
+    assert "rotation        (0.0000, 0.0000, -0.1000) rad, torque" in out
+
+
+def test_a_sweep_without_rotation_writes_what_it_wrote_before(capsys, tmp_path):
+    path = tmp_path / "press.json"
+    code = main(["sweep", *SWEEP, "--json", str(path), "--cache-dir", str(tmp_path)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert set(json.loads(path.read_text())) == PLAIN_KEYS
+    assert "torque" not in out
+
+
+def twisting_curve(params: PhysicsParams) -> PredictionCurve:
+    """A prediction curve from a made-up two-step sweep whose torque columns differ."""
+    steps = np.array([0.0, 1.0])
+    rotation = np.outer(steps, [params.max_tilt_x, params.max_tilt_y, params.max_twist_z])
+    torque = np.outer(steps, [1e-3, -2e-3, 3e-3])
+    zero = np.zeros(2)
+    sweep = SweepResult(steps * params.max_indentation, steps, steps * 1e-5, 100, 1.0, zero,
+                        zero, zero, zero, {"front": steps * 1e-5}, rotation, torque)
+    return curve_from_sweep(params, sweep.indentation_m, sweep.force_n, sweep.bulge_m,
+                            sweep.nodes, sweep.seconds, sweep)
+
+
+def test_the_curve_keeps_each_torque_column_under_its_name(tmp_path):
+    p = PhysicsParams(max_indentation=0.002, max_tilt_y=0.05, max_twist_z=0.2)
+    curve = twisting_curve(p)
+    assert curve.rotates
+    np.testing.assert_allclose(curve.tilt_y_rad, [0.0, 0.05])
+    np.testing.assert_allclose(curve.twist_z_rad, [0.0, 0.2])
+    np.testing.assert_allclose([curve.torque_x_nm[-1], curve.torque_y_nm[-1],
+                                curve.torque_z_nm[-1]], [1e-3, -2e-3, 3e-3])
+    store_curve(p, curve, tmp_path)
+    again = cached_curve(p, tmp_path)
+    assert again is not None
+    for name in ROTATION_ARRAYS:
+        np.testing.assert_array_equal(getattr(again, name), getattr(curve, name))
+
+
+def test_a_cached_rotating_curve_from_before_the_torque_is_recomputed(tmp_path):
+    """Old cache entries lack the rotation: read as none, they would report zero torque."""
+    p = PhysicsParams(max_indentation=0.002, max_twist_z=0.2)
+    old = twisting_curve(p).to_dict()
+    for name in ROTATION_ARRAYS:
+        del old[name]
+    cache_path(p, tmp_path).write_text(json.dumps(old))
+    assert cached_curve(p, tmp_path) is None
+    # the same file for a path without rotation is still good, and has no torque
+    plain = PhysicsParams(max_indentation=0.002)
+    cache_path(plain, tmp_path).write_text(json.dumps(old))
+    curve = cached_curve(plain, tmp_path)
+    assert curve is not None and not curve.rotates
+    assert not np.any(curve.torque_z_nm) and set(curve.to_dict()) == PLAIN_KEYS - {"params"}
+
+
+def test_a_prediction_file_with_a_short_torque_list_is_refused(tmp_path):
+    data = twisting_curve(PhysicsParams(max_indentation=0.002, max_twist_z=0.2)).to_dict()
+    data["torque_z_nm"] = data["torque_z_nm"][:1]
+    with pytest.raises(PhysicsError, match="differ in length"):
+        PredictionCurve.from_dict(data)
 
 
 # -- module windows off the face's centre ------------------------------------------------------
