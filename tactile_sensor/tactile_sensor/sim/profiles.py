@@ -247,7 +247,9 @@ class ShearProfile:
 _ARRAY_KEYS = {**_KEYS, "shear": "shear_m", "shear_directions": "shear_directions",
                "tilt": "tilt_rad", "twist": "twist_rad", "angular_speed": "angular_speed_rad_s"}
 
-ARRAY_PROTOCOLS: dict[str, dict[str, Any]] = _load_protocols("array", _ARRAY_KEYS)
+#: The array bench's protocols: the ``array`` section and the ``wrench`` configuration's.
+ARRAY_PROTOCOLS: dict[str, dict[str, Any]] = {**_load_protocols("array", _ARRAY_KEYS),
+                                              **_load_protocols("wrench", _ARRAY_KEYS)}
 
 
 def array_profile(depth_m: float = 0.003, speeds_m_s: tuple[float, ...] = (0.001,),
@@ -285,7 +287,8 @@ def array_profile(depth_m: float = 0.003, speeds_m_s: tuple[float, ...] = (0.001
 
 def array_profile_from_protocol(name: str, **overrides: Any
                                 ) -> LoadProfile | ShearProfile | WrenchProfile:
-    """A protocol of the ``array`` section of config/protocols.yaml, with overrides."""
+    """A protocol of the ``array`` or ``wrench`` section of config/protocols.yaml, with
+    overrides."""
     if name not in ARRAY_PROTOCOLS:
         raise SimError(f"Unknown array protocol '{name}'; choose one of "
                        f"{', '.join(ARRAY_PROTOCOLS)}.")
