@@ -1,7 +1,8 @@
 """The real firmware sketch, compiled for this computer, read by the real reader and chain.
 
-Two builds of the unmodified ``firmware/tactile_adc/tactile_adc.ino``, chosen by the boards'
-own macros: an Uno (10 bit, 5 V) and a Pico (12 bit, 3.3 V). Nothing is configured by hand:
+Builds of the unmodified ``firmware/tactile_adc/tactile_adc.ino``, chosen by the boards'
+own macros: an Uno (10 bit, 5 V), a Pico (12 bit, 3.3 V) and an 8-channel Nano (the Uno's
+MCU with A0-A7). Nothing is configured by hand:
 counts become volts with what each device states. Skipped only where there is no g++.
 """
 
