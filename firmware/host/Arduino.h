@@ -23,6 +23,15 @@ uint32_t millis();
 int analogRead(uint8_t pin);
 #if !defined(ARDUINO_ARCH_AVR)
 void analogReadResolution(int bits);
+#else
+// The AVR ADC control register and its prescaler bits (ADPS2:0 = bits 2..0), as avr/io.h
+// names them; it starts as the core's init() leaves it (ADC on, F_CPU / 128), and the
+// shim reports the prescaler the sketch chose ("stats").
+extern volatile uint8_t host_adcsra;
+#define ADCSRA host_adcsra
+#define ADPS0 0
+#define ADPS1 1
+#define ADPS2 2
 #endif
 
 // A UART with a small transmit buffer (the Uno's 64 bytes) draining into the

@@ -9,7 +9,8 @@
 // stdin, one command per line:
 //   volts V          every channel at V volts
 //   volts CH V       channel CH (0..7) at V volts
-//   stats            answer "stats bytes_sent=N blocked_us=N" on stdout
+//   stats            answer "stats bytes_sent=N blocked_us=N adc_prescaler=N" on stdout
+//                    (adc_prescaler: the AVR ADC clock divider ADCSRA selects, 0 elsewhere)
 // stdout: "pty /dev/pts/N" once the device is ready. Exits at stdin EOF, SIGINT or SIGTERM.
 
 #include "Arduino.h"
@@ -28,6 +29,9 @@
 #include <string>
 
 HostSerial Serial;
+#if defined(ARDUINO_ARCH_AVR)
+volatile uint8_t host_adcsra = 0x87;  // ADEN | ADPS2:0 = 0b111, as the core's init() sets
+#endif
 
 namespace {
 
@@ -69,13 +73,24 @@ void drain() {
   }
 }
 
+// The ADC clock divider the sketch selected (ATmega328P ADPS2:0: 0 and 1 are both 2).
+unsigned adc_prescaler() {
+#if defined(ARDUINO_ARCH_AVR)
+  const unsigned bits = host_adcsra & 0x07u;
+  return bits == 0 ? 2u : 1u << bits;
+#else
+  return 0;
+#endif
+}
+
 void run_command(const std::string &line) {
   char word[16];
   double a = 0, b = 0;
   int n = sscanf(line.c_str(), "%15s %lf %lf", word, &a, &b);
   if (n >= 1 && strcmp(word, "stats") == 0) {
-    printf("stats bytes_sent=%llu blocked_us=%llu\n", (unsigned long long)g_bytes_sent,
-           (unsigned long long)g_blocked_us);
+    printf("stats bytes_sent=%llu blocked_us=%llu adc_prescaler=%u\n",
+           (unsigned long long)g_bytes_sent, (unsigned long long)g_blocked_us,
+           adc_prescaler());
   } else if (n == 2 && strcmp(word, "volts") == 0) {
     for (int ch = 0; ch < kChannels; ch++) g_volts[ch] = a;
   } else if (n == 3 && strcmp(word, "volts") == 0 && a >= 0 && a < kChannels) {

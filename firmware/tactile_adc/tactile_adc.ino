@@ -10,6 +10,8 @@
 //
 // Wiring: QTR-1A OUT -> A0 (more modules: A1.., raise CHANNELS), VIN -> the board's ADC
 // reference (5 V on an Uno, 3.3 V on 3.3 V boards), GND -> GND. Channel c is pin A0 + c.
+// Eight modules need eight analog inputs: the Nano (ATmega328P in TQFP, A0-A7); the Uno's
+// DIP package has A0-A5 only, and a count above the board's inputs does not compile.
 // Boards: the resolution, reference and name come from the boards' own macros below; on an
 // Uno/Nano (UART bridge) 1 000 000 baud is exact at 16 MHz; on native-USB boards
 // (Leonardo, SAMD, RP2040, Teensy) the baud rate is ignored.
@@ -72,6 +74,31 @@ static const uint8_t INFO_PAYLOAD = 9 + NAME_LEN;
 static const uint8_t INFO_SIZE = 4 + INFO_PAYLOAD + 2;
 
 static_assert(CHANNELS >= 1 && CHANNELS <= 8, "CHANNELS must be 1..8");
+#if defined(NUM_ANALOG_INPUTS)                    // the board's variant says how many pins
+static_assert(CHANNELS <= NUM_ANALOG_INPUTS,
+              "TACTILE_CHANNELS exceeds this board's analog inputs (NUM_ANALOG_INPUTS); "
+              "8 channels need a board with A0-A7 such as the Nano, not the Uno");
+#endif
+
+#if defined(ARDUINO_ARCH_AVR) && defined(ADCSRA)
+// ADC clock on AVR. The core starts the ADC at F_CPU / 128 (125 kHz at 16 MHz); a
+// conversion is 13 ADC clocks (ATmega328P datasheet, "Analog-to-Digital Converter"), about
+// 112 us per analogRead with its overhead, so 8 channels would take ~0.9 ms of the 1 ms
+// period and leave too little for the CRC and the serial frame. The datasheet asks for a
+// 50-200 kHz ADC clock for full 10-bit resolution and allows a faster clock for lower
+// resolution (its typical absolute accuracy: 2 LSB at 200 kHz, 4.5 LSB at 1 MHz). So when
+// the conversions would take over half the period, the sketch uses F_CPU / 32 (500 kHz,
+// ~28 us a read) and accepts the slightly reduced accuracy. Prescaler bits ADPS2:0 in
+// ADCSRA: 0b111 = 128, 0b101 = 32. -DTACTILE_ADC_PRESCALER=128 keeps the slow clock.
+#ifndef TACTILE_ADC_PRESCALER
+#define TACTILE_ADC_PRESCALER (TACTILE_CHANNELS * 112 > 500 ? 32 : 128)
+#endif
+static_assert(TACTILE_ADC_PRESCALER == 32 || TACTILE_ADC_PRESCALER == 128,
+              "TACTILE_ADC_PRESCALER must be 32 or 128");
+static const uint8_t ADPS_MASK = (1 << ADPS2) | (1 << ADPS1) | (1 << ADPS0);
+static const uint8_t ADPS_BITS =
+    TACTILE_ADC_PRESCALER == 32 ? (uint8_t)((1 << ADPS2) | (1 << ADPS0)) : ADPS_MASK;
+#endif
 static_assert(TACTILE_ADC_BITS >= 1 && TACTILE_ADC_BITS <= 16, "ADC bits must be 1..16");
 static_assert(NAME_LEN <= 31, "the board name has at most 31 characters");
 
@@ -120,6 +147,9 @@ void setup() {
   Serial.begin(BAUD);
 #if TACTILE_ADC_BITS != 10
   analogReadResolution(TACTILE_ADC_BITS);         // every core above starts at 10 bit
+#endif
+#if defined(ARDUINO_ARCH_AVR) && defined(ADCSRA)
+  ADCSRA = (uint8_t)((ADCSRA & ~ADPS_MASK) | ADPS_BITS);
 #endif
   next_us = micros();
   next_info_us = next_us;

@@ -1,11 +1,12 @@
-"""Module arrays: the driver's force vector against the gauge's, and what each module reads
-per newton along each axis.
+"""Module arrays: the driver's force vector against the gauge's (and its torque where both
+carry one), and what each module reads per newton along each axis.
 
 Why over the whole recording rather than per press: the shear protocol is a single press
 held while the probe sweeps sideways, so there are no repeated ramps to segment; every
 aligned sample is a comparison of the estimate with the reference. Forces follow the
 project's convention (docs/array.md): +z compression, +x toward the right face, +y toward
-the front face, the probe's force on the skin.
+the front face, the probe's force on the skin; torques the probe's torque on the skin
+(right hand about +x, +y, +z) [N m].
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ AXIS_MIN_FRACTION = 0.02
 # direction is mostly noise (at zero lateral force it is undefined)
 SHEAR_FRACTION = 0.2
 SHEAR_MIN_N = 0.05
+# our names of a WrenchStamped's torque, read where the type has them (every WrenchStamped)
+TORQUE_FIELDS = {f"torque_{a}_nm": f"wrench.torque.{a}" for a in AXES}
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,10 @@ class ArraySignals:
     rate_hz: float
     start_ns: int
     reference_flipped: bool
+    # (n, 3) torque x, y, z [N m] when both the driver and the gauge carry torque, else
+    # None; a column the driver publishes only as NaN stays NaN
+    estimate_torque_nm: np.ndarray | None = None
+    reference_torque_nm: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -80,6 +87,9 @@ class ArrayAnalysis:
     cross_talk: np.ndarray  # (3 estimated, 3 reference) N/N; NaN columns where not excited
     shear: ShearDirections | None
     detected_by: str
+    torque_rmse_nm: np.ndarray | None = None  # (3,) NaN along unobserved axes
+    torque_range_nm: np.ndarray | None = None  # (3,)
+    torque_unobserved: tuple[str, ...] = ()  # axes the driver publishes only as NaN
 
 
 def _lateral(series: Series) -> bool:
@@ -125,6 +135,47 @@ def _vector(series: Series) -> np.ndarray:
     return np.column_stack([v["force_x_n"], v["force_y_n"], v["force_n"]])
 
 
+def _torque(series: Series) -> np.ndarray | None:
+    """(n, 3) torque x, y, z, or None if the type has no torque fields."""
+    if not all(name in series.values for name in TORQUE_FIELDS):
+        return None
+    return np.column_stack([series.values[name] for name in TORQUE_FIELDS])
+
+
+def reference_has_torque(series: Series) -> bool:
+    """A gauge measures torque when some message has a finite, non-zero one (a force-only
+    gauge's WrenchStamped leaves it zero)."""
+    torque = _torque(series)
+    return torque is not None and bool(np.any(np.isfinite(torque) & (torque != 0.0)))
+
+
+def estimate_has_torque(series: Series) -> bool:
+    """The driver estimates torque when some message has a non-zero one, or a NaN one
+    beside a finite force (a component its layout does not observe); a force-only driver
+    leaves torque zero."""
+    torque = _torque(series)
+    if torque is None:
+        return False
+    forced = np.all(np.isfinite(_vector(series)), axis=1)
+    return bool(np.any(np.isfinite(torque) & (torque != 0.0))
+                or np.any(np.isnan(torque[forced])))
+
+
+def _torque_note(recording: Recording) -> tuple[bool, str | None]:
+    """Whether to compare torque, and why not when only one side carries it."""
+    reference, estimate = recording.series["reference"], recording.series["estimate"]
+    measured, estimated = reference_has_torque(reference), estimate_has_torque(estimate)
+    if measured and not estimated:
+        return False, (f"the gauge on {reference.topic} measures torque but the driver's "
+                       f"wrench on {estimate.topic} carries none (zero in every message), so "
+                       "no torque is compared.")
+    if estimated and not measured:
+        return False, (f"the driver's wrench on {estimate.topic} carries torque but the gauge "
+                       f"on {reference.topic} measures none (zero or absent in every "
+                       "message), so no torque is compared.")
+    return measured and estimated, None
+
+
 def _check_inputs(recording: Recording, reason: str) -> None:
     """The sentences for array recordings a user cannot analyse (exit 1)."""
     if "estimate" not in recording.series:
@@ -148,11 +199,25 @@ def _check_inputs(recording: Recording, reason: str) -> None:
                          "wrench.")
 
 
-def align_array(recording: Recording) -> ArraySignals:
+def _resample_columns(stamps: np.ndarray, values: np.ndarray, start: int, t_s: np.ndarray
+                      ) -> np.ndarray:
+    """Each column on the grid from its own finite samples; NaN where it has fewer than
+    two (a torque component the driver never observes)."""
+    out = np.full((t_s.size, values.shape[1]), np.nan)
+    for j in range(values.shape[1]):
+        x, v = _finite_rows(stamps, values[:, j:j + 1])
+        if x.size > 1:
+            out[:, j] = np.interp(t_s, (x - start) * 1e-9, v[:, 0])
+    return out
+
+
+def align_array(recording: Recording, torque: bool = False) -> ArraySignals:
     """Resample the modules' outputs, the driver's and the gauge's force vectors onto one
     uniform grid: the reading's median interval, starting on a reading sample, over the
     span all cover (the estimate's stamps when the reading carries no per-module outputs).
-    Samples with a NaN (outputs and wrench before the driver's tare) are left out first."""
+    Samples with a NaN (outputs and wrench before the driver's tare) are left out first.
+    ``torque``: the driver's and the gauge's torque too, on the same grid, each component
+    from its own finite samples."""
     reading = recording.series["reading"]
     estimate = recording.series["estimate"]
     reference = recording.series["reference"]
@@ -192,19 +257,32 @@ def align_array(recording: Recording) -> ArraySignals:
 
     est, ref = resample(*streams[0]), resample(*streams[1])
     outs = resample(*streams[2]) if outputs.shape[1] else np.empty((n, 0))
+    est_t = ref_t = None
+    est_raw, ref_raw = _torque(estimate), _torque(reference)
+    if torque and est_raw is not None and ref_raw is not None:
+        est_t = _resample_columns(estimate.stamp_ns, est_raw, start, t_s)
+        ref_t = _resample_columns(reference.stamp_ns, ref_raw, start, t_s)
     flipped = bool(-np.min(ref[:, 2]) > np.max(ref[:, 2]))
-    if flipped:  # the skin's force on the probe: the whole vector is the negative
+    if flipped:  # the skin's wrench on the probe: the whole wrench is the negative
         ref = -ref
+        ref_t = None if ref_t is None else -ref_t
     return ArraySignals(t_s=t_s, estimate_n=est, reference_n=ref, outputs_v=outs, faces=faces,
-                        rate_hz=1e9 / dt_ns, start_ns=start, reference_flipped=flipped)
+                        rate_hz=1e9 / dt_ns, start_ns=start, reference_flipped=flipped,
+                        estimate_torque_nm=est_t, reference_torque_nm=ref_t)
 
 
 def force_errors(estimate_n: np.ndarray, reference_n: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Per axis: RMSE of estimate - reference, and the reference's range (max - min)."""
+    """Per axis: RMSE of estimate - reference, and the reference's range (max - min); NaN
+    for an axis whose values are NaN (also used for torque)."""
     rmse = np.sqrt(np.mean((estimate_n - reference_n) ** 2, axis=0))
     span = np.max(reference_n, axis=0) - np.min(reference_n, axis=0)
     return rmse, span
+
+
+def _pct(rmse: np.ndarray, span: np.ndarray) -> np.ndarray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(span > 0, 100 * rmse / span, np.nan)
 
 
 def excited_axes(reference_n: np.ndarray) -> np.ndarray:
@@ -280,8 +358,11 @@ def _per_axis(values: np.ndarray) -> dict[str, float | None]:
 def analyse_array(recording: Recording, reason: str) -> ArrayAnalysis:
     """The array's metrics; TopicError/SegmentError (one sentence) for unusable inputs."""
     _check_inputs(recording, reason)
-    sig = align_array(recording)
+    compare_torque, torque_note = _torque_note(recording)
+    sig = align_array(recording, torque=compare_torque)
     notes = [f"analysed as a module array: {reason}."]
+    if torque_note:
+        notes.append(torque_note)
     if sig.reference_flipped:
         notes.append("the gauge's force.z was mostly negative (the skin's force on the probe); "
                      "its whole force vector was negated to the sensor's convention.")
@@ -301,8 +382,7 @@ def analyse_array(recording: Recording, reason: str) -> ArrayAnalysis:
     if shear is None:
         notes.append(f"the lateral reference force never reaches {SHEAR_MIN_N} N, so no shear "
                      "direction is compared.")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        pct = np.where(span > 0, 100 * rmse / span, np.nan)
+    pct = _pct(rmse, span)
     sensitivity = None
     if sens is not None:
         sensitivity = {
@@ -338,5 +418,22 @@ def analyse_array(recording: Recording, reason: str) -> ArrayAnalysis:
             "shear_direction": direction,
         },
     }
+    torque_rmse = torque_span = None
+    unobserved: tuple[str, ...] = ()
+    if sig.estimate_torque_nm is not None and sig.reference_torque_nm is not None:
+        torque_rmse, torque_span = force_errors(sig.estimate_torque_nm, sig.reference_torque_nm)
+        unobserved = tuple(a for a, col in zip(AXES, sig.estimate_torque_nm.T, strict=True)
+                           if np.all(np.isnan(col)))
+        metrics["torque_rmse_nm"] = _per_axis(torque_rmse)
+        metrics["torque_range_nm"] = _per_axis(torque_span)
+        metrics["torque_rmse_pct_range"] = _per_axis(_pct(torque_rmse, torque_span))
+        metrics["array"]["torque_unobserved_axes"] = list(unobserved)
+        if unobserved:
+            names = ", ".join(f"T{a}" for a in unobserved)
+            them, their = ("them", "their") if len(unobserved) > 1 else ("it", "its")
+            notes.append(f"the driver publishes {names} as NaN throughout (its module layout "
+                         f"does not observe {them}), so {their} torque error is null.")
     return ArrayAnalysis(metrics=metrics, notes=notes, signals=sig, rmse_n=rmse, range_n=span,
-                         sensitivity=sens, cross_talk=talk, shear=shear, detected_by=reason)
+                         sensitivity=sens, cross_talk=talk, shear=shear, detected_by=reason,
+                         torque_rmse_nm=torque_rmse, torque_range_nm=torque_span,
+                         torque_unobserved=unobserved)

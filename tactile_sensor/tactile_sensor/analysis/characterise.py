@@ -42,20 +42,22 @@ class Topics:
 
     def specs(self) -> list[TopicSpec]:
         """Today's three topics, plus what an array recording adds where the bag has it:
-        every module's output and face, the gauge's lateral force, the driver's wrench."""
+        every module's output and face, the gauge's lateral force and torque, the driver's
+        wrench."""
         return [
             TopicSpec("reading", self.reading, {"output_v": "output"}, "--reading-topic",
                       "TactileReading", sequences={"outputs_v": "outputs"},
                       labels={"faces": "faces"}),
             TopicSpec("reference", self.reference, {"force_n": "wrench.force.z"},
                       "--reference-topic", "WrenchStamped",
-                      optional={"force_x_n": "wrench.force.x", "force_y_n": "wrench.force.y"}),
+                      optional={"force_x_n": "wrench.force.x", "force_y_n": "wrench.force.y",
+                                **arr.TORQUE_FIELDS}),
             TopicSpec("position", self.position, {"indentation_m": "position[0]"},
                       "--position-topic", "JointState"),
             TopicSpec("estimate", self.estimate,
                       {"force_x_n": "wrench.force.x", "force_y_n": "wrench.force.y",
                        "force_n": "wrench.force.z"}, "--estimate-topic", "WrenchStamped",
-                      required=False),
+                      required=False, optional=dict(arr.TORQUE_FIELDS)),
         ]
 
 

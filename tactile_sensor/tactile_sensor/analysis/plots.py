@@ -248,6 +248,69 @@ def array_force_scatter(an: ArrayAnalysis, path: Path) -> Path:
     return _save(fig, path, top=0.92)
 
 
+def _unobserved(ax: Axes, name: str) -> None:
+    """Say in the panel why a torque axis has no estimate (the driver publishes NaN)."""
+    # boxed: over the reference trace the bare words are hard to read
+    ax.text(0.5, 0.5, f"T{name} not observed by the driver (NaN)", ha="center",
+            va="center", transform=ax.transAxes, fontsize=9, color="tab:red", zorder=5,
+            bbox={"facecolor": "white", "edgecolor": "tab:red", "alpha": 0.9})
+
+
+def array_torque_time(an: ArrayAnalysis, path: Path) -> Path:
+    """Estimated (driver) and reference (gauge) torque per axis over the recording [mN m];
+    an axis the driver does not observe shows the reference and says so."""
+    sig = an.signals
+    est, ref = sig.estimate_torque_nm * 1e3, sig.reference_torque_nm * 1e3
+    rmse, span = np.asarray(an.torque_rmse_nm) * 1e3, np.asarray(an.torque_range_nm) * 1e3
+    idx = _thin(np.arange(sig.t_s.size))
+    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
+    for j, (ax, name) in enumerate(zip(axes, AXES, strict=True)):
+        ax.plot(sig.t_s[idx], est[idx, j], lw=0.6, color="tab:red", alpha=0.8,
+                label="estimated (driver)")
+        ax.plot(sig.t_s[idx], ref[idx, j], lw=0.9, color="black", zorder=3,
+                label="reference (gauge)")
+        ax.set_ylabel(f"T{name} [mN m]")
+        if np.isfinite(rmse[j]):
+            title = f"T{name}: rmse {rmse[j]:.3g} mN m over a range of {span[j]:.3g} mN m"
+        else:
+            title = f"T{name}: not observed (driver NaN); reference range {span[j]:.3g} mN m"
+            _unobserved(ax, name)
+        ax.set_title(title, fontsize=9, loc="left")
+    axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2,
+                   frameon=False, borderaxespad=0.1)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle("Estimated vs reference torque per axis")
+    return _save(fig, path, top=0.9)
+
+
+def array_torque_scatter(an: ArrayAnalysis, path: Path) -> Path:
+    """Each estimated torque against its reference [mN m], with the identity line."""
+    sig = an.signals
+    est, ref = sig.estimate_torque_nm * 1e3, sig.reference_torque_nm * 1e3
+    rmse = np.asarray(an.torque_rmse_nm) * 1e3
+    idx = _thin(np.arange(sig.t_s.size))
+    fig, axes = plt.subplots(1, 3, figsize=(11, 4))
+    for j, (ax, name) in enumerate(zip(axes, AXES, strict=True)):
+        ax.set_xlabel(f"reference T{name} [mN m]")
+        ax.set_ylabel(f"estimated T{name} [mN m]")
+        if not np.isfinite(rmse[j]):
+            ax.set_title(f"T{name}: not observed", fontsize=9)
+            _unobserved(ax, name)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            continue
+        ax.plot(ref[idx, j], est[idx, j], ".", ms=1, color="tab:red")
+        both = np.concatenate([ref[:, j], est[:, j]])
+        lo, hi = float(np.nanmin(both)), float(np.nanmax(both))
+        ax.plot([lo, hi], [lo, hi], "k--", lw=0.8)
+        ax.set_title(f"T{name}: rmse {rmse[j]:.3g} mN m", fontsize=9)
+    fig.suptitle("Estimated vs reference torque (dashed: identity)", fontsize=10)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.15, top=0.85, wspace=0.4)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 def _heatmap(ax: Axes, values: np.ndarray, rows: list[str], cols: list[str], title: str,
              vmax: float) -> None:
     shown = np.ma.masked_invalid(values)
@@ -325,4 +388,7 @@ def array_figures(an: ArrayAnalysis, out_dir: Path) -> dict[str, Path]:
         "array_crosstalk": array_crosstalk,
         "array_shear_direction": array_shear_direction,
     }
+    if an.torque_rmse_nm is not None:
+        makers["array_torque_time"] = array_torque_time
+        makers["array_torque_scatter"] = array_torque_scatter
     return {name: make(an, out_dir / f"{name}.png") for name, make in makers.items()}

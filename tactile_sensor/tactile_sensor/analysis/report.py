@@ -85,6 +85,16 @@ def array_lines(mt: dict[str, Any]) -> list[str]:
     for a in ("x", "y", "z"):
         out.append(f"| F{a} | {_fmt(rmse[a], 'N')} | {_fmt(span[a], 'N')} | "
                    f"{_fmt(pct[a], '%')} | {goals[a]} |")
+    if "torque_rmse_nm" in mt:
+        out += ["", "| axis | torque RMSE | reference range | RMSE / range |", "|---|---|---|---|"]
+        t_rmse, t_span = mt["torque_rmse_nm"], mt["torque_range_nm"]
+        for a in ("x", "y", "z"):
+            error = (f"{_fmt(t_rmse[a], 'N m')} | {_fmt(t_span[a], 'N m')} | "
+                     f"{_fmt(mt['torque_rmse_pct_range'][a], '%')}")
+            if a in ar.get("torque_unobserved_axes", []):
+                error = (f"not observed (the driver publishes NaN) | {_fmt(t_span[a], 'N m')} "
+                         "| n/a")
+            out.append(f"| T{a} | {error} |")
     sens = ar["sensitivity_matrix"]
     if sens:
         out += ["", "Sensitivity matrix S [V/N] (least squares outputs = S F + c over the "

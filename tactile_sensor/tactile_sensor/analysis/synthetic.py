@@ -11,7 +11,7 @@ an unloading-only hysteresis bump, a per-cycle gain, Gaussian noise and an offse
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -155,7 +155,7 @@ def _templates(store: Typestore, faces: Sequence[str] = (), joints: int = 1
                                      wrench=T["geometry_msgs/msg/Wrench"](
                                          force=vec(x=0.0, y=0.0, z=0.0),
                                          torque=vec(x=0.0, y=0.0, z=0.0))),
-                      ["wrench.force.x", "wrench.force.y", "wrench.force.z"]),
+                      [f"wrench.{part}.{a}" for part in ("force", "torque") for a in "xyz"]),
         JOINT_TYPE: (T[JOINT_TYPE](header=header(stamp=time(sec=0, nanosec=0),
                                                  frame_id="stage"),
                                    name=["stage_z", "stage_x", "stage_y"][:joints],
@@ -296,6 +296,23 @@ class ShearSignals:
     outputs_v: np.ndarray  # (n, k)
     faces: tuple[str, ...]
     estimate_noise_n: np.ndarray  # (n, 3) the noise added to the estimate
+    # (n, 3) torque x, y, z [N m], the gauge's and the driver's; None: zero in the bag, as a
+    # force-only gauge or driver sends it
+    reference_torque_nm: np.ndarray | None = None
+    estimate_torque_nm: np.ndarray | None = None
+
+
+def with_torque(signals: ShearSignals, reference_nm: np.ndarray,
+                offset_nm: Sequence[float] = (0.0, 0.0, 0.0),
+                unobserved: Sequence[str] = ()) -> ShearSignals:
+    """The recording with the gauge's torque ``reference_nm`` (n, 3) [N m] and the driver's
+    = reference + ``offset_nm``, NaN along the ``unobserved`` axes ("x", "y", "z": what a
+    layout that does not see them publishes) and wherever the driver's force is NaN."""
+    reference = np.asarray(reference_nm, dtype=float)
+    estimate = reference + np.asarray(offset_nm, dtype=float)
+    estimate[:, ["xyz".index(a) for a in unobserved]] = np.nan
+    estimate[~np.all(np.isfinite(signals.estimate_n), axis=1)] = np.nan
+    return replace(signals, reference_torque_nm=reference, estimate_torque_nm=estimate)
 
 
 def shear_signals(protocol: ShearProtocol, truth: ArrayTruth, seed: int = 0) -> ShearSignals:
@@ -371,13 +388,18 @@ def write_array_bag(path: Path | str, signals: ShearSignals, storage: str = "sql
         reading[f"voltages[{i}]"] = 2.0 - signals.outputs_v[:, i]
         reading[f"outputs[{i}]"] = signals.outputs_v[:, i]
 
-    def wrench(f: np.ndarray) -> dict[str, np.ndarray]:
-        return {"wrench.force.x": f[:, 0], "wrench.force.y": f[:, 1], "wrench.force.z": f[:, 2]}
+    def wrench(f: np.ndarray, t: np.ndarray | None) -> dict[str, np.ndarray]:
+        out = {f"wrench.force.{a}": f[:, j] for j, a in enumerate("xyz")}
+        if t is not None:
+            out.update({f"wrench.torque.{a}": t[:, j] for j, a in enumerate("xyz")})
+        return out
 
     streams = {
         "reading": (topics.reading, READING_TYPE, stamp, reading),
-        "estimate": (topics.estimate, WRENCH_TYPE, stamp, wrench(est)),
-        "reference": (topics.reference, WRENCH_TYPE, stamp, wrench(signals.reference_n)),
+        "estimate": (topics.estimate, WRENCH_TYPE, stamp,
+                     wrench(est, signals.estimate_torque_nm)),
+        "reference": (topics.reference, WRENCH_TYPE, stamp,
+                      wrench(signals.reference_n, signals.reference_torque_nm)),
         "position": (topics.position, JOINT_TYPE, stamp + dt_ns // 3,
                      {f"position[{j}]": signals.stage_m[:, j] for j in range(3)}),
     }

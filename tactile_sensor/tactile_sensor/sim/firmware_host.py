@@ -35,18 +35,21 @@ CXXFLAGS = ("-std=gnu++11", "-O2", "-Wall", "-Wextra", "-Werror")
 
 @dataclass(frozen=True)
 class Board:
-    """A board as the firmware sees it (its core's macro) and as physics does (its real
+    """A board as the firmware sees it (its core's macro, and its variant's count of analog
+    inputs, NUM_ANALOG_INPUTS, where the variant states one) and as physics does (its real
     ADC reference, which the shim's analogRead divides by)."""
 
     name: str
     macro: str
     vref_v: float
     adc_bits: int  # what the sketch should send on it (tests compare with the info frame)
+    analog_inputs: int | None = None
 
 
-UNO = Board("uno", "ARDUINO_ARCH_AVR", 5.0, 10)
+UNO = Board("uno", "ARDUINO_ARCH_AVR", 5.0, 10, analog_inputs=6)   # ATmega328P DIP: A0-A5
+NANO = Board("nano", "ARDUINO_ARCH_AVR", 5.0, 10, analog_inputs=8)  # TQFP: A0-A7
 PICO = Board("pico", "ARDUINO_ARCH_RP2040", 3.3, 12)
-BOARDS = {board.name: board for board in (UNO, PICO)}
+BOARDS = {board.name: board for board in (UNO, NANO, PICO)}
 
 
 def firmware_dir() -> Path:
@@ -78,6 +81,8 @@ def build(board: Board, out_dir: Path, channels: int | None = None,
     folder = folder or firmware_dir()
     sources = [folder / SKETCH, *(folder / s for s in SHIM)]
     flags = [*CXXFLAGS, f"-D{board.macro}", f"-I{folder / 'host'}"]
+    if board.analog_inputs is not None:
+        flags.append(f"-DNUM_ANALOG_INPUTS={board.analog_inputs}")
     if channels is not None:
         flags.append(f"-DTACTILE_CHANNELS={channels}")
     digest = hashlib.sha256(" ".join([cxx, *flags]).encode())
@@ -102,7 +107,8 @@ class HostFirmware:
     """A host build of the firmware running as a serial device at ``link``.
 
     ``set_voltage`` is the stimulus on the board's analog pins; ``stats`` what the shim
-    counted (bytes handed to the port, time the sketch spent blocked in Serial.write).
+    counted (bytes handed to the port, time the sketch spent blocked in Serial.write) and
+    the AVR ADC clock divider the sketch selected (``adc_prescaler``, 0 off AVR).
     """
 
     def __init__(self, exe: Path, link: Path | str, board: Board,

@@ -24,6 +24,7 @@ from tactile_sensor.analysis import array as arr
 from tactile_sensor.analysis import characterise as ch
 from tactile_sensor.analysis import cli
 from tactile_sensor.analysis.bag_reader import Recording, Series
+from tactile_sensor.analysis.report import array_lines
 from tactile_sensor.analysis.synthetic import (
     ARRAY_SENSITIVITY_V_PER_N,
     JOINT_TYPE,
@@ -36,6 +37,7 @@ from tactile_sensor.analysis.synthetic import (
     press_signals,
     serialize_many,
     shear_signals,
+    with_torque,
     write_array_bag,
     write_press_bag,
     writer_typestore,
@@ -176,6 +178,69 @@ def test_single_module_recording_is_analysed_exactly_as_before(tmp_path):
     assert set(before["topics"]) == {"reading", "reference", "position"}
 
 
+# --- torque ----------------------------------------------------------------------------------
+
+TORQUE_OFFSET = (0.002, -0.001, 0.0005)  # N m
+
+
+def gauge_torque(signals):
+    """A gauge torque exciting all three axes: the lateral force at a 10 mm lever (tilt)
+    and a twist of 5 mN m amplitude."""
+    f = signals.reference_n
+    return np.column_stack([-0.01 * f[:, 1], 0.01 * f[:, 0],
+                            0.005 * np.sin(2 * np.pi * signals.t_s / 4.0)])
+
+
+def test_known_torque_error_gives_that_rmse_and_the_gauges_range(tmp_path):
+    signals = shear_signals(dataclasses.replace(PROTOCOL, untared_s=0.5),
+                            ArrayTruth(estimate_offset_n=OFFSET))
+    torque = gauge_torque(signals)
+    result, _ = analysed(tmp_path, with_torque(signals, torque, TORQUE_OFFSET), "mcap")
+    mt = result.metrics
+    for j, axis in enumerate("xyz"):
+        assert mt["torque_rmse_nm"][axis] == pytest.approx(abs(TORQUE_OFFSET[j]), rel=1e-5)
+    # 1.2 N of lateral force both ways at 10 mm: 24 mN m; the twist +-5 mN m
+    assert mt["torque_range_nm"] == pytest.approx({"x": 0.024, "y": 0.024, "z": 0.01},
+                                                  rel=1e-3)
+    assert mt["torque_rmse_pct_range"]["x"] == pytest.approx(100 * 0.002 / 0.024, rel=1e-3)
+    assert mt["array"]["torque_unobserved_axes"] == []
+    assert mt["force_rmse_n"]["y"] == pytest.approx(0.2, rel=1e-5)  # the force as before
+
+
+def test_torque_the_driver_publishes_as_nan_is_null_with_a_reason(tmp_path):
+    signals = shear_signals(PROTOCOL, ArrayTruth())
+    torque = gauge_torque(signals)
+    result, _ = analysed(tmp_path, with_torque(signals, torque, TORQUE_OFFSET, ("x", "y")))
+    mt = result.metrics
+    assert mt["torque_rmse_nm"]["x"] is None and mt["torque_rmse_nm"]["y"] is None
+    assert mt["torque_rmse_pct_range"]["x"] is None and mt["torque_rmse_pct_range"]["y"] is None
+    assert mt["torque_rmse_nm"]["z"] == pytest.approx(0.0005, rel=1e-5)
+    assert mt["torque_range_nm"]["x"] == pytest.approx(0.024, rel=1e-3)  # what was applied
+    assert mt["array"]["torque_unobserved_axes"] == ["x", "y"]
+    reasons = [n for n in mt["notes"] if "Tx, Ty as NaN" in n]
+    assert len(reasons) == 1 and "does not observe" in reasons[0]
+    json.dumps(mt, allow_nan=False)  # null, not NaN, in metrics.json
+    table = "\n".join(array_lines(mt))
+    assert "| Tx | not observed" in table and "| Tz | 0.0005 N m |" in table
+
+
+def test_a_recording_without_torque_has_no_torque_keys_or_figures(exact, tmp_path):
+    mt = exact[0].metrics
+    assert not any(k.startswith("torque") for k in mt)
+    assert "torque_unobserved_axes" not in mt["array"]
+    assert not any("torque" in n for n in mt["notes"])
+    assert exact[0].array.signals.estimate_torque_nm is None
+
+
+def test_torque_on_one_side_only_is_not_compared_and_says_why(tmp_path):
+    signals = shear_signals(PROTOCOL, ArrayTruth())
+    gauge_only = dataclasses.replace(signals, reference_torque_nm=gauge_torque(signals))
+    mt = analysed(tmp_path, gauge_only)[0].metrics
+    assert "torque_rmse_nm" not in mt
+    assert any("measures torque but the driver's wrench on /driver/wrench carries none" in n
+               for n in mt["notes"])
+
+
 def test_detection_reads_the_data():
     def rec(k, lateral):
         reading = Series("/r", "T", np.arange(3), {}, "header",
@@ -213,6 +278,8 @@ def assert_one_sentence(code, err, *fragments):
 def test_cli_writes_the_array_metrics_figures_and_report(tmp_path, capsys, press):
     signals = shear_signals(dataclasses.replace(PROTOCOL, press=press, directions=8),
                             ArrayTruth(estimate_offset_n=OFFSET, estimate_noise_n=(0.02,) * 3))
+    if not press:  # and a driver that observes only the twist
+        signals = with_torque(signals, gauge_torque(signals), TORQUE_OFFSET, ("x", "y"))
     bag = write_array_bag(tmp_path / "bag", signals, "mcap")
     out = tmp_path / "out"
     code, err = run([str(bag), "--out", str(out), "--prediction", "none"], capsys)
@@ -228,6 +295,9 @@ def test_cli_writes_the_array_metrics_figures_and_report(tmp_path, capsys, press
     report = (out / "report.md").read_text()
     assert "## Module array" in report and "| right |" in report
     assert "array_shear_direction.png" in report
+    torque = {"array_torque_time.png", "array_torque_scatter.png"}
+    assert (torque <= names) == ("torque_rmse_nm" in mt) == (not press)
+    assert ("| Tx | not observed" in report) == (not press)
     assert "Module array" in (out / "report.html").read_text()
 
 

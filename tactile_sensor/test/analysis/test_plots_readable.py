@@ -115,3 +115,34 @@ def test_force_time_legend_is_off_the_traces_and_the_reference_on_top(tmp_path, 
         lines = {line.get_label(): line for line in ax.get_lines()}
         assert (lines["reference (gauge)"].get_zorder()
                 > lines["estimated (driver)"].get_zorder())
+
+
+def test_torque_figures_say_which_axis_is_not_observed_and_titles_fit(tmp_path, monkeypatch):
+    drawn = _drawn(monkeypatch)
+    t = np.linspace(0.0, 60.0, 1500)
+    reference = np.stack([0.02 * np.sin(t / 5), 0.02 * np.cos(t / 5), 0.005 * np.sin(t)],
+                         axis=1)
+    estimate = reference + 0.001
+    estimate[:, :2] = np.nan  # a layout that observes only the twist
+    signals = SimpleNamespace(t_s=t, reference_torque_nm=reference,
+                              estimate_torque_nm=estimate)
+    an = SimpleNamespace(signals=signals, torque_rmse_nm=[np.nan, np.nan, 0.001],
+                         torque_range_nm=[0.04, 0.04, 0.01])
+    plots.array_torque_time(an, tmp_path / "t.png")
+    plots.array_torque_scatter(an, tmp_path / "s.png")
+    for fig, renderer in drawn:
+        texts = [t for t in [fig._suptitle, *(ax.title for ax in fig.axes),
+                             *(ax._left_title for ax in fig.axes)]
+                 if t is not None and t.get_text()]
+        for text in texts:
+            box = text.get_window_extent(renderer)
+            assert fig.bbox.x0 - 1 <= box.x0 and box.x1 <= fig.bbox.x1 + 1, text.get_text()
+            assert box.y1 <= fig.bbox.y1 + 1, text.get_text()
+        said = [t.get_text() for ax in fig.axes for t in ax.texts]
+        assert said.count("Tx not observed by the driver (NaN)") == 1
+        assert said.count("Ty not observed by the driver (NaN)") == 1
+    time_fig, renderer = drawn[0]
+    top = time_fig.axes[0]
+    legend = top.get_legend().get_window_extent(renderer)
+    assert not legend.overlaps(top._left_title.get_window_extent(renderer))
+    assert "rmse 1 mN m" in time_fig.axes[2].get_title(loc="left")

@@ -50,7 +50,29 @@ def test_a_missing_core_names_the_package_and_the_override(tmp_path):
 def test_an_unknown_board_is_refused(tmp_path):
     result = run(tmp_path, FIRMWARE_BOARDS="esp32")
     assert result.returncode == 1
-    assert "unknown board 'esp32'; use uno, mega or leonardo" in result.stderr
+    assert "unknown board 'esp32'; use uno, nano, mega or leonardo" in result.stderr
+
+
+@has_avr
+def test_the_eight_channel_nano_image_builds(tmp_path):
+    result = run(tmp_path, FIRMWARE_BOARDS="nano", FIRMWARE_CHANNELS="8")
+    assert result.returncode == 0, result.stderr
+    assert "firmware nano (atmega328p, 8 channel(s))" in result.stdout
+    assert (tmp_path / "out" / "nano-8ch" / "tactile_adc.hex").is_file()
+
+
+@has_avr
+def test_more_channels_than_the_uno_has_pins_are_refused(tmp_path):
+    result = run(tmp_path, FIRMWARE_BOARDS="uno:8")
+    assert result.returncode != 0
+    assert "exceeds this board's analog inputs" in result.stderr
+
+
+@has_avr
+def test_a_channel_count_out_of_range_is_refused(tmp_path):
+    result = run(tmp_path, FIRMWARE_BOARDS="nano:9")
+    assert result.returncode == 1
+    assert "'9' channels for nano; give 1..8" in result.stderr
 
 
 @has_avr

@@ -1,7 +1,8 @@
 """The real firmware sketch, compiled for this computer, read by the real reader and chain.
 
-Two builds of the unmodified ``firmware/tactile_adc/tactile_adc.ino``, chosen by the boards'
-own macros: an Uno (10 bit, 5 V) and a Pico (12 bit, 3.3 V). Nothing is configured by hand:
+Builds of the unmodified ``firmware/tactile_adc/tactile_adc.ino``, chosen by the boards'
+own macros: an Uno (10 bit, 5 V), a Pico (12 bit, 3.3 V) and an 8-channel Nano (the Uno's
+MCU with A0-A7). Nothing is configured by hand:
 counts become volts with what each device states. Skipped only where there is no g++.
 """
 
@@ -23,7 +24,7 @@ from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import ChainConfig, SignalChain
 from tactile_sensor.sim import firmware_host
 from tactile_sensor.sim.errors import SimError
-from tactile_sensor.sim.firmware_host import PICO, UNO, Board, HostFirmware, build
+from tactile_sensor.sim.firmware_host import NANO, PICO, UNO, Board, HostFirmware, build
 
 pytestmark = [pytest.mark.skipif(firmware_host.compiler() is None,
                                  reason="no g++ on this computer (apt-get install g++)"),
@@ -179,6 +180,28 @@ def test_three_channels_parse_and_each_is_its_own_pin(build_dir, tmp_path):
     assert "channel 3" in resolve_adc(stream.infos[0], channel=3).problem
 
 
+def test_a_nano_streams_eight_channels_each_its_own_pin_on_the_fast_adc_clock(build_dir,
+                                                                              tmp_path):
+    exe = build(NANO, build_dir, channels=8)
+    stream = Stream()
+    volts = [0.5 * (c + 1) for c in range(8)]  # 0.5 .. 4.0 V, a different code per pin
+    with HostFirmware(exe, tmp_path / "adc", NANO) as device, \
+            AdcStreamReader(str(tmp_path / "adc"), stream.on_sample, on_info=stream.on_info):
+        for channel, v in enumerate(volts[:-1]):
+            device.set_voltage(v, channel)
+        assert stream.wait(lambda: stream.infos)
+        counts = settled_counts(device, stream, volts[-1], 7)
+        stats = device.stats()
+    assert stream.infos[0] == DeviceInfo(2, 8, 10, 5.0, 1000, "avr")
+    assert counts[-1] == tuple(int(v / 5.0 * 1024) for v in volts)  # floor(V / 5 V * 1024)
+    assert stats["adc_prescaler"] == 32  # 8 reads at F_CPU / 128 would fill the period
+
+
+def test_more_channels_than_the_board_has_pins_do_not_compile(tmp_path):
+    with pytest.raises(SimError, match="exceeds this board's analog inputs"):
+        build(UNO, tmp_path / "out", channels=8)
+
+
 def read_frames(fd: int, parser: FrameParser, seconds: float) -> list[Frame]:
     frames: list[Frame] = []
     end = time.monotonic() + seconds
@@ -218,6 +241,7 @@ def test_a_host_that_stops_reading_sees_gaps_the_sketch_never_blocks(build_dir, 
         assert times[g + 1] - times[g] == pytest.approx(expected, abs=0.05 * expected + 1e5)
     assert int(steps.sum()) >= 3000  # ~3.8 s of sampling went by
     assert stats["blocked_us"] == 0  # it never waited in Serial.write
+    assert stats["adc_prescaler"] == 128  # one channel keeps the core's full-accuracy clock
 
 
 def test_the_device_clock_wraps_and_is_unwrapped(build_dir, tmp_path):
