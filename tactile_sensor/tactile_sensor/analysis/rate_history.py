@@ -10,9 +10,10 @@ to the streaming series itself.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
-from scipy.signal import butter, filtfilt, lfilter
+from scipy.signal import butter, lfilter, lfilter_zi
 
 from tactile_sensor.sensing.prony import PronySeries, term_coefficients
 from tactile_sensor.sensing.rate_calibration import DirectionTracker, Play, RateCalibration
@@ -78,6 +79,14 @@ def rate_force_history(cal: RateCalibration, t_s: np.ndarray, output_v: np.ndarr
 LOW_PASS_ORDER = 2
 
 
+@lru_cache(maxsize=64)
+def _low_pass_design(wn: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Butterworth (b, a) and its step's steady state: designing them cost more than the
+    filtering itself when a rate fit filters thousands of short runs at one cut-off."""
+    b, a = butter(LOW_PASS_ORDER, wn)
+    return b, a, lfilter_zi(b, a)
+
+
 def zero_phase_low_pass(period_s: float, cutoff_hz: float, values: np.ndarray,
                         long_pad: bool = False) -> np.ndarray | None:
     """``values`` (uniform, ``period_s`` apart along the last axis) forwards and backwards
@@ -85,15 +94,24 @@ def zero_phase_low_pass(period_s: float, cutoff_hz: float, values: np.ndarray,
     filtered alike stay aligned. None when the cut-off is not below the Nyquist rate or the
     record is too short to filter. ``long_pad`` extends the ends by one cut-off period
     (odd, so a ramp goes on as a ramp) instead of a few samples: a short run then has no
-    start-up transient."""
+    start-up transient.
+
+    The forward-backward pass is scipy's ``filtfilt`` with ``padtype="odd"`` (each end
+    mirrored through its end value, both passes started in the steady state of their first
+    sample), with the design cached."""
     wn = 2.0 * cutoff_hz * period_s
     if not (0.0 < wn < 1.0):
         return None
-    b, a = butter(LOW_PASS_ORDER, wn)
+    b, a, zi = _low_pass_design(wn)
     length = values.shape[-1]
-    if length <= 3 * max(a.size, b.size):
+    short = 3 * max(a.size, b.size)
+    if length <= short:
         return None
-    if long_pad:
-        pad = min(length - 1, max(3 * max(a.size, b.size), round(2.0 / wn)))
-        return np.asarray(filtfilt(b, a, values, padtype="odd", padlen=pad))
-    return np.asarray(filtfilt(b, a, values))
+    pad = min(length - 1, max(short, round(2.0 / wn))) if long_pad else short
+    x = np.asarray(values, dtype=float)
+    first, last = x[..., :1], x[..., -1:]
+    extended = np.concatenate((2 * first - x[..., pad:0:-1], x,
+                               2 * last - x[..., -2:-pad - 2:-1]), axis=-1)
+    forward, _ = lfilter(b, a, extended, zi=zi * extended[..., :1])
+    backward, _ = lfilter(b, a, forward[..., ::-1], zi=zi * forward[..., -1:])
+    return backward[..., ::-1][..., pad:-pad]

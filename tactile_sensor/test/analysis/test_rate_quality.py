@@ -221,3 +221,26 @@ def test_the_goal_needs_half_the_static_error_and_1_5_percent_of_full_scale(stat
     per_sample_only = PhaseError(1.0, "hold", 10, static, rate, 1.0, 1.0, 0.0)
     assert per_sample_only.meets_goal(7.0, model=False) is ok
     assert per_sample_only.meets_goal(7.0, model=True) is False
+
+
+@settings(max_examples=40, deadline=None)
+@given(rows=st.integers(1, 3), length=st.integers(7, 400), long_pad=st.booleans(),
+       cutoff_hz=st.sampled_from([0.7, 5.0, 40.0]), seed=st.integers(0, 2 ** 16))
+def test_the_zero_phase_low_pass_is_scipys_filtfilt_with_odd_padding(rows, length, long_pad,
+                                                                     cutoff_hz, seed):
+    from scipy.signal import butter, filtfilt
+
+    from tactile_sensor.analysis.rate_history import LOW_PASS_ORDER
+
+    values = np.random.default_rng(seed).normal(size=(rows, length)).cumsum(axis=-1)
+    b, a = butter(LOW_PASS_ORDER, 2.0 * cutoff_hz * 1e-3)
+    short = 3 * max(a.size, b.size)
+    got = zero_phase_low_pass(1e-3, cutoff_hz, values, long_pad=long_pad)
+    if length <= short:
+        assert got is None
+        return
+    pad = min(length - 1, max(short, round(1.0 / (cutoff_hz * 1e-3)))) if long_pad else short
+    np.testing.assert_allclose(got, filtfilt(b, a, values, padtype="odd", padlen=pad),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(zero_phase_low_pass(1e-3, cutoff_hz, values[0],
+                                                   long_pad=long_pad), got[0], atol=1e-12)
