@@ -159,6 +159,12 @@ def face_image(g: np.ndarray, module: str) -> str:
     return label(image, float(moved[1 - FACES[image][0]]) + 0.0)
 
 
+def image_tangent(g: np.ndarray, tangent_m: np.ndarray) -> np.ndarray:
+    """The tangential displacement the image module reads: a mirror (det g = -1) reverses
+    the counter-clockwise tangent, a rotation keeps it."""
+    return float(round(np.linalg.det(g))) * np.asarray(tangent_m, dtype=float)
+
+
 def canonical_directions(params: PhysicsParams) -> list[tuple[int, np.ndarray]]:
     """For each direction index: (index of the solved direction, map g onto it from there)."""
     n = params.array_directions
@@ -231,7 +237,8 @@ def solve_path(params: PhysicsParams, path: LoadPath, progress: Progress | None 
     return {"indentation_m": res.indentation_m, "shear_x_m": res.shear_x_m,
             "shear_y_m": res.shear_y_m, "force_x_n": res.force_x_n,
             "force_y_n": res.force_y_n, "force_n": res.force_n, "bulges_m": res.bulges_m,
-            "torque_nm": res.torque_nm, "rotation_rad": res.rotation_rad,
+            "tangents_m": res.tangents_m, "torque_nm": res.torque_nm,
+            "rotation_rad": res.rotation_rad,
             "seconds": res.seconds}
 
 
@@ -272,6 +279,7 @@ def compute_grid(params: PhysicsParams, progress: Progress | None = None,
         "indentation_m", "shear_x_m", "shear_y_m", "force_x_n", "force_y_n", "force_n",
         "direction", "level", "step")}
     bulges: dict[str, list[np.ndarray]] = {f: [] for f in params.module_faces}
+    tangents: dict[str, list[np.ndarray]] = {f: [] for f in params.module_faces}
 
     def add(res: dict[str, Any], g: np.ndarray, direction: int, level: int,
             first: int) -> None:
@@ -286,13 +294,16 @@ def compute_grid(params: PhysicsParams, progress: Progress | None = None,
         rows["level"].append(np.full(steps.size, level))
         rows["step"].append(steps)
         for face in bulges:   # face reads what the face g maps onto it read in the path
-            bulges[face].append(res["bulges_m"][face_image(g.T, face)][steps])
+            source = face_image(g.T, face)
+            bulges[face].append(res["bulges_m"][source][steps])
+            tangents[face].append(image_tangent(g, res["tangents_m"][source][steps]))
 
     add(by_path[(-1, 0)], np.eye(2), -1, 0, 0)
     for i, (j, g) in enumerate(canonical_directions(params)):
         for level in range(1, params.array_shear_levels + 1):
             add(by_path[(j, level)], g, i, level, 1)
-    outputs = {f: module_output(params, np.concatenate(b))[2] for f, b in bulges.items()}
+    outputs = {f: module_output(params, np.concatenate(b), np.concatenate(tangents[f]))[2]
+               for f, b in bulges.items()}
     return ArrayGrid(**{k: np.concatenate(v) for k, v in rows.items()}, outputs_v=outputs,
                      digest=params.grid_digest(), seconds=time.perf_counter() - start,
                      paths=len(paths))

@@ -23,7 +23,10 @@ values compare with the module noise directly: a direction whose singular value 
 to the components already observed (order Fz, Fx, Fy, Tz, Tx, Ty: forces first), the scaled
 columns' smallest singular value stays above that threshold; ``distinct`` is the part of a
 component's pattern that no combination of the three forces explains (for a force, of the
-other two).
+other two). Each component's noise [% of its full scale] at the output bandwidths
+``NOISE_BANDWIDTHS_HZ`` is the least-squares estimate's: covariance sigma^2 (S^T S)^-1 of
+the scaled S6, with sigma the module noise a 2nd-order low-pass leaves at that bandwidth
+(``physics/output_noise.py``); infinite when S6 cannot separate the six at all.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import PhysicsError
+from .output_noise import SAMPLE_NOISE_V, SAMPLE_RATE_HZ, noise_at_bandwidth
 from .params import FACES
 
 if TYPE_CHECKING:
@@ -49,6 +53,8 @@ OBSERVE_ORDER = ("fz", "fx", "fy", "tz", "tx", "ty")
 #: A wrench direction is resolved when its full-scale output pattern exceeds this many times
 #: the module noise (about 10 dB: three distinguishable levels across the full scale).
 OBSERVE_SNR = 3.0
+#: Output bandwidths [Hz] at which each wrench component's noise is reported.
+NOISE_BANDWIDTHS_HZ = (1, 10, 100)
 
 
 def curve_metrics(curve: PredictionCurve, noise_v: float) -> dict[str, float]:
@@ -125,9 +131,22 @@ def distinct_output(scaled: np.ndarray, k: int) -> float:
     return float(np.linalg.norm(scaled[:, k] - basis @ coef))
 
 
-def wrench_metrics(data: WrenchSet, noise_v: float) -> dict[str, float]:
+def component_noise(scaled: np.ndarray, noise_v: float) -> np.ndarray:
+    """Each component's least-squares estimate noise in units of its full scale: the square
+    roots of the diagonal of noise_v^2 (S^T S)^-1 (inf where S^T S is singular)."""
+    gram = scaled.T @ scaled
+    values = np.linalg.svd(scaled, compute_uv=False)
+    if values.size < scaled.shape[1] or values[-1] <= 1e-9 * max(values[0], 1e-300):
+        return np.full(scaled.shape[1], math.inf)
+    return noise_v * np.sqrt(np.diag(np.linalg.inv(gram)))
+
+
+def wrench_metrics(data: WrenchSet, noise_v: float, sample_noise_v: float = SAMPLE_NOISE_V,
+                   sample_rate_hz: float = SAMPLE_RATE_HZ) -> dict[str, float]:
     """Singular values of the full-scale output patterns, their rank above the threshold,
-    and per component its full scale, distinct output and whether it is observed."""
+    and per component its full scale, distinct output, whether it is observed at
+    ``noise_v`` and its noise [% FS] at each of ``NOISE_BANDWIDTHS_HZ`` (from white samples
+    of ``sample_noise_v`` at ``sample_rate_hz``)."""
     threshold = OBSERVE_SNR * noise_v
     scale = full_scale(data)
     if np.any(scale <= 0):
@@ -151,6 +170,11 @@ def wrench_metrics(data: WrenchSet, noise_v: float) -> dict[str, float]:
         out[f"distinct_{name}_v"] = distinct_output(scaled, k)
         out[f"observes_{name}"] = float(k in observed)
     out["observed_torques"] = float(sum(k in observed for k in (3, 4, 5)))
+    out["output_noise_v"] = noise_v
+    for hz in NOISE_BANDWIDTHS_HZ:
+        sigma = noise_at_bandwidth(hz, sample_noise_v, sample_rate_hz)
+        for name, value in zip(WRENCH_AXES, component_noise(scaled, sigma), strict=True):
+            out[f"noise_{name}_pct_fs_{hz}hz"] = float(100.0 * value)
     return out
 
 
@@ -160,4 +184,7 @@ WRENCH_COLUMNS = ("observed_torques", "wrench_rank",
                   *(f"observes_{a}" for a in WRENCH_AXES),
                   *(f"distinct_{a}_v" for a in WRENCH_AXES),
                   *(f"full_scale_{a}_{'n' if a.startswith('f') else 'nm'}"
+                    for a in WRENCH_AXES),
+                  "output_noise_v",
+                  *(f"noise_{a}_pct_fs_{hz}hz" for hz in NOISE_BANDWIDTHS_HZ
                     for a in WRENCH_AXES))

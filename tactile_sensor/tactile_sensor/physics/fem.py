@@ -71,6 +71,9 @@ class SweepResult:
     and ``force_y_n`` along +x and +y: each positive along the probe's own displacement when
     it moves along one axis. ``bulges_m`` maps each module face to its window's outward
     displacement [m]; ``bulge_m`` is the first module's (front's, by default).
+    ``tangents_m`` maps each module to its window's displacement along the face's
+    counter-clockwise tangent t = z x n (n the outward normal: front -x, right +y, back +x,
+    left -y) [m], averaged with the same weights: what a graded pigment turns into light.
     ``rotation_rad`` (steps, 3) is the probe's rotation vector (tilt about x, tilt about y,
     twist about z) and ``torque_nm`` (steps, 3) the probe's torque on the skin about the
     probe's centre (Tx, Ty, Tz), right-hand rule about +x, +y, +z: positive along the probe's
@@ -89,6 +92,7 @@ class SweepResult:
     bulges_m: dict[str, np.ndarray]
     rotation_rad: np.ndarray
     torque_nm: np.ndarray
+    tangents_m: dict[str, np.ndarray]
 
 
 # --------------------------------------------------------------------------------------------
@@ -399,6 +403,25 @@ class SkinModel:
         self._patches = {name: self._window_patch(*self._in_mesh(face, c))
                          for name, (face, c) in zip(p.module_faces, p.module_windows,
                                                     strict=True)}
+        self._tangent_factors = {name: self._tangent_factor(face, c)
+                                 for name, (face, c) in zip(p.module_faces, p.module_windows,
+                                                            strict=True)}
+
+    def _tangent_factor(self, face: str, offset: float) -> float:
+        """What turns the in-mesh patch's displacement across its face into this window's
+        tangential displacement: the tangent's sign on the in-mesh face, times -1 for each
+        mirror that stands in for the window in a symmetric model (a mirror reverses the
+        counter-clockwise tangent), and 0 for a window centred on a symmetry plane the model
+        does not span (the load is mirror-symmetric there: its mean tangential motion is 0,
+        while the half window in the mesh would read one side only)."""
+        axis = FACES[face][0]
+        if offset == 0 and not self.full[1 - axis]:
+            return 0.0
+        image, moved = self._in_mesh(face, offset)
+        mirrors = (image != face) + (moved != offset)
+        k, sign = FACES[image]
+        along = sign if k == 0 else -sign        # t = z x n: +y on right, -x on front
+        return float(along * (-1) ** mirrors)
 
     def _window_patch(self, face: str, offset: float = 0.0) -> tuple[int, int, np.ndarray]:
         """(axis, outward sign, node weights): the area-weighted average of the face's
@@ -430,6 +453,13 @@ class SkinModel:
         u3 = u.reshape(-1, 3)
         return {face: float(sign * (w @ u3[:, k]))
                 for face, (k, sign, w) in self._patches.items()}
+
+    def tangents(self, u: np.ndarray) -> dict[str, float]:
+        """Each module's window-averaged displacement along its face's counter-clockwise
+        tangent [m] in state u (see :class:`SweepResult`)."""
+        u3 = u.reshape(-1, 3)
+        return {face: self._tangent_factors[face] * float(w @ u3[:, 1 - k])
+                for face, (k, _, w) in self._patches.items()}
 
     def probe_force(self, fint: np.ndarray) -> tuple[float, float, float]:
         """The probe's force on the skin (+x, +y, -z) [N] from the internal forces.
@@ -595,6 +625,7 @@ class SkinModel:
         forces = [(0.0, 0.0, 0.0)]
         torques = [(0.0, 0.0, 0.0)]
         bulges = [dict.fromkeys(self._patches, 0.0)]
+        tangents = [dict.fromkeys(self._patches, 0.0)]
         history: list[tuple[float, np.ndarray]] = [(0.0, np.zeros(self.ndof))]
         lu = None
         for n in range(1, t_all.size):
@@ -603,6 +634,7 @@ class SkinModel:
             forces.append(self.probe_force(fint))
             torques.append(self.probe_torque(fint, u, t_all[n]))
             bulges.append(self.bulges(u))
+            tangents.append(self.tangents(u))
             if progress is not None:
                 cut = self.stats["cuts"] - cuts_before
                 note = f" ({cut} step cut{'s' if cut > 1 else ''})" if cut else ""
@@ -616,11 +648,12 @@ class SkinModel:
                          f"{forces[-1][2]:.3f} N{shear}{note}")
         f = np.array(forces)
         per_face = {face: np.array([b[face] for b in bulges]) for face in self._patches}
+        along = {face: np.array([t[face] for t in tangents]) for face in self._patches}
         rotation = t_all[:, None] * np.array([p.max_tilt_x, p.max_tilt_y, p.max_twist_z])
         return SweepResult(t_all * p.max_indentation, f[:, 2], per_face[p.module_faces[0]],
                            self.nodes, time.perf_counter() - start,
                            t_all * p.max_shear_x, t_all * p.max_shear_y, f[:, 0], f[:, 1],
-                           per_face, rotation, np.array(torques))
+                           per_face, rotation, np.array(torques), along)
 
     def _advance(self, history: list[tuple[float, np.ndarray]], lu: object, d: float,
                  depth: int) -> tuple[np.ndarray, object, np.ndarray]:
@@ -861,10 +894,12 @@ def extrapolated_sweep(params: PhysicsParams, progress: Progress | None = None,
 
     bulges = {face: richardson(fine.bulges_m[face], coarse.bulges_m[face], ratio, p_bulge)
               for face in fine.bulges_m}
+    tangents = {face: richardson(fine.tangents_m[face], coarse.tangents_m[face], ratio,
+                                 p_bulge) for face in fine.tangents_m}
     return SweepResult(fine.indentation_m, force("force_n"), bulges[params.module_faces[0]],
                        fine.nodes, fine.seconds + coarse.seconds, fine.shear_x_m,
                        fine.shear_y_m, force("force_x_n"), force("force_y_n"), bulges,
-                       fine.rotation_rad, force("torque_nm"))
+                       fine.rotation_rad, force("torque_nm"), tangents)
 
 
 def spans_needed(params: PhysicsParams) -> tuple[bool, bool]:

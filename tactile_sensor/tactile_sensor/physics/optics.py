@@ -84,12 +84,15 @@ class _Pchip:
 _LIGHT = _Pchip(_ANCHOR_X_MM * 1e-3, 5.0 - _ANCHOR_V)
 
 
-def reflectance(pigment_white: float) -> float:
+def reflectance(pigment_white: npt.ArrayLike) -> np.ndarray:
     """Diffuse reflectance at 940 nm of silicone with this white share [%] (assumption:
-    linear mix between 0.08 for all-black and 0.80 for all-white pigment)."""
-    if not 0.0 <= pigment_white <= 100.0:
-        raise PhysicsError(f"Pigment white share {pigment_white!r} % must be in 0..100.")
-    return 0.08 + (0.80 - 0.08) * pigment_white / 100.0
+    linear mix between 0.08 for all-black and 0.80 for all-white pigment); element-wise, so
+    a graded skin can give each sample the share under the window."""
+    w = np.asarray(pigment_white, dtype=float)
+    if not np.all((w >= 0.0) & (w <= 100.0)):
+        bad = w[~((w >= 0.0) & (w <= 100.0))].ravel()[0]
+        raise PhysicsError(f"Pigment white share {float(bad)!r} % must be in 0..100.")
+    return 0.08 + (0.80 - 0.08) * w / 100.0
 
 
 def _smooth_clamp(v: np.ndarray, low: float, high: float, sharpness: float = 40.0
@@ -111,13 +114,18 @@ class Photoreflector:
         if not 0.0 < self.supply_voltage <= 24.0:
             raise PhysicsError(f"Supply voltage {self.supply_voltage!r} V must be in (0, 24].")
 
-    def voltage(self, distance_m: npt.ArrayLike) -> np.ndarray:
+    def voltage(self, distance_m: npt.ArrayLike, white_share: npt.ArrayLike | None = None
+                ) -> np.ndarray:
+        """V at each distance; ``white_share`` [%] (broadcast against the distances) is the
+        pigment the window sees where it differs from ``pigment_white`` (a graded skin that
+        slid along the face)."""
         x = np.asarray(distance_m, dtype=float)
         if np.any(x < 0) or np.any(~np.isfinite(x)):
             raise PhysicsError("Photoreflector distances must be finite and >= 0 m (the skin "
                                "cannot pass through the module).")
         light = np.where(x >= 20e-3, 0.0, _LIGHT(np.minimum(x, 20e-3)))
-        gain = reflectance(self.pigment_white) / reflectance(75.0)
+        white = self.pigment_white if white_share is None else white_share
+        gain = reflectance(white) / reflectance(75.0)
         scale = self.supply_voltage / 5.0
         return _smooth_clamp(self.supply_voltage - scale * gain * light, 0.0,
                              self.supply_voltage)

@@ -117,6 +117,14 @@ class PhysicsParams:
     # --- optics (paper Sec. II-B, Fig. 3) -----------------------------------------------------
     pigment_white: float = _f(75.0, "%", "white share of the skin pigment (paper: 75 % "
                               "white / 25 % black chosen)", low=0.0, high=100.0)
+    window_pigment_gradient: float = _f(0.0, "%", "change of the skin's pigment white share "
+                                        "across the window's width under each window, in "
+                                        "percentage points, increasing along the face's "
+                                        "counter-clockwise tangent (front -x, right +y, back "
+                                        "+x, left -y): skin sliding along the face then "
+                                        "changes the light the photoreflector sees, so a "
+                                        "twist reads at first order (docs/array.md); 0 = "
+                                        "uniform pigment", low=0.0, high=100.0)
     supply_voltage: float = _f(5.0, "V", "photoreflector supply, the upper rail "
                                "(assumption: 5 V QTR-1A supply)", low=0.0, low_open=True)
     # --- viscoelastic rate term (does not change the elastic curve) ---------------------------
@@ -382,7 +390,8 @@ class PhysicsParams:
 
 #: Curve fields added after prediction caches existed, with the defaults that keep them valid.
 _LATER_FIELDS: dict[str, Any] = {"max_shear_x": 0.0, "max_shear_y": 0.0, "modules": "front",
-                                 "max_tilt_x": 0.0, "max_tilt_y": 0.0, "max_twist_z": 0.0}
+                                 "max_tilt_x": 0.0, "max_tilt_y": 0.0, "max_twist_z": 0.0,
+                                 "window_pigment_gradient": 0.0}
 
 
 def label(face: str, offset: float) -> str:

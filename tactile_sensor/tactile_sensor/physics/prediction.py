@@ -79,6 +79,10 @@ class PredictionCurve:
     torque_x_nm: np.ndarray = field(default=None)  # type: ignore[assignment]
     torque_y_nm: np.ndarray = field(default=None)  # type: ignore[assignment]
     torque_z_nm: np.ndarray = field(default=None)  # type: ignore[assignment]
+    # every module's window displacement along its face's counter-clockwise tangent [m]; a
+    # file written without it has it zero (it only changes outputs with a pigment gradient,
+    # which is part of the digest)
+    module_tangents_m: dict[str, np.ndarray] = field(default=None)  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         zeros = np.zeros_like(self.indentation_m)
@@ -89,6 +93,9 @@ class PredictionCurve:
             object.__setattr__(self, "module_bulges_m", {"front": self.bulge_m})
         if self.module_outputs_v is None:
             object.__setattr__(self, "module_outputs_v", {"front": self.output_v})
+        if self.module_tangents_m is None:
+            object.__setattr__(self, "module_tangents_m",
+                               {k: zeros for k in self.module_bulges_m})
 
     @property
     def rotates(self) -> bool:
@@ -138,6 +145,7 @@ class PredictionCurve:
         data: dict[str, Any] = {name: getattr(self, name).tolist() for name in names}
         data.update(module_bulges_m={k: v.tolist() for k, v in self.module_bulges_m.items()},
                     module_outputs_v={k: v.tolist() for k, v in self.module_outputs_v.items()},
+                    module_tangents_m={k: v.tolist() for k, v in self.module_tangents_m.items()},
                     nodes=self.nodes, seconds=self.seconds, digest=self.digest)
         return data
 
@@ -151,7 +159,8 @@ class PredictionCurve:
             arrays.update({name: np.asarray(data[name], dtype=float)
                            for name in SHEAR_ARRAYS + ROTATION_ARRAYS if name in data})
             faces = {key: {str(k): np.asarray(v, dtype=float) for k, v in data[key].items()}
-                     for key in ("module_bulges_m", "module_outputs_v") if key in data}
+                     for key in ("module_bulges_m", "module_outputs_v", "module_tangents_m")
+                     if key in data}
             curve = cls(**arrays, **faces, nodes=int(data["nodes"]),
                         seconds=float(data["seconds"]), digest=str(data.get("digest", "")))
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
@@ -169,17 +178,33 @@ class PredictionCurve:
         return curve
 
 
-def module_output(params: PhysicsParams, bulge_m: npt.ArrayLike
+def module_output(params: PhysicsParams, bulge_m: npt.ArrayLike,
+                  tangent_m: npt.ArrayLike = 0.0
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(distance [m], voltage [V], output [V]) of a module whose window bulges this much."""
+    """(distance [m], voltage [V], output [V]) of a module whose window bulges this much and
+    slides ``tangent_m`` along the face's counter-clockwise tangent.
+
+    With a graded pigment the skin now under the window's centre came from -u_t, so the
+    window sees the white share ``pigment_white - window_pigment_gradient * u_t /
+    window_width`` (clamped to 0..100); the rest voltage is the ungraded skin's.
+    """
     optics = Photoreflector(params.pigment_white, params.supply_voltage)
     distance = params.gap - np.asarray(bulge_m, dtype=float)
     if np.any(distance < 0):
         raise PhysicsError("The skin would bulge past the photoreflector (distance < 0); "
                            "increase 'gap' or reduce 'max_indentation'.")
-    voltage = optics.voltage(distance)
+    voltage = optics.voltage(distance, white_share(params, tangent_m))
     rest = float(optics.voltage(params.gap))
     return distance, voltage, rest - voltage
+
+
+def white_share(params: PhysicsParams, tangent_m: npt.ArrayLike) -> np.ndarray | None:
+    """The pigment white share [%] the window sees after the skin slid ``tangent_m``, or
+    None for uniform pigment (the photoreflector's own share, bit for bit)."""
+    if params.window_pigment_gradient == 0:
+        return None
+    shift = np.asarray(tangent_m, dtype=float) / params.window_width
+    return np.clip(params.pigment_white - params.window_pigment_gradient * shift, 0.0, 100.0)
 
 
 def curve_from_sweep(params: PhysicsParams, indentation_m: np.ndarray, force_n: np.ndarray,
@@ -187,16 +212,20 @@ def curve_from_sweep(params: PhysicsParams, indentation_m: np.ndarray, force_n: 
                      sweep: SweepResult | None = None) -> PredictionCurve:
     """Apply the optics to a mechanical sweep (``sweep``: its lateral load, rotation,
     torque and modules)."""
-    distance, voltage, output = module_output(params, bulge_m)
+    tangent: npt.ArrayLike = 0.0
     extra: dict[str, Any] = {}
     if sweep is not None:
+        tangent = sweep.tangents_m[params.module_faces[0]]
         extra = {name: np.asarray(getattr(sweep, name), float) for name in SHEAR_ARRAYS}
         columns = np.concatenate([sweep.rotation_rad, sweep.torque_nm], axis=1)
         extra.update({name: np.asarray(columns[:, k], float)
                       for k, name in enumerate(ROTATION_ARRAYS)})
         extra["module_bulges_m"] = {k: np.asarray(v, float) for k, v in sweep.bulges_m.items()}
-        extra["module_outputs_v"] = {k: module_output(params, v)[2]
+        extra["module_tangents_m"] = {k: np.asarray(v, float)
+                                      for k, v in sweep.tangents_m.items()}
+        extra["module_outputs_v"] = {k: module_output(params, v, sweep.tangents_m[k])[2]
                                      for k, v in sweep.bulges_m.items()}
+    distance, voltage, output = module_output(params, bulge_m, tangent)
     return PredictionCurve(np.asarray(indentation_m, float), np.asarray(force_n, float),
                            np.asarray(bulge_m, float), distance, voltage, output,
                            nodes, seconds, params.digest(), **extra)

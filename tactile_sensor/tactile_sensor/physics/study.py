@@ -21,7 +21,14 @@ from .batch import run
 from .design_metrics import curve_metrics, matrix_metrics, wrench_metrics
 from .errors import PhysicsError
 from .params import PhysicsParams
-from .study_spec import MATRIX_METRIC, SINGLE_METRICS, WRENCH_METRIC, StudySpec
+from .study_spec import (
+    BOARD,
+    MATRIX_METRIC,
+    SINGLE_METRICS,
+    WRENCH_METRIC,
+    StudySpec,
+    board_refusal,
+)
 
 Progress = Callable[[float, str], None]
 REFERENCE = "paper"
@@ -100,23 +107,32 @@ def run_study(spec: StudySpec, *, scheduler: str | None = None, workers: int | N
     rows = [DesignRow(name, values) for name, values in designs]
     params: dict[int, PhysicsParams] = {}
     for i, row in enumerate(rows):
+        physical = {k: v for k, v in row.values.items() if k != BOARD}
         try:
-            params[i] = PhysicsParams.from_mapping({**spec.fixed, **row.values})
+            p = PhysicsParams.from_mapping({**spec.fixed, **physical})
         except PhysicsError as err:
             row.error = f"rejected: {_one_sentence(err)}"
             continue
+        refusal = board_refusal(row.values.get(BOARD, spec.board), p)
+        if refusal:                       # refused before solving: it cannot be wired
+            row.error = f"rejected: {refusal}"
+            continue
+        params[i] = p
         row.digest = (wrench_digest(params[i]) if needs_wrench else params[i].grid_digest()
                       if needs_grid else params[i].digest())
-    rows[0].values = {name: getattr(params[0], name) for name in spec.varied}
+    rows[0].values = {name: getattr(params[0], name) for name in spec.varied if name != BOARD}
+
+    noise_v = spec.output_noise_v
 
     def measure(row: DesignRow, curve: Any, grid: Any, wrench: Any) -> None:
         try:
             if needs_curve:
-                row.metrics.update(curve_metrics(curve, spec.noise_v))
+                row.metrics.update(curve_metrics(curve, noise_v))
             if needs_grid:
                 row.metrics.update(matrix_metrics(grid))
             if needs_wrench:
-                row.metrics.update(wrench_metrics(wrench, spec.noise_v))
+                row.metrics.update(wrench_metrics(wrench, noise_v, spec.sample_noise_v,
+                                                  spec.sample_rate_hz))
         except PhysicsError as err:
             row.error = _one_sentence(err)
 

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from .design_metrics import OBSERVE_SNR, WRENCH_AXES
+from .design_metrics import NOISE_BANDWIDTHS_HZ, OBSERVE_SNR, WRENCH_AXES
 from .params import PhysicsParams
 from .pareto import pareto_mask
 from .study import REFERENCE, DesignRow, metric_value
@@ -46,7 +46,7 @@ def headline_columns(spec: StudySpec) -> list[str]:
     wrench metric's per-component detail)."""
     return [c for c in spec.columns if not c.startswith((
         "s_", "singular_value_", "wrench_singular_value_", "observes_", "distinct_",
-        "full_scale_f", "full_scale_t"))]
+        "full_scale_f", "full_scale_t", "noise_", "output_noise_v"))]
 
 
 def pareto_rows(rows: list[DesignRow], spec: StudySpec) -> list[DesignRow]:
@@ -129,7 +129,7 @@ def summary(rows: list[DesignRow], spec: StudySpec) -> dict[str, Any]:
             best[column] = _plain(pick, spec)
     return {"name": spec.name, "designs": len(rows), "solved": len(ok),
             "failed": len(rows) - len(ok), "objectives": spec.objectives,
-            "varied": list(spec.varied), "fixed": spec.fixed, "noise_v": spec.noise_v,
+            "varied": list(spec.varied), "fixed": spec.fixed, "noise_v": spec.output_noise_v,
             "paper": _plain(rows[0], spec),
             "pareto": [_plain(r, spec) for r in pareto_rows(rows, spec)],
             "best": best,
@@ -278,7 +278,7 @@ def _observed(row: DesignRow) -> list[str]:
 def wrench_finding(rows: list[DesignRow], spec: StudySpec) -> str:
     """One computed sentence: which designs observe a torque, or that none does and by how
     much the best torque signal falls short of the threshold."""
-    threshold = OBSERVE_SNR * spec.noise_v
+    threshold = OBSERVE_SNR * spec.output_noise_v
     ok = [r for r in rows if r.ok and math.isfinite(metric_value(r, "observed_torques"))]
     if not ok:
         return "No design was solved, so the study cannot tell whether a layout observes torque."
@@ -286,7 +286,9 @@ def wrench_finding(rows: list[DesignRow], spec: StudySpec) -> str:
     best, axis = max(((r, a) for r in ok for a in ("tx", "ty", "tz")),
                      key=lambda ra: metric_value(ra[0], f"distinct_{ra[1]}_v"))
     signal = metric_value(best, f"distinct_{axis}_v")
-    rule = (f"the threshold is {OBSERVE_SNR:g} x noise_v = {threshold * 1e3:.3g} mV of "
+    noise = (f"the noise at {spec.bandwidth_hz:g} Hz" if spec.bandwidth_hz is not None
+             else "noise_v")
+    rule = (f"the threshold is {OBSERVE_SNR:g} x {noise} = {threshold * 1e3:.3g} mV of "
             "output a full-scale component must move the modules by beyond what the forces "
             "explain")
     if not seeing:
@@ -298,6 +300,16 @@ def wrench_finding(rows: list[DesignRow], spec: StudySpec) -> str:
     return (f"{len(seeing)} of {len(ok)} solved designs observe a torque ({names}); the "
             f"largest torque signal is {signal * 1e3:.3g} mV ({axis.upper()}, "
             f"{describe(best)}), and {rule}.")
+
+
+def _noise_text(row: DesignRow) -> str:
+    """Each component's estimate noise [% FS] at the reported bandwidths, e.g. Fx 0.1/0.3/1."""
+    def pct(v: float) -> str:
+        return f"{v:.2g}" if math.isfinite(v) else "inf"
+
+    return ", ".join(a.upper() + " " + "/".join(
+        pct(metric_value(row, f"noise_{a}_pct_fs_{hz}hz")) for hz in NOISE_BANDWIDTHS_HZ)
+        for a in WRENCH_AXES)
 
 
 def wrench_lines(rows: list[DesignRow], spec: StudySpec) -> list[str]:
@@ -314,7 +326,9 @@ def wrench_lines(rows: list[DesignRow], spec: StudySpec) -> list[str]:
         out.append(f"- {describe(r)}: observes {', '.join(_observed(r)) or 'nothing'} "
                    f"({metric_value(r, 'wrench_rank'):.0f} of 6 directions resolved); "
                    f"singular values {values} mV; torque signal beyond the forces "
-                   f"{torques} mV.")
+                   f"{torques} mV; noise in % of full scale at "
+                   f"{', '.join(f'{hz:g}' for hz in NOISE_BANDWIDTHS_HZ)} Hz: "
+                   f"{_noise_text(r)}.")
     out += ["", wrench_finding(rows, spec),
             "(Singular values of S6 with each column scaled to the load the wrench paths "
             "reach, full_scale_* in results.csv; a direction counts when it exceeds the "

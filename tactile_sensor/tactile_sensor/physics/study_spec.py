@@ -9,9 +9,15 @@ YAML (``config/studies/*.yaml``)::
       window_center_z: [0.003, 0.007]                     # ... or a list of values
     design: grid                          # every combination, or a quasi-random sample:
     # design: {sample: sobol, points: 16, seed: 1}        # (sobol or halton, seeded)
+    # design: zip                         # or the i-th value of every list together
     metrics: [sensitivity, full_scale, linearity, dynamic_range, sensitivity_matrix]
     # (or wrench_observability: which of Fx, Fy, Fz, Tx, Ty, Tz the layout resolves)
     noise_v: 0.013                        # [V] output noise: dynamic range, wrench threshold
+    # bandwidth_hz: 10                    # [Hz] or the noise a 2nd-order low-pass at this
+    # sample_noise_v: 0.039               # cutoff leaves of white samples of this sigma [V]
+    # sample_rate_hz: 1000                # at this rate (physics/output_noise.py)
+    # board: nano                         # analog inputs: uno 6, nano 8, leonardo 12, mega 16
+                                          # (also in vary: a list of boards)
     objectives: {sensitivity_v_per_n: max, full_scale_n: max}   # for the Pareto front
 
 The paper's design is the defaults with ``fixed`` applied; every study solves it too, as the
@@ -32,6 +38,7 @@ from typing import Any
 
 from .design_metrics import WRENCH_COLUMNS
 from .errors import PhysicsError
+from .output_noise import SAMPLE_NOISE_V, SAMPLE_RATE_HZ, noise_at_bandwidth
 from .params import FACES, PhysicsParams
 
 #: Metric name in a spec -> the table columns it adds (units in the names).
@@ -45,12 +52,18 @@ MATRIX_COLUMNS = ("condition_number", "crosstalk", "shear_sensitivity_v_per_n",
 #: Which of the six wrench components a layout resolves (physics/wrench.py).
 WRENCH_METRIC = "wrench_observability"
 METRICS = (*SINGLE_METRICS, MATRIX_METRIC, WRENCH_METRIC)
-SAMPLERS = ("grid", "sobol", "halton")
+SAMPLERS = ("grid", "zip", "sobol", "halton")
 #: The paper's resolution after its 9-point mean (0.186 N x 0.07 V/N): 31.5 dB at 7 N.
 DEFAULT_NOISE_V = 0.013
 #: A study larger than this is a typo more often than a plan (each design costs seconds).
 MAX_DESIGNS = 5000
-KEYS = ("name", "fixed", "vary", "design", "metrics", "noise_v", "objectives")
+KEYS = ("name", "fixed", "vary", "design", "metrics", "noise_v", "bandwidth_hz",
+        "sample_noise_v", "sample_rate_hz", "board", "objectives")
+#: Arduino boards and their analog input channels (Uno A0-A5, Nano A0-A7, Leonardo A0-A5
+#: plus A6-A11 on digital pins, Mega 2560 A0-A15): one module per channel.
+BOARDS = {"uno": 6, "nano": 8, "leonardo": 12, "mega": 16}
+#: A varied name that is not a physics parameter: the board the modules are wired to.
+BOARD = "board"
 
 
 class StudySpecError(PhysicsError):
@@ -85,6 +98,18 @@ class StudySpec:
     metrics: tuple[str, ...] = tuple(SINGLE_METRICS)
     noise_v: float = DEFAULT_NOISE_V
     objectives: dict[str, str] = dataclasses.field(default_factory=dict)
+    bandwidth_hz: float | None = None
+    sample_noise_v: float = SAMPLE_NOISE_V
+    sample_rate_hz: float = SAMPLE_RATE_HZ
+    board: str | None = None
+
+    @property
+    def output_noise_v(self) -> float:
+        """The module noise the metrics use [V]: ``noise_v``, or with ``bandwidth_hz`` what
+        the driver's low-pass leaves of the sample noise at that bandwidth."""
+        if self.bandwidth_hz is None:
+            return self.noise_v
+        return noise_at_bandwidth(self.bandwidth_hz, self.sample_noise_v, self.sample_rate_hz)
 
     @property
     def varied(self) -> tuple[str, ...]:
@@ -104,6 +129,10 @@ class StudySpec:
     def designs(self) -> list[dict[str, Any]]:
         """Each design's varied values (grid: every combination; sample: ``points``)."""
         names = self.varied
+        if self.sampler == "zip":
+            axes = [v.values() if isinstance(v, Range) else list(v) for v in self.vary.values()]
+            return [_typed(dict(zip(names, combo, strict=True)))
+                    for combo in zip(*axes, strict=True)]
         if self.sampler == "grid":
             axes = [v.values() if isinstance(v, Range) else list(v) for v in self.vary.values()]
             return [_typed(dict(zip(names, combo, strict=True)))
@@ -136,6 +165,9 @@ def _typed(values: dict[str, Any]) -> dict[str, Any]:
     0.1 + 0.2 does not give a design (and a cache entry) of its own."""
     out = {}
     for name, v in values.items():
+        if name == BOARD:
+            out[name] = v
+            continue
         default = _FIELDS[name].default
         if isinstance(default, int) and not isinstance(default, bool) and \
                 isinstance(v, int | float):
@@ -203,6 +235,13 @@ def parse_spec(data: Any, name: str = "study") -> StudySpec:
             math.isfinite(noise) or noise <= 0:
         raise StudySpecError(f"'noise_v' is {noise!r}; give the output noise as a positive "
                              "number of volts, e.g. 0.013.")
+    extra = _noise_keys(data)
+    board = data.get("board")
+    if board is not None:
+        _board(board, "board")
+        if BOARD in vary:
+            raise StudySpecError("'board' is both given and varied; drop it from one of "
+                                 "them.")
     try:
         PhysicsParams.from_mapping(fixed)
     except PhysicsError as err:
@@ -210,21 +249,70 @@ def parse_spec(data: Any, name: str = "study") -> StudySpec:
                              "'fixed'.") from None
     spec = StudySpec(name=str(data.get("name") or name), vary=vary, sampler=sampler,
                      points=points, seed=seed, fixed=fixed,
-                     metrics=tuple(dict.fromkeys(metrics)), noise_v=float(noise))
+                     metrics=tuple(dict.fromkeys(metrics)), noise_v=float(noise),
+                     board=board, **extra)
     objectives = _objectives(data.get("objectives"), spec.columns)
     spec = dataclasses.replace(spec, objectives=objectives)
-    count = points if sampler != "grid" else math.prod(
-        len(v.values()) if isinstance(v, Range) else len(v) for v in vary.values())
+    lengths = [len(v.values()) if isinstance(v, Range) else len(v) for v in vary.values()]
+    if sampler == "zip" and len(set(lengths)) > 1:
+        raise StudySpecError(f"'design: zip' takes the i-th value of every list together, "
+                             f"but 'vary' holds lists of {sorted(set(lengths))} values; give "
+                             "every list (or range count) the same length.")
+    count = points if sampler not in ("grid", "zip") else lengths[0] if sampler == "zip" \
+        else math.prod(lengths)
     if count > MAX_DESIGNS:
         raise StudySpecError(f"the study has {count} designs, more than {MAX_DESIGNS}; "
                              "narrow 'vary' or sample fewer points.")
     return spec
 
 
+def _noise_keys(data: Mapping[str, Any]) -> dict[str, float]:
+    """``bandwidth_hz``, ``sample_noise_v`` and ``sample_rate_hz`` where given, checked."""
+    out: dict[str, float] = {}
+    for key, unit in (("bandwidth_hz", "Hz"), ("sample_noise_v", "V"),
+                      ("sample_rate_hz", "Hz")):
+        value = data.get(key)
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | float) or not \
+                math.isfinite(value) or value <= 0:
+            raise StudySpecError(f"'{key}' is {value!r}; give a positive number of {unit}.")
+        out[key] = float(value)
+    if "bandwidth_hz" in out:
+        try:
+            noise_at_bandwidth(out["bandwidth_hz"], out.get("sample_noise_v", SAMPLE_NOISE_V),
+                               out.get("sample_rate_hz", SAMPLE_RATE_HZ))
+        except PhysicsError as err:
+            raise StudySpecError(f"'bandwidth_hz' is rejected: {err}") from None
+    return out
+
+
+def _board(value: Any, key: str) -> int:
+    """The analog channel count of a board name (one sentence on an unknown board)."""
+    if not isinstance(value, str) or value.lower() not in BOARDS:
+        raise StudySpecError(f"'{key}' is {value!r}; name a board out of "
+                             f"{', '.join(f'{b} ({n} channels)' for b, n in BOARDS.items())}.")
+    return BOARDS[value.lower()]
+
+
+def board_refusal(board: str | None, params: PhysicsParams) -> str:
+    """Why ``params``' layout cannot be wired to ``board`` (empty when it can)."""
+    if board is None:
+        return ""
+    channels = _board(board, "board")
+    needed = len(params.module_faces)
+    if needed <= channels:
+        return ""
+    return (f"The layout needs {needed} modules but board {board!r} has {channels} analog "
+            f"channels; use fewer modules or a board with at least {needed}.")
+
+
 def _parameters(section: Any, key: str) -> dict[str, Any]:
     if not isinstance(section, Mapping):
         raise StudySpecError(f"'{key}' must map physics parameter names to values.")
     for name in section:
+        if key == "vary" and name == BOARD:
+            continue
         if name not in _FIELDS:
             raise StudySpecError(f"'{key}' names an unknown physics parameter {name!r}; "
                                  f"known ones are {', '.join(_FIELDS)}.")
@@ -232,12 +320,12 @@ def _parameters(section: Any, key: str) -> dict[str, Any]:
 
 
 def _sampler(design: Any) -> tuple[str, int, int]:
-    if design == "grid":
-        return "grid", 0, 0
+    if design in ("grid", "zip"):
+        return str(design), 0, 0
     if not isinstance(design, Mapping) or set(design) - {"sample", "points", "seed"} or \
-            design.get("sample") not in SAMPLERS[1:]:
-        raise StudySpecError(f"'design' is {design!r}; use 'grid' or {{sample: sobol|halton, "
-                             "points: N, seed: S}.")
+            design.get("sample") not in SAMPLERS[2:]:
+        raise StudySpecError(f"'design' is {design!r}; use 'grid', 'zip' or {{sample: "
+                             "sobol|halton, points: N, seed: S}.")
     points, seed = design.get("points"), design.get("seed", 0)
     if isinstance(points, bool) or not isinstance(points, int) or points < 1:
         raise StudySpecError(f"'design: points' is {points!r}; give the number of designs "
@@ -264,7 +352,7 @@ def _axis(name: str, value: Any, sampler: str) -> Range | tuple[Any, ...]:
                for v in (start, stop)):
             raise StudySpecError(f"'vary: {name}' needs numbers for 'from' and 'to'; give "
                                  "them in SI units.")
-        if count is None and sampler == "grid":
+        if count is None and sampler in ("grid", "zip"):
             raise StudySpecError(f"'vary: {name}' needs 'count' for a grid; give how many "
                                  "values the range holds.")
         if count is not None and (isinstance(count, bool) or not isinstance(count, int)
@@ -279,6 +367,10 @@ def _axis(name: str, value: Any, sampler: str) -> Range | tuple[Any, ...]:
     else:
         raise StudySpecError(f"'vary: {name}' must be a list of values or a range {{from, to, "
                              "count}}.")
+    if name == BOARD:
+        for v in values:
+            _board(v, "vary: board")
+        return values
     for v in values:
         try:
             PhysicsParams.from_mapping({name: v})

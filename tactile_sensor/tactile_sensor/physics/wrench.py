@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from .array_grid import LoadPath, face_image, solve_paths, symmetries
+from .array_grid import LoadPath, face_image, image_tangent, solve_paths, symmetries
 from .design_metrics import WRENCH_AXES
 from .errors import PhysicsError
 from .params import PhysicsParams
@@ -128,6 +128,7 @@ def compute_wrench_set(params: PhysicsParams, progress: Any = None, workers: int
     results = solve_paths(params, paths, workers, progress, scheduler)
     wrench, path_index = [], []
     bulges: dict[str, list[np.ndarray]] = {m: [] for m in params.module_faces}
+    tangents: dict[str, list[np.ndarray]] = {m: [] for m in params.module_faces}
     maps = symmetries(params)             # the identity first
     for k, res in enumerate(results):
         rows = np.column_stack([res["force_x_n"], res["force_y_n"], res["force_n"],
@@ -140,8 +141,11 @@ def compute_wrench_set(params: PhysicsParams, progress: Any = None, workers: int
             wrench.append(map_wrench(g, rows)[first:])
             path_index.append(np.full(rows.shape[0] - first, k))
             for m in bulges:              # m reads what the window g maps onto it read
-                bulges[m].append(res["bulges_m"][face_image(g.T, m)][first:])
-    outputs = {m: module_output(params, np.concatenate(b))[2] for m, b in bulges.items()}
+                source = face_image(g.T, m)
+                bulges[m].append(res["bulges_m"][source][first:])
+                tangents[m].append(image_tangent(g, res["tangents_m"][source][first:]))
+    outputs = {m: module_output(params, np.concatenate(b), np.concatenate(tangents[m]))[2]
+               for m, b in bulges.items()}
     return WrenchSet(np.concatenate(wrench), outputs, np.concatenate(path_index),
                      wrench_digest(params), time.perf_counter() - start, len(paths))
 

@@ -265,7 +265,8 @@ SWEEP = ["--set", "mesh_nx=4", "mesh_ny=4", "mesh_nz=16", "max_indentation=0.002
 #: What 'model sweep --json' writes for a load path without rotation.
 PLAIN_KEYS = {"indentation_m", "force_n", "bulge_m", "distance_m", "voltage_v", "output_v",
               "shear_x_m", "shear_y_m", "force_x_n", "force_y_n", "module_bulges_m",
-              "module_outputs_v", "nodes", "seconds", "digest", "params"}
+              "module_outputs_v", "module_tangents_m", "nodes", "seconds", "digest",
+              "params"}
 
 
 def test_a_twisting_sweep_writes_the_torque_along_the_path(capsys, tmp_path):
@@ -302,7 +303,8 @@ def twisting_curve(params: PhysicsParams) -> PredictionCurve:
     torque = np.outer(steps, [1e-3, -2e-3, 3e-3])
     zero = np.zeros(2)
     sweep = SweepResult(steps * params.max_indentation, steps, steps * 1e-5, 100, 1.0, zero,
-                        zero, zero, zero, {"front": steps * 1e-5}, rotation, torque)
+                        zero, zero, zero, {"front": steps * 1e-5}, rotation, torque,
+                        {"front": zero})
     return curve_from_sweep(params, sweep.indentation_m, sweep.force_n, sweep.bulge_m,
                             sweep.nodes, sweep.seconds, sweep)
 

@@ -39,7 +39,7 @@ def _answer(params: PhysicsParams, path: Any) -> dict[str, Any]:
     d = t * params.max_indentation
     s = t[:, None] * np.array([path.shear_x_m, path.shear_y_m])
     r = t[:, None] * np.array([path.tilt_x_rad, path.tilt_y_rad, path.twist_z_rad])
-    bulges = {}
+    bulges, tangents = {}, {}
     for lab in params.window_labels:
         ((face, offset),) = parse_modules(lab)
         n = _normal(face)
@@ -48,13 +48,14 @@ def _answer(params: PhysicsParams, path: Any) -> dict[str, Any]:
         local = d - (r[:, 0] * p[1] - r[:, 1] * p[0])
         u = s + r[:, 2:3] * np.array([-p[1], p[0]])
         bulges[lab] = 0.03 * local + 0.01 * (u @ n) + 4.0 * (u @ tangent) ** 2 + 8.0 * local ** 2
+        tangents[lab] = 0.1 * (u @ np.array([-n[1], n[0]]))  # along z x n
     torque = np.column_stack([0.05 * d * r[:, 0] + 0.4 * d * s[:, 1],
                               0.05 * d * r[:, 1] - 0.4 * d * s[:, 0],
                               0.02 * d * r[:, 2]])
     return {"indentation_m": d, "shear_x_m": s[:, 0], "shear_y_m": s[:, 1],
             "force_x_n": 300.0 * s[:, 0], "force_y_n": 300.0 * s[:, 1],
             "force_n": 2000.0 * d + 1e5 * d ** 2 + 30.0 * d * r[:, 2] ** 2,
-            "bulges_m": bulges, "torque_nm": torque}
+            "bulges_m": bulges, "tangents_m": tangents, "torque_nm": torque}
 
 
 @pytest.fixture(scope="module")
