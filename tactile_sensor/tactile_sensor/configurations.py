@@ -107,9 +107,9 @@ ARRAY = Configuration(
 
 WRENCH = Configuration(
     name="wrench",
-    description="Two modules on each side face of one skin, with a graded pigment under each "
-                "window, on the bench with a stage that presses, shears, tilts and twists and a "
-                "six-component gauge: force and torque (the paper's future work).",
+    description="Two modules on each side face of one skin on the bench, with a stage that "
+                "presses, shears, tilts and twists and a six-component gauge: force and torque "
+                "(the paper's future work).",
     nodes=(
         replace(BENCH.nodes[0], config_files=("physics.yaml", "bench.yaml", "wrench.yaml")),
         replace(_MODEL, config_files=(*_MODEL.config_files, "wrench.yaml")),
