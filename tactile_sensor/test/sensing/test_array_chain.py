@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -130,15 +131,28 @@ def test_channels_follow_the_modules_and_a_short_sample_is_refused():
         chain.process(next(samples([[2.0] * 4])))
 
 
-def test_a_calibration_for_other_faces_is_refused_with_both_named():
+def test_a_calibration_for_other_modules_is_refused_with_both_named():
     chain = ArrayChain(ChainConfig(), MODULES)
-    other = linear_calibration(("front", "back", "right", "left"))
-    with pytest.raises(CalibrationError, match="is for faces front, back, right, left but the "
-                                               "driver's modules are front, back, left, right"):
+    other = ArrayCalibration(("front", "back", "left@0.002", "right@-0.002"),
+                             CAL.feature_matrix, CAL.terms, CAL.coefficients,
+                             CAL.output_scale_v, CAL.output_max_v, "test:other")
+    with pytest.raises(CalibrationError, match=re.escape(
+            "is for modules front, back, left@0.002, right@-0.002 but the driver's modules "
+            "are front, back, left, right")):
         chain.set_calibration(other)
     with pytest.raises(CalibrationError, match="modules are front, back"):
         ArrayChain(ChainConfig(), MODULES[:2], CAL)
     assert chain.calibration is None
+
+
+def test_a_calibration_in_another_module_order_is_put_in_the_channels_order():
+    chain = ArrayChain(ChainConfig(), MODULES)
+    swapped = linear_calibration(("front", "back", "right", "left"))
+    chain.set_calibration(swapped)
+    assert chain.calibration.faces == FACES
+    outputs = (0.1, 0.05, 0.02, 0.3)
+    assert chain.calibration.force(outputs) == pytest.approx(
+        swapped.force((0.1, 0.05, 0.3, 0.02)), abs=1e-12)
 
 
 def test_reconfigure_keeps_baselines_and_refuses_the_adc_settings():
@@ -185,11 +199,13 @@ def test_parse_modules():
     ("0:front,8:back", "Module '8:back' in modules has channel 8; ADC channels are 0..7."),
     ("0:front,-1:back", "Module '-1:back' in modules has channel -1; ADC channels are 0..7."),
     ("0:front,1:top", "Module '1:top' in modules has face 'top'; faces are front, back, "
-                      "left, right."),
+                      "left, right, optionally FACE@OFFSET"),
     ("0:front,0:back", "Channel 0 appears twice in modules (front and back); give each "
                        "module its own channel."),
-    ("0:front,1:front", "Face front appears twice in modules (channels 0 and 1); a face "
-                        "carries one module."),
+    ("0:front,1:front", "Module front appears twice in modules (channels 0 and 1); a "
+                        "window carries one module"),
+    ("0:front@0.001,1:front@1e-3", "Module front@0.001 appears twice in modules"),
+    ("0:front@,1:back", "Module '0:front@' in modules has face 'front@'"),
     ("2:front", "modules names one module (2:front); leave modules empty and set channel "
                 "for a single module, or name two or more."),
     ("0:front,,1:back", "Module '' in modules is not CHANNEL:FACE"),
