@@ -369,7 +369,8 @@ class ArrayCalibration:
     @classmethod
     def fit(cls, faces: Sequence[str], outputs: np.ndarray, wrench: np.ndarray, degree: int,
             source: str, noise_v: float = 0.0, torque_degree: int = TORQUE_DEGREE,
-            observed: Sequence[str] | None = None) -> ArrayCalibration:
+            observed: Sequence[str] | None = None, torque_noise_v: float | None = None
+            ) -> ArrayCalibration:
         """Least squares of each component on the monomials of the features that the
         array's mirror symmetry allows it (module docstring): forces up to ``degree``,
         torques up to ``torque_degree``.
@@ -379,6 +380,10 @@ class ArrayCalibration:
         torques from another), so each component is fitted on its own finite rows.
         ``observed`` (default: the forces, and the torques that have data) are the
         components fitted; the others read NaN.
+
+        ``torque_noise_v`` (default ``noise_v``) is the torques' own: their signal is a few
+        mV, so noise in the fit shrinks their coefficients (regression dilution: 5 mV cut a
+        synthetic torque by a fifth) where the forces' many terms need it.
 
         ``noise_v`` > 0 fits every point also as ``NOISE_COPIES`` copies with Gaussian output
         noise of that sigma [V] (fixed seed), so the fit cannot lean on terms that amplify a
@@ -393,9 +398,11 @@ class ArrayCalibration:
             raise CalibrationError(f"The polynomial degree must be >= 1, got {degree} (torque "
                                    f"{torque_degree}).")
         torque_degree = min(torque_degree, degree)
-        if not (math.isfinite(noise_v) and 0.0 <= noise_v <= 1.0):
-            raise CalibrationError(f"The fit's output noise must be in [0, 1] V, got "
-                                   f"{noise_v!r}.")
+        torque_noise_v = noise_v if torque_noise_v is None else torque_noise_v
+        for value in (noise_v, torque_noise_v):
+            if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+                raise CalibrationError(f"The fit's output noise must be in [0, 1] V, got "
+                                       f"{value!r}.")
         if outputs.ndim != 2 or outputs.shape[1] != len(faces) or wrench.ndim != 2 or \
                 wrench.shape not in ((outputs.shape[0], 3), (outputs.shape[0], 6)) or \
                 not np.all(np.isfinite(outputs)):
@@ -424,14 +431,15 @@ class ArrayCalibration:
         closed = np.array(mirror_axes(faces), int)
         probe = cls(faces, matrix, terms, np.zeros((3, len(terms))), scale,
                     outputs.max(axis=0), source)
-        if noise_v > 0:
-            rng = np.random.default_rng(0)
-            jitter = rng.normal(0.0, noise_v, (NOISE_COPIES, *outputs.shape))
-            noisy = np.concatenate([outputs, *(outputs + jitter)])
-            wrench = np.tile(wrench, (NOISE_COPIES + 1, 1))
-        else:
-            noisy = outputs
-        basis = probe._basis(noisy)
+        bases = {}
+        for sigma in {noise_v, torque_noise_v}:
+            if sigma > 0:
+                rng = np.random.default_rng(0)
+                jitter = rng.normal(0.0, sigma, (NOISE_COPIES, *outputs.shape))
+                bases[sigma] = (probe._basis(np.concatenate([outputs, *(outputs + jitter)])),
+                                np.tile(wrench, (NOISE_COPIES + 1, 1)))
+            else:
+                bases[sigma] = (probe._basis(outputs), wrench)
         exponents = np.array(terms)
         odd = exponents @ np.array(parity) % 2                    # (terms, 2): x, y parity
         total = exponents.sum(axis=1)
@@ -442,14 +450,15 @@ class ArrayCalibration:
             keep = np.all(odd * closed == np.array(COMPONENT_PARITY[name]) * closed, axis=1)
             if k >= 3:
                 keep &= total <= torque_degree
-            rows = np.isfinite(wrench[:, k])
+            basis, values = bases[noise_v if k < 3 else torque_noise_v]
+            rows = np.isfinite(values[:, k])
             if k >= 3 and counts[k] < keep.sum():
                 raise CalibrationError(f"A degree-{torque_degree} {name} fit of "
                                        f"{len(faces)} modules has {int(keep.sum())} terms "
                                        f"but only {int(counts[k])} points with torque; "
                                        "lower the torque degree or add load paths.")
             if keep.any():
-                coef[k, keep] = np.linalg.lstsq(basis[rows][:, keep], wrench[rows, k],
+                coef[k, keep] = np.linalg.lstsq(basis[rows][:, keep], values[rows, k],
                                                 rcond=None)[0]
         return cls(faces, matrix, terms, coef[:3], scale, outputs.max(axis=0), source,
                    coef[3:] if six else None, wanted)
