@@ -9,13 +9,13 @@ forces from the grid as without it, torques from the wrench paths (press, shear,
 twist, with their mirror images) and the grid's own torques (``ArrayCalibration.fit`` with
 NaN where a set lacks a component). Forces stay off the wrench paths: on a coarse 8-module
 grid (degree 2) those paths cut Fx's error under tilt from 80 to 61 mN but tripled its
-noise at 13 mV (51 to 148 mN), separating shear from tilt on small output differences. The wrench set is small,
-so the torque is a low-degree polynomial (``TORQUE_DEGREE``), fitted with the same output
-noise, and checked twice: on wrench points held out (interior load steps), and on the grid's
-held-out points, whose shear directions lie between the wrench paths' and reach larger
-shear. Fitted on the wrench set alone, the torque read 12.7 mN m rms of Tx on a tiny grid
-where the FEM said far less: the tilt's output pattern is the shear's, and the wrench set
-holds only the smallest shear level.
+noise at 13 mV (51 to 148 mN), separating shear from tilt on small output differences.
+The wrench set is small, so the torque is a low-degree polynomial (``TORQUE_DEGREE``) fitted
+with the noise it will meet, and checked twice: on wrench points held out (interior load
+steps), and on the grid's held-out points, whose shear directions lie between the wrench
+paths' and reach larger shear. Fitted on the wrench set alone, the torque read 12.7 mN m rms
+of Tx on a tiny grid where the FEM said far less: the tilt's output pattern is the shear's,
+and the wrench set holds only the smallest shear level.
 ``observed`` is what ``design_metrics.wrench_metrics`` resolves at ``observe_noise_v``, the
 module noise left at the driver's torque bandwidth.
 """

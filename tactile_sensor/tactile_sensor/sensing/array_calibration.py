@@ -420,11 +420,6 @@ class ArrayCalibration:
                                    "finite values of it; give its column or leave it out "
                                    "of observed.")
         terms = polynomial_terms(len(faces), degree)
-        force_rows = int(np.all(np.isfinite(wrench[:, :3]), axis=1).sum())
-        if force_rows < len(terms):
-            raise CalibrationError(f"A degree-{degree} fit of {len(faces)} modules has "
-                                   f"{len(terms)} terms but only {force_rows} points; "
-                                   "lower the degree or add grid points.")
         counts = np.isfinite(wrench).sum(axis=0)
         scale = float(np.abs(outputs).max()) or 1.0
         matrix, parity = symmetric_features(faces)
@@ -452,11 +447,12 @@ class ArrayCalibration:
                 keep &= total <= torque_degree
             basis, values = bases[noise_v if k < 3 else torque_noise_v]
             rows = np.isfinite(values[:, k])
-            if k >= 3 and counts[k] < keep.sum():
-                raise CalibrationError(f"A degree-{torque_degree} {name} fit of "
-                                       f"{len(faces)} modules has {int(keep.sum())} terms "
-                                       f"but only {int(counts[k])} points with torque; "
-                                       "lower the torque degree or add load paths.")
+            if counts[k] < keep.sum():
+                raise CalibrationError(
+                    f"A degree-{torque_degree if k >= 3 else degree} {name} fit of "
+                    f"{len(faces)} modules has {int(keep.sum())} terms but only "
+                    f"{int(counts[k])} points; lower the degree or add "
+                    f"{'load paths' if k >= 3 else 'grid points'}.")
             if keep.any():
                 coef[k, keep] = np.linalg.lstsq(basis[rows][:, keep], values[rows, k],
                                                 rcond=None)[0]
