@@ -25,10 +25,10 @@ SPECS = [
     ParamSpec("channel", 0, "ADC channel wired to the photoreflector", minimum=0, maximum=7),
     ParamSpec("modules", "", "module array as CHANNEL:FACE pairs, e.g. '0:front,1:back,2:left,"
               "3:right' (faces front +y, back -y, left -x, right +x), a window off the "
-              "face's centre as CHANNEL:FACE@OFFSET with the offset along the face [m] "
+              "face's centre as CHANNEL:FACE@OFFSET with the offset along the face in metres "
               "(e.g. '0:front@-0.0055,1:front@0.0055,...'): ~/wrench then carries force "
-              "x, y, z [N] and torque x, y, z [N m] from an array calibration, NaN for the "
-              "components it does not observe; empty = one module on 'channel'",
+              "x, y, z in N and torque x, y, z in N m from an array calibration, NaN for "
+              "the components it does not observe; empty = one module on 'channel'",
               check=_modules_problem),
     ParamSpec("torque_cutoff_hz", TORQUE_CUTOFF_HZ, "cutoff [Hz] of the 2nd-order "
               "Butterworth low-pass on the array's torque (after the calibration); 10 Hz "
