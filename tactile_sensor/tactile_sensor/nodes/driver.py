@@ -110,7 +110,8 @@ class DriverNode(Node):
             values = read_parameters(self, SPECS)
             modules = parse_modules(values["modules"])
             chain = build_chain(chain_config(values), modules, values["calibration_file"]
-                                if values["calibration_source"] == "file" else None)
+                                if values["calibration_source"] == "file" else None,
+                                values["torque_cutoff_hz"])
             reader = AdcStreamReader(values["port"], on_batch=self._on_batch,
                                      on_state=self._on_state, baudrate=values["baud_rate"],
                                      backlog=values["reader_backlog"],
@@ -250,20 +251,25 @@ class DriverNode(Node):
         if encoders is None:
             return
         force = reading.force_n
+        wrench = None
         if type(reading) is ArrayReading:
-            fx, fy = reading.force_x_n, reading.force_y_n
             message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v, force,
                                          reading.contact, reading.voltages_v,
                                          reading.outputs_v)
+            if force == force:  # not NaN
+                wrench = encoders[1].encode(stamp_ns, reading.force_x_n, reading.force_y_n,
+                                            force, reading.torque_x_nm, reading.torque_y_nm,
+                                            reading.torque_z_nm)
         else:
-            fx = fy = 0.0
             message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v, force,
                                          reading.contact)
+            if force == force:
+                wrench = encoders[1].encode(stamp_ns, 0.0, 0.0, force)
         if reading_pub is not None:
             reading_pub.publish(message)
             self.published_readings += 1
-        if force == force and wrench_pub is not None:  # not NaN
-            wrench_pub.publish(encoders[1].encode(stamp_ns, fx, fy, force))
+        if wrench is not None and wrench_pub is not None:
+            wrench_pub.publish(wrench)
 
     def _on_info(self, info: DeviceInfo) -> None:
         """The device said what its codes mean (before its first sample, on each connection)."""
@@ -334,8 +340,13 @@ class DriverNode(Node):
             self.get_logger().error(f"ignoring array calibration: {exc}")
             return
         self._publish_full_scale()
+        cal = chain.calibration
+        unseen = cal.unobserved_reason() if cal is not None else ""
         self.get_logger().info(f"array calibration from {chain.calibration_source} "
-                               f"({', '.join(chain.faces)})")
+                               f"({', '.join(chain.faces)}; observes "
+                               f"{', '.join(cal.observed) if cal else 'nothing'})"
+                               + (f"; NaN for {unseen}" if unseen else ""))
+        self._publish_diagnostics()
 
     def _publish_full_scale(self) -> None:
         """Latch the most force the calibration reports [N], the gripper's force ceiling."""

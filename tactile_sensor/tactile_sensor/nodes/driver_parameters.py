@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from tactile_sensor.hardware.adc_reader import DEFAULT_BACKLOG
 from tactile_sensor.nodes.parameters import ParamSpec
-from tactile_sensor.sensing.array_chain import parse_modules
+from tactile_sensor.sensing.array_chain import TORQUE_CUTOFF_HZ, parse_modules
 from tactile_sensor.sensing.errors import SensingError
 from tactile_sensor.sensing.filters import FILTERS
 
@@ -24,9 +24,17 @@ SPECS = [
               minimum=50, maximum=12_000_000),
     ParamSpec("channel", 0, "ADC channel wired to the photoreflector", minimum=0, maximum=7),
     ParamSpec("modules", "", "module array as CHANNEL:FACE pairs, e.g. '0:front,1:back,2:left,"
-              "3:right' (faces front +y, back -y, left -x, right +x): ~/wrench then carries "
-              "force x, y and z from an array calibration; empty = one module on 'channel'",
+              "3:right' (faces front +y, back -y, left -x, right +x), a window off the "
+              "face's centre as CHANNEL:FACE@OFFSET with the offset along the face in metres "
+              "(e.g. '0:front@-0.0055,1:front@0.0055,...'): ~/wrench then carries force "
+              "x, y, z in N and torque x, y, z in N m from an array calibration, NaN for "
+              "the components it does not observe; empty = one module on 'channel'",
               check=_modules_problem),
+    ParamSpec("torque_cutoff_hz", TORQUE_CUTOFF_HZ, "cutoff [Hz] of the 2nd-order "
+              "Butterworth low-pass on the array's torque (after the calibration); 10 Hz "
+              "because the torque is a small difference of module outputs and its noise "
+              "grows with the square root of this bandwidth; below half sample_rate",
+              minimum=0.0, exclusive_minimum=True, maximum=200.0),
     ParamSpec("adc_bits", 0, "ADC resolution [bit]; 0 = as the device states (protocol 2); "
               "a value the device contradicts is an error", minimum=0, maximum=16),
     ParamSpec("reference_voltage", 0.0, "ADC reference voltage [V] (full scale); 0 = as the "

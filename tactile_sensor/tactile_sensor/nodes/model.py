@@ -8,7 +8,8 @@ With ``calibration_rate_terms`` the curve carries the physics' Prony terms as it
 rate-aware model on a calibration from simulation alone.
 When the physics parameter ``modules`` names several faces, a second thread loads or
 computes the array grid and latches its fitted outputs -> (Fx, Fy, Fz) calibration on
-``array_calibration`` (docs/array.md).
+``array_calibration`` (docs/array.md), with torque columns when the layout's wrench set is
+cached (``tactile-sensor model array-calibration --wrench``).
 """
 
 from __future__ import annotations
@@ -30,10 +31,11 @@ from tactile_sensor.nodes.parameters import (
 )
 from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
 from tactile_sensor.physics.array_grid import load_or_compute_grid
-from tactile_sensor.physics.array_report import fit_grid
+from tactile_sensor.physics.array_report import fit_grid, fit_wrench
 from tactile_sensor.physics.errors import OutOfRangeError, PhysicsError
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import PredictionCurve, load_or_compute_curve
+from tactile_sensor.physics.wrench import cached_wrench_set
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.errors import SensingError
@@ -190,9 +192,12 @@ class ModelNode(Node):
                                    throttle_duration_sec=2.0)
 
         try:
-            grid = load_or_compute_grid(params, Path(cache_dir) if cache_dir else None,
-                                        progress)
-            calibration, report = fit_grid(grid, degree=ARRAY_DEGREE)
+            folder = Path(cache_dir) if cache_dir else None
+            grid = load_or_compute_grid(params, folder, progress)
+            # torque columns when 'model array-calibration --wrench' cached the wrench set
+            wrench_set = cached_wrench_set(params, folder)
+            calibration, report = fit_grid(grid, degree=ARRAY_DEGREE) if wrench_set is None \
+                else fit_wrench(grid, wrench_set, degree=ARRAY_DEGREE)
         except (PhysicsError, SensingError) as exc:
             self.get_logger().error(f"array calibration failed: {exc}")
             return
@@ -201,7 +206,9 @@ class ModelNode(Node):
         self.get_logger().info(
             f"array calibration ready: {', '.join(grid.faces)}, {report['points']} grid "
             f"points, held-out rmse x {rmse['x'] * 1e3:.1f} mN, y {rmse['y'] * 1e3:.1f} mN, "
-            f"z {rmse['z'] * 1e3:.1f} mN ({calibration.source})")
+            f"z {rmse['z'] * 1e3:.1f} mN ({calibration.source}); observes "
+            f"{', '.join(calibration.observed)}"
+            + ("" if wrench_set is not None else " (no cached wrench set: forces only)"))
         publisher = self._array_publisher
         if publisher is not None and publisher.is_activated:
             self._publish_array()

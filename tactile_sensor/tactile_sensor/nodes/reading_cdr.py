@@ -25,7 +25,7 @@ NS_PER_S = 1_000_000_000
 _STAMP = struct.Struct("<iI")  # builtin_interfaces/Time: sec, nanosec
 _UINT32 = struct.Struct("<I")
 _SCALARS = struct.Struct("<ddd?")  # voltage, output, force, contact (packed in a row)
-_VECTOR3 = struct.Struct("<ddd")
+_WRENCH = struct.Struct("<6d")  # force x, y, z, torque x, y, z
 
 
 class _Template:
@@ -100,18 +100,20 @@ class ReadingCdr:
 
 
 class WrenchCdr:
-    """geometry_msgs/WrenchStamped (force only; the torque stays zero) for one frame id."""
+    """geometry_msgs/WrenchStamped for one frame id: force and torque, six float64 in a row
+    (Vector3 force then Vector3 torque, both 8-aligned, so no padding between them)."""
 
     def __init__(self, frame_id: str) -> None:
         t = _Template()
         self._stamp_at = t.header(frame_id)
-        self._force_at = t.float64s(3)
-        t.float64s(3)  # torque
+        self._wrench_at = t.float64s(6)
         self._buffer = t.data
 
-    def encode(self, stamp_ns: int, force_x_n: float, force_y_n: float,
-               force_z_n: float) -> bytes:
+    def encode(self, stamp_ns: int, force_x_n: float, force_y_n: float, force_z_n: float,
+               torque_x_nm: float = 0.0, torque_y_nm: float = 0.0,
+               torque_z_nm: float = 0.0) -> bytes:
         buffer = self._buffer
         _STAMP.pack_into(buffer, self._stamp_at, *divmod(stamp_ns, NS_PER_S))
-        _VECTOR3.pack_into(buffer, self._force_at, force_x_n, force_y_n, force_z_n)
+        _WRENCH.pack_into(buffer, self._wrench_at, force_x_n, force_y_n, force_z_n,
+                          torque_x_nm, torque_y_nm, torque_z_nm)
         return bytes(buffer)

@@ -80,6 +80,9 @@ class ArrayGrid:
     digest: str
     seconds: float
     paths: int
+    #: (points, 3) the probe's torque on the skin [N m] (Tx, Ty, Tz); None in a grid cached
+    #: before torques were kept.
+    torque_nm: np.ndarray | None = None
 
     @property
     def faces(self) -> tuple[str, ...]:
@@ -108,6 +111,8 @@ class ArrayGrid:
                                 "seconds": self.seconds, "paths": self.paths}
         data.update({name: getattr(self, name).tolist() for name in arrays})
         data["outputs_v"] = {k: v.tolist() for k, v in self.outputs_v.items()}
+        if self.torque_nm is not None:
+            data["torque_nm"] = self.torque_nm.tolist()
         return data
 
     @classmethod
@@ -121,12 +126,19 @@ class ArrayGrid:
             ints = {name: np.asarray(data[name], int) for name in ("direction", "level",
                                                                     "step")}
             outputs = {str(k): np.asarray(v, float) for k, v in data["outputs_v"].items()}
+            torque = None if data.get("torque_nm") is None else np.asarray(
+                data["torque_nm"], float).reshape(-1, 3)
             grid = cls(**floats, **ints, outputs_v=outputs, digest=str(data["digest"]),
-                       seconds=float(data["seconds"]), paths=int(data["paths"]))
+                       seconds=float(data["seconds"]), paths=int(data["paths"]),
+                       torque_nm=torque)
         except (KeyError, TypeError, ValueError, AttributeError):
             raise PhysicsError("An array grid file is damaged; delete it or recompute with "
                                "'tactile-sensor model array-calibration'.") from None
         sizes = {a.size for a in (*floats.values(), *ints.values(), *outputs.values())}
+        if torque is not None:
+            sizes.add(torque.shape[0])
+            if not np.all(np.isfinite(torque)):
+                sizes.add(-1)
         if len(sizes) != 1 or not outputs or not all(
                 np.all(np.isfinite(a)) for a in (*floats.values(), *outputs.values())):
             raise PhysicsError("An array grid file holds arrays of different lengths or "
@@ -278,6 +290,7 @@ def compute_grid(params: PhysicsParams, progress: Progress | None = None,
     rows: dict[str, list[np.ndarray]] = {k: [] for k in (
         "indentation_m", "shear_x_m", "shear_y_m", "force_x_n", "force_y_n", "force_n",
         "direction", "level", "step")}
+    torques: list[np.ndarray] = []
     bulges: dict[str, list[np.ndarray]] = {f: [] for f in params.module_faces}
     tangents: dict[str, list[np.ndarray]] = {f: [] for f in params.module_faces}
 
@@ -293,6 +306,9 @@ def compute_grid(params: PhysicsParams, progress: Progress | None = None,
         rows["direction"].append(np.full(steps.size, direction))
         rows["level"].append(np.full(steps.size, level))
         rows["step"].append(steps)
+        m = np.eye(3)
+        m[:2, :2] = g            # torque is a pseudo-vector: it maps with det(g) too
+        torques.append(float(np.linalg.det(m)) * (np.asarray(res["torque_nm"])[steps] @ m.T))
         for face in bulges:   # face reads what the face g maps onto it read in the path
             source = face_image(g.T, face)
             bulges[face].append(res["bulges_m"][source][steps])
@@ -306,7 +322,7 @@ def compute_grid(params: PhysicsParams, progress: Progress | None = None,
                for f, b in bulges.items()}
     return ArrayGrid(**{k: np.concatenate(v) for k, v in rows.items()}, outputs_v=outputs,
                      digest=params.grid_digest(), seconds=time.perf_counter() - start,
-                     paths=len(paths))
+                     paths=len(paths), torque_nm=np.concatenate(torques))
 
 
 def grid_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:

@@ -85,6 +85,15 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--calibration", type=Path, metavar="PATH",
                    help="write the calibration file the driver loads "
                         "(format tactile_sensor/array_calibration)")
+    a.add_argument("--wrench", action="store_true",
+                   help="also solve the layout's wrench paths (press, shear, tilt about x "
+                        "and y, twist about z; cached) and fit torque columns Tx, Ty, Tz "
+                        "[N m]: a six-column calibration (version 2) whose 'observed' lists "
+                        "the components the layout resolves at --torque-noise")
+    a.add_argument("--torque-noise", type=float, default=None, metavar="V",
+                   help="module output noise [V] at the driver's torque bandwidth at which "
+                        "the observed components are decided (default the paper's 0.013 V, "
+                        "with --wrench)")
     a.add_argument("--plot", type=Path, metavar="PATH",
                    help="write a PNG: calibrated vs FEM force per axis on held-out points, "
                         "module outputs against the shear direction")
@@ -347,7 +356,7 @@ def array_calibration(args: argparse.Namespace) -> int:
     from tactile_sensor.sensing.errors import CalibrationError
 
     from .array_grid import compute_grid, load_or_compute_grid
-    from .array_report import fit_grid
+    from .array_report import OBSERVE_NOISE_V, fit_grid, fit_wrench, wrench_summary
     from .array_report import summary as array_summary
     from .array_report import write_plot as array_plot
 
@@ -357,6 +366,8 @@ def array_calibration(args: argparse.Namespace) -> int:
         _check_output(path, option)
     if args.degree < 1 or args.workers < 1:
         raise UsageError("--degree and --workers must be at least 1.")
+    if args.torque_noise is not None and not (args.wrench and 0 < args.torque_noise <= 1):
+        raise UsageError("--torque-noise needs --wrench and a noise in (0, 1] V.")
     progress = _Progress(not args.quiet)
     if args.no_cache:
         grid = compute_grid(params, progress, args.workers)
@@ -365,8 +376,15 @@ def array_calibration(args: argparse.Namespace) -> int:
         grid = load_or_compute_grid(params, args.cache_dir, progress, args.workers)
         cache = (f"miss (computed, digest {params.grid_digest()})" if progress.called else
                  f"hit (digest {params.grid_digest()})")
+    wrench_set = _wrench_set(params, args, progress) if args.wrench else None
     try:
-        calibration, report = fit_grid(grid, args.degree)
+        if wrench_set is None:
+            calibration, report = fit_grid(grid, args.degree)
+        else:
+            calibration, report = fit_wrench(grid, wrench_set, args.degree,
+                                             observe_noise_v=args.torque_noise
+                                             if args.torque_noise is not None
+                                             else OBSERVE_NOISE_V)
     except CalibrationError as err:
         raise UsageError(str(err)) from None
     report["source"] = calibration.source
@@ -387,7 +405,21 @@ def array_calibration(args: argparse.Namespace) -> int:
             raise PhysicsError(f"cannot write {path} ({err.strerror or err}); pass a "
                                "writable path.") from None
     print(array_summary(report, params, cache))
+    if wrench_set is not None:
+        print(wrench_summary(report))
     return 0
+
+
+def _wrench_set(params: Any, args: argparse.Namespace, progress: Any) -> Any:
+    """The layout's wrench set: cached, or solved now (and cached) unless --no-cache."""
+    from .wrench import cached_wrench_set, compute_wrench_set, store_wrench_set
+
+    found = None if args.no_cache else cached_wrench_set(params, args.cache_dir)
+    if found is None:
+        found = compute_wrench_set(params, progress, args.workers)
+        if not args.no_cache:
+            store_wrench_set(params, found, args.cache_dir)
+    return found
 
 
 def study(args: argparse.Namespace) -> int:

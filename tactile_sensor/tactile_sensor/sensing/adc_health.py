@@ -114,4 +114,8 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         baselines = chain.baselines_v or (None,) * len(chain.faces)
         values.update({f"baseline_v.{face}": "none" if b is None else f"{b:.4f}"
                        for face, b in zip(chain.faces, baselines, strict=True)})
+        cal = chain.calibration
+        if cal is not None:  # the components ~/wrench carries as NaN, and why
+            values["unobserved"] = cal.unobserved_reason() or "none"
+            values["torque_cutoff_hz"] = f"{chain.torque_cutoff_hz:g}"
     return Health(level, message, {k: str(v) for k, v in values.items()})

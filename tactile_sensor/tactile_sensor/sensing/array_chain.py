@@ -2,8 +2,12 @@
 
 Per sample: counts -> volts (one ``AdcConversion`` for the whole device) -> one filter per
 module (the single chain's filters and settings) -> outputs = baselines - filtered ->
-(Fx, Fy, Fz) by ``ArrayCalibration.force`` -> contact on the magnitude |F|. The parts are
-the single chain's (``sensing.chain``), one per module; only the fan-out lives here.
+the wrench (Fx, Fy, Fz, Tx, Ty, Tz) by ``ArrayCalibration`` -> contact on the magnitude
+|F|. The parts are the single chain's (``sensing.chain``), one per module; only the fan-out
+lives here. Torque goes through a low-pass of its own (``Butterworth``, ``torque_cutoff_hz``):
+it is a small difference of outputs (docs/array.md: 11.5 mV per module at full twist), so
+its noise is large next to it, and that noise grows with the square root of the bandwidth.
+A component the calibration does not observe is NaN.
 
 Tare zeroes every module at once: one decision over all the channels' windows, refused if
 any module is not at rest (naming it), so the outputs the calibration sees always share one
@@ -21,7 +25,7 @@ import threading
 from collections.abc import Sequence
 from typing import NamedTuple
 
-from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration
+from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration, parse_label
 from tactile_sensor.sensing.chain import (
     BatchLike,
     ChainConfig,
@@ -32,22 +36,32 @@ from tactile_sensor.sensing.chain import (
 )
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
-from tactile_sensor.sensing.filters import Filter, make_filter
+from tactile_sensor.sensing.filters import Butterworth, Filter, make_filter
 from tactile_sensor.sensing.rate_calibration import load_file
 from tactile_sensor.sensing.tare import TareWindow
 
 NAN = float("nan")
 MAX_CHANNEL = 7
+#: Default torque low-pass cutoff [Hz]: a grasp's torque changes over tenths of a second,
+#: and the torque's noise grows with the square root of the bandwidth.
+TORQUE_CUTOFF_HZ = 10.0
+TORQUE_ORDER = 2
 
 
 class Module(NamedTuple):
     channel: int
-    face: str
+    face: str  # the module's label: a face, or FACE@OFFSET [m] as physics spells it
+
+
+def module_label(face: str, offset: float) -> str:
+    """The canonical label (as ``physics.params.label``): FACE, or FACE@OFFSET."""
+    return face if offset == 0 else f"{face}@{offset:.6g}"
 
 
 def parse_modules(text: str) -> tuple[Module, ...]:
-    """``"0:front,1:back,..."`` -> modules in that order; ``""`` -> () (one module on
-    ``channel``, the single chain). ``SensingError`` with one sentence per mistake."""
+    """``"0:front,1:back,..."`` or ``"0:front@-0.0055,..."`` (offset along the face [m]) ->
+    modules in that order, labels canonical; ``""`` -> () (one module on ``channel``, the
+    single chain). ``SensingError`` with one sentence per mistake."""
     text = text.strip()
     if not text:
         return ()
@@ -65,18 +79,21 @@ def parse_modules(text: str) -> tuple[Module, ...]:
         if not 0 <= channel <= MAX_CHANNEL:
             raise SensingError(f"Module '{entry}' in modules has channel {channel}; ADC "
                                f"channels are 0..{MAX_CHANNEL}.")
-        if face not in FACES:
+        try:
+            face = module_label(*parse_label(face.replace(" ", "")))
+        except ValueError:
             raise SensingError(f"Module '{entry}' in modules has face '{face}'; faces are "
-                               f"{', '.join(FACES)}.")
+                               f"{', '.join(FACES)}, optionally FACE@OFFSET with the offset "
+                               "along the face in m, like front@-0.0055.") from None
         for other in modules:
             if other.channel == channel:
                 raise SensingError(f"Channel {channel} appears twice in modules "
                                    f"({other.face} and {face}); give each module its own "
                                    "channel.")
             if other.face == face:
-                raise SensingError(f"Face {face} appears twice in modules (channels "
-                                   f"{other.channel} and {channel}); a face carries one "
-                                   "module.")
+                raise SensingError(f"Module {face} appears twice in modules (channels "
+                                   f"{other.channel} and {channel}); a window carries one "
+                                   "module (tell a face's windows apart as FACE@OFFSET).")
         modules.append(Module(channel, face))
     if len(modules) < 2:
         raise SensingError(f"modules names one module ({text}); leave modules empty and set "
@@ -100,6 +117,9 @@ class ArrayReading(NamedTuple):
     force_y_n: float
     voltages_v: tuple[float, ...]  # per module, in modules order, unfiltered
     outputs_v: tuple[float, ...]  # per module: baseline - filtered voltage (NaN untared)
+    torque_x_nm: float = NAN  # low-passed; NaN where the calibration does not observe it
+    torque_y_nm: float = NAN
+    torque_z_nm: float = NAN
 
 
 class ArrayTareResult(NamedTuple):
@@ -118,7 +138,8 @@ class ArrayChain:
     """Stateful per-sample processing for several modules; the surface of ``SignalChain``."""
 
     def __init__(self, config: ChainConfig, modules: Sequence[Module],
-                 calibration: ArrayCalibration | None = None) -> None:
+                 calibration: ArrayCalibration | None = None,
+                 torque_cutoff_hz: float = TORQUE_CUTOFF_HZ) -> None:
         if len(modules) < 2:
             raise SensingError("An array chain needs two or more modules; use SignalChain "
                                "for one.")
@@ -134,6 +155,9 @@ class ArrayChain:
         self._filters = [parts.filter] + [self._new_filter() for _ in self.modules[1:]]
         self._tares = [parts.tare] + [self._new_tare() for _ in self.modules[1:]]
         self._contact = parts.contact
+        self.torque_cutoff_hz = float(torque_cutoff_hz)
+        self._torque_filters = [self._new_torque_filter() for _ in range(3)]
+        self._torque_seen = (False, False, False)
         self._calibration: ArrayCalibration | None = None
         self.set_calibration(calibration)
         self._baselines: tuple[float, ...] | None = None
@@ -144,6 +168,14 @@ class ArrayChain:
     def _new_filter(self) -> Filter:
         c = self.config
         return make_filter(c.filter_name, c.rate_hz, c.filter_params)
+
+    def _new_torque_filter(self) -> Butterworth:
+        try:
+            return Butterworth(self.config.rate_hz, TORQUE_ORDER, self.torque_cutoff_hz)
+        except (SensingError, ValueError) as exc:
+            raise SensingError(f"torque_cutoff_hz = {self.torque_cutoff_hz:g} Hz does not fit "
+                               f"the {self.config.rate_hz:g} Hz sample rate ({exc}); set it "
+                               "below half the sample rate.") from None
 
     def _new_tare(self) -> TareWindow:
         c = self.config
@@ -179,14 +211,27 @@ class ArrayChain:
         return cal.source if cal is not None else "none"
 
     def set_calibration(self, calibration: ArrayCalibration | None) -> None:
-        """Use ``calibration``; ``CalibrationError`` if its faces are not the modules'."""
-        if calibration is not None and calibration.faces != self.faces:
-            raise CalibrationError(
-                f"The array calibration {calibration.source} is for faces "
-                f"{', '.join(calibration.faces)} but the driver's modules are "
-                f"{', '.join(self.faces)}; fit one for these modules or set modules to match.")
+        """Use ``calibration`` (its modules put in the channels' order); ``CalibrationError``
+        if its modules are not the driver's."""
+        if calibration is not None:
+            try:
+                calibration = calibration.reordered(self.faces)
+            except CalibrationError:
+                raise CalibrationError(
+                    f"The array calibration {calibration.source} is for modules "
+                    f"{', '.join(calibration.faces)} but the driver's modules are "
+                    f"{', '.join(self.faces)}; fit one for these modules or set modules to "
+                    "match.") from None
+        seen = (False,) * 3 if calibration is None else tuple(
+            c in calibration.observed for c in ("tx", "ty", "tz"))
         with self._lock:
             self._calibration = calibration
+            self._torque_seen = seen
+            self._reset_torque()
+
+    def _reset_torque(self) -> None:
+        for f in self._torque_filters:
+            f.reset()
 
     def tare(self) -> ArrayTareResult:
         """Baselines of every module from the last window, all or none: ``TareError``
@@ -201,6 +246,7 @@ class ArrayChain:
                                     f"{exc}") from None
             self._baselines = tuple(r.baseline_v for r in results)
             self._contact.reset()
+            self._reset_torque()
             return ArrayTareResult(self._baselines, max(r.spread_v for r in results),
                                    results[0].samples, self.faces)
 
@@ -244,6 +290,7 @@ class ArrayChain:
     def _forget(self) -> None:
         for f in self._filters:
             f.reset()
+        self._reset_torque()
         for t in self._tares:
             t.clear()
 
@@ -292,6 +339,7 @@ class ArrayChain:
                 self._auto_tare_countdown = self._auto_tare_every
                 with contextlib.suppress(TareError):  # not all at rest yet: retry later
                     self._baselines = tuple(w.evaluate().baseline_v for w in self._tares)
+                    self._reset_torque()
         baselines = self._baselines
         if baselines is None:
             return ArrayReading(volts[0], NAN, NAN, False, False, t_us, host_ns, NAN, NAN,
@@ -299,24 +347,37 @@ class ArrayChain:
         outputs = tuple([b - f for b, f in zip(baselines, filtered)])  # noqa: B905
         cal = self._calibration
         if cal is None:
-            fx = fy = fz = NAN
+            fx = fy = fz = tx = ty = tz = NAN
             saturated = False
         else:
-            fx, fy, fz = cal.force(outputs)
+            fx, fy, fz, tx, ty, tz = cal.wrench_unchecked(outputs)
             saturated = not cal.in_range(outputs)
-        contact = self._contact.update(math.sqrt(fx * fx + fy * fy + fz * fz), t_us * 1e-6)
+            seen = self._torque_seen
+            if seen[0]:
+                tx = self._torque_filters[0].update(tx)
+            if seen[1]:
+                ty = self._torque_filters[1].update(ty)
+            if seen[2]:
+                tz = self._torque_filters[2].update(tz)
+        square = fz * fz if fz == fz else 0.0   # an unobserved axis adds nothing to |F|
+        if fx == fx:
+            square += fx * fx
+        if fy == fy:
+            square += fy * fy
+        contact = self._contact.update(math.sqrt(square), t_us * 1e-6)
         return ArrayReading(volts[0], outputs[0], fz, contact, saturated, t_us, host_ns, fx,
-                            fy, volts, outputs)
+                            fy, volts, outputs, tx, ty, tz)
 
 
 def build_chain(config: ChainConfig, modules: Sequence[Module],
-                calibration_file: str | None = None) -> SignalChain | ArrayChain:
+                calibration_file: str | None = None,
+                torque_cutoff_hz: float = TORQUE_CUTOFF_HZ) -> SignalChain | ArrayChain:
     """The chain for ``modules`` (() = one module on ``config.channel``), calibrated from
     ``calibration_file`` (a curve for one module, with rate terms when the file has them;
     an array calibration for several) or waiting for one (None)."""
     if modules:
         array_cal = None if calibration_file is None else ArrayCalibration.from_file(
             calibration_file)
-        return ArrayChain(config, modules, array_cal)
+        return ArrayChain(config, modules, array_cal, torque_cutoff_hz)
     cal = None if calibration_file is None else load_file(calibration_file)
     return SignalChain(config, cal)

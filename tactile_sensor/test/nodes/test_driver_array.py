@@ -83,6 +83,7 @@ class Listener:
         self.node = rclpy.create_node("array_listener")
         self.readings: list[TactileReading] = []
         self.wrenches: list[tuple[float, float, float]] = []
+        self.torques: list[tuple[float, float, float]] = []
         self.wrench_stamps: list[float] = []  # [s], the samples' host-clock stamps
         self.diagnostics: list[DiagnosticStatus] = []
         self.node.create_subscription(TactileReading, "/driver/reading",
@@ -98,6 +99,7 @@ class Listener:
 
     def _on_wrench(self, m: WrenchStamped) -> None:
         self.wrenches.append((m.wrench.force.x, m.wrench.force.y, m.wrench.force.z))
+        self.torques.append((m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z))
         self.wrench_stamps.append(_seconds(m.header.stamp))
 
     @staticmethod
@@ -169,7 +171,10 @@ def test_four_modules_give_the_wrench_and_every_module_in_the_reading(spawn, ros
     assert last.force == pytest.approx(HOLD_FORCE_N[2], abs=0.15)
     assert last.contact  # |F| = 4.5 N
 
+    assert np.isnan(ros.torques[-300:]).all()  # a force-only calibration: torque NaN
     status = ros.diagnostics[-1]
+    assert _value(status, "unobserved") == ("tx, ty, tz: the calibration has no torque "
+                                            "columns (force only)")
     for face, rest in zip(FACES, REST_V, strict=True):
         assert float(_value(status, f"baseline_v.{face}")) == pytest.approx(rest, abs=0.01)
 
@@ -198,14 +203,39 @@ def test_four_modules_give_the_wrench_and_every_module_in_the_reading(spawn, ros
     assert refused.reason.startswith("Parameter 'modules' is read on configure")
 
 
+def test_a_six_column_calibration_gives_low_passed_torque_and_nan_for_the_rest(spawn, ros,
+                                                                                tmp_path):
+    fit_calibration(tmp_path / "forces.json")
+    forces = ArrayCalibration.from_file(tmp_path / "forces.json")
+    torque = np.zeros((3, forces.terms.shape[0]))
+    torque[0, 1:5] = 0.05                    # Tx: linear in the features [N m]
+    six = ArrayCalibration(forces.faces, forces.feature_matrix, forces.terms,
+                           forces.coefficients, forces.output_scale_v, forces.output_max_v,
+                           "synthetic", torque, ["fx", "fy", "fz", "tx"])
+    calibration = tmp_path / "six.json"
+    six.to_file(calibration)
+    driver = start_driver(spawn, tmp_path / "adc", calibration, "-p", "torque_cutoff_hz:=5.0")
+    assert driver.wait_for_output("active", PATIENCE_S), driver.output()
+    start_mock(spawn, tmp_path / "adc")
+    assert ros.wait_for(lambda: len(ros.torques) > 2500, PATIENCE_S), driver.output()
+    hold = np.array(ros.torques[-300:])
+    assert hold[:, 0].mean() == pytest.approx(six.wrench(HOLD_OUTPUT_V)[3], abs=2e-3)
+    assert np.isnan(hold[:, 1:]).all()
+    assert ros.wait_for(lambda: _value(ros.diagnostics[-1], "unobserved") is not None,
+                        PATIENCE_S)
+    status = ros.diagnostics[-1]
+    assert _value(status, "unobserved") == "ty, tz: the layout's modules cannot observe torque"
+    assert _value(status, "torque_cutoff_hz") == "5"
+
+
 def test_a_calibration_for_other_faces_is_refused(spawn, ros_domain, tmp_path):
     calibration = tmp_path / "two.json"
     fit_calibration(calibration, ("front", "back"))
     driver = start_driver(spawn, tmp_path / "adc", calibration)
     assert driver.wait_for_output("configure transition failed", PATIENCE_S), driver.output()
     assert f"configure failed: The array calibration file:{calibration}" in driver.output()
-    assert ("is for faces front, back but the driver's modules are front, back, left, right; "
-            "fit one for these modules or set modules to match.") in driver.output()
+    assert ("is for modules front, back but the driver's modules are front, back, left, "
+            "right; fit one for these modules or set modules to match.") in driver.output()
     assert "Traceback" not in driver.output()
 
 

@@ -60,6 +60,14 @@ def test_a_wrench_decodes_to_the_message_rclpy_builds(frame_id, stamp_ns, force)
     assert len(data) == len(serialize_message(msg))
 
 
+@settings(deadline=None)
+@given(frame_id=frame_ids, stamp_ns=stamps, wrench=st.lists(floats, min_size=6, max_size=6))
+def test_a_wrench_with_torque_decodes_to_its_six_numbers(frame_id, stamp_ns, wrench):
+    msg = deserialize_message(WrenchCdr(frame_id).encode(stamp_ns, *wrench), WrenchStamped)
+    f, t = msg.wrench.force, msg.wrench.torque
+    assert all(map(same, (f.x, f.y, f.z, t.x, t.y, t.z), wrench))
+
+
 def test_the_buffer_is_reused_but_each_message_is_its_own_bytes():
     cdr = ReadingCdr("tactile_sensor")
     first = cdr.encode(1, 1.0, 0.5, 2.0, True)

@@ -64,6 +64,10 @@ def test_a_direction_filled_in_by_symmetry_equals_solving_it(tiny_grid):
     np.testing.assert_allclose(tiny_grid.shear_x_m[at], 0.0, atol=1e-15)
     np.testing.assert_allclose(tiny_grid.force_y_n[at], direct.force_y_n[1:], rtol=1e-5)
     np.testing.assert_allclose(tiny_grid.force_n[at], direct.force_n[1:], rtol=1e-5)
+    # the torque mapped as a pseudo-vector from the 0 deg path's equals the direct solve's
+    assert np.abs(direct.torque_nm[1:, 0]).max() > 1e-3
+    np.testing.assert_allclose(tiny_grid.torque_nm[at], direct.torque_nm[1:], rtol=1e-5,
+                               atol=1e-9)
     from tactile_sensor.physics.prediction import module_output
     for face in TINY.module_faces:
         np.testing.assert_allclose(tiny_grid.outputs_v[face][at],
@@ -112,6 +116,18 @@ def test_grid_round_trips_and_refuses_damage(tiny_grid):
         ArrayGrid.from_dict(bad)
     with pytest.raises(PhysicsError, match="damaged"):
         ArrayGrid.from_dict({"format": "nope"})
+
+
+def test_grid_torques_round_trip_and_an_older_grid_has_none(tiny_grid):
+    data = tiny_grid.to_dict()
+    back = ArrayGrid.from_dict(json.loads(json.dumps(data)))
+    np.testing.assert_array_equal(back.torque_nm, tiny_grid.torque_nm)
+    assert tiny_grid.torque_nm.shape == (tiny_grid.force_n.size, 3)
+    del data["torque_nm"]
+    assert ArrayGrid.from_dict(data).torque_nm is None
+    data["torque_nm"] = tiny_grid.torque_nm[:-1].tolist()
+    with pytest.raises(PhysicsError, match="different lengths"):
+        ArrayGrid.from_dict(data)
 
 
 def test_the_grid_is_cached_and_a_damaged_entry_recomputed(tiny_grid, tmp_path, monkeypatch):

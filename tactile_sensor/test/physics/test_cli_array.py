@@ -85,3 +85,35 @@ def test_array_calibration_refuses_an_output_folder_that_is_missing(capsys, tmp_
     code, _, err = run(capsys, "array-calibration", *TINY_GRID, "--calibration",
                        str(tmp_path / "no" / "cal.json"))
     assert code == 2 and "does not exist; create it first" in err
+
+
+EIGHT_GRID = [*TINY_GRID[:-2], "modules=front@-0.0055,front@0.0055,back@-0.0055,"
+              "back@0.0055,left@-0.0055,left@0.0055,right@-0.0055,right@0.0055", "--workers",
+              "1"]
+
+
+@pytest.mark.slow
+def test_array_calibration_with_wrench_writes_six_columns_and_observed(capsys, tmp_path):
+    cal_path = tmp_path / "six.json"
+    code, out, err = run(capsys, "array-calibration", *EIGHT_GRID, "--degree", "1",
+                         "--wrench", "--torque-noise", "0.001", "--calibration",
+                         str(cal_path), "--cache-dir", str(tmp_path / "cache"))
+    assert code == 0, err
+    data = json.loads(cal_path.read_text())
+    assert data["version"] == 2 and data["observed"] == ["fx", "fy", "fz", "tx", "ty", "tz"]
+    assert data["fit"]["grid_torque"] == "fem"
+    assert all(v < 10.0 for v in data["fit"]["torque_held_out_rmse_percent_of_range"].values())
+    assert "error tz" in out and "observed        fx, fy, fz, tx, ty, tz" in out
+    cal = ArrayCalibration.from_file(cal_path)
+    assert cal.has_torque and cal.faces[0] == "front@-0.0055"
+    # the cached wrench set serves the next run
+    code, out, err = run(capsys, "array-calibration", *EIGHT_GRID, "--degree", "1",
+                         "--wrench", "--cache-dir", str(tmp_path / "cache"))
+    assert code == 0 and "path 1/4" not in err
+    assert "observed        fx, fy, fz (wrench_observability at 13.0 mV" in out
+
+
+def test_torque_noise_needs_the_wrench_fit(capsys, tmp_path):
+    code, _, err = run(capsys, "array-calibration", "--torque-noise", "0.001",
+                       "--cache-dir", str(tmp_path))
+    assert code == 2 and "--torque-noise needs --wrench and a noise in (0, 1] V." in err

@@ -188,7 +188,9 @@ def test_features_are_pair_sums_and_differences_with_their_mirror_parity():
     assert parity == [(0, 0), (1, 0), (0, 0), (0, 1)]
     matrix, parity = symmetric_features(("front", "left", "right"))
     assert matrix.tolist() == [[0, 1, 1], [0, -1, 1], [1, 0, 0]]
-    assert parity == [(0, 0)] * 3            # front has no back: no mirror parity to use
+    assert parity == [(0, 0), (1, 0), (0, 0)]  # front has no back: no y parity to use
+    matrix, parity = symmetric_features(("front", "left"))
+    assert matrix.tolist() == [[1, 0], [0, 1]] and parity == [(0, 0)] * 2
 
 
 def test_a_fit_is_mirror_symmetric_even_on_noisy_data():
@@ -204,8 +206,17 @@ def test_a_fit_is_mirror_symmetric_even_on_noisy_data():
 
 def test_modules_without_their_opposite_get_the_full_polynomial():
     outputs, forces = synthetic()
+    cal = ArrayCalibration.fit(("front", "left"), outputs[:, [0, 2]], forces, 2, "")
+    assert np.count_nonzero(cal.coefficients[0]) == len(polynomial_terms(2, 2))
+
+
+def test_a_layout_symmetric_about_one_axis_keeps_that_axis_parity():
+    outputs, forces = synthetic()
     cal = ArrayCalibration.fit(("front", "left", "right"), outputs[:, 1:], forces, 2, "")
-    assert np.count_nonzero(cal.coefficients[0]) == len(polynomial_terms(3, 2))
+    mirrored = outputs[:, [1, 3, 2]]         # left <-> right, front stays
+    a, b = cal.forces(outputs[:, 1:]), cal.forces(mirrored)
+    np.testing.assert_allclose(b[:, 0], -a[:, 0], atol=1e-9)
+    np.testing.assert_allclose(b[:, 1:], a[:, 1:], atol=1e-9)
 
 
 @settings(max_examples=30, deadline=None)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -130,15 +131,28 @@ def test_channels_follow_the_modules_and_a_short_sample_is_refused():
         chain.process(next(samples([[2.0] * 4])))
 
 
-def test_a_calibration_for_other_faces_is_refused_with_both_named():
+def test_a_calibration_for_other_modules_is_refused_with_both_named():
     chain = ArrayChain(ChainConfig(), MODULES)
-    other = linear_calibration(("front", "back", "right", "left"))
-    with pytest.raises(CalibrationError, match="is for faces front, back, right, left but the "
-                                               "driver's modules are front, back, left, right"):
+    other = ArrayCalibration(("front", "back", "left@0.002", "right@-0.002"),
+                             CAL.feature_matrix, CAL.terms, CAL.coefficients,
+                             CAL.output_scale_v, CAL.output_max_v, "test:other")
+    with pytest.raises(CalibrationError, match=re.escape(
+            "is for modules front, back, left@0.002, right@-0.002 but the driver's modules "
+            "are front, back, left, right")):
         chain.set_calibration(other)
     with pytest.raises(CalibrationError, match="modules are front, back"):
         ArrayChain(ChainConfig(), MODULES[:2], CAL)
     assert chain.calibration is None
+
+
+def test_a_calibration_in_another_module_order_is_put_in_the_channels_order():
+    chain = ArrayChain(ChainConfig(), MODULES)
+    swapped = linear_calibration(("front", "back", "right", "left"))
+    chain.set_calibration(swapped)
+    assert chain.calibration.faces == FACES
+    outputs = (0.1, 0.05, 0.02, 0.3)
+    assert chain.calibration.force(outputs) == pytest.approx(
+        swapped.force((0.1, 0.05, 0.3, 0.02)), abs=1e-12)
 
 
 def test_reconfigure_keeps_baselines_and_refuses_the_adc_settings():
@@ -185,11 +199,13 @@ def test_parse_modules():
     ("0:front,8:back", "Module '8:back' in modules has channel 8; ADC channels are 0..7."),
     ("0:front,-1:back", "Module '-1:back' in modules has channel -1; ADC channels are 0..7."),
     ("0:front,1:top", "Module '1:top' in modules has face 'top'; faces are front, back, "
-                      "left, right."),
+                      "left, right, optionally FACE@OFFSET"),
     ("0:front,0:back", "Channel 0 appears twice in modules (front and back); give each "
                        "module its own channel."),
-    ("0:front,1:front", "Face front appears twice in modules (channels 0 and 1); a face "
-                        "carries one module."),
+    ("0:front,1:front", "Module front appears twice in modules (channels 0 and 1); a "
+                        "window carries one module"),
+    ("0:front@0.001,1:front@1e-3", "Module front@0.001 appears twice in modules"),
+    ("0:front@,1:back", "Module '0:front@' in modules has face 'front@'"),
     ("2:front", "modules names one module (2:front); leave modules empty and set channel "
                 "for a single module, or name two or more."),
     ("0:front,,1:back", "Module '' in modules is not CHANNEL:FACE"),
@@ -226,3 +242,72 @@ def test_a_batch_with_too_few_channels_is_refused_naming_the_top_one():
     chain = ArrayChain(ChainConfig(), MODULES, CAL)
     with pytest.raises(SensingError, match="3 channel\\(s\\) but the modules use channel 3"):
         chain.process_batch(SampleBatch.of(samples([[2.0, 2.0, 2.0]] * 2, channels=3)))
+
+
+def torque_calibration(observed=("fx", "fy", "fz", "tx")) -> ArrayCalibration:
+    """CAL with a torque column by hand: Tx = 0.1 N m per scaled front - back feature."""
+    torque = np.zeros((3, CAL.terms.shape[0]))
+    torque[0, CAL.terms.tolist().index([0, 0, 0, 1])] = 0.1
+    return ArrayCalibration(CAL.faces, CAL.feature_matrix, CAL.terms, CAL.coefficients,
+                            CAL.output_scale_v, CAL.output_max_v, "test:torque", torque,
+                            observed)
+
+
+def step_rise_s(cutoff_hz: float) -> tuple[float, float, float]:
+    """(10-90 % rise time [s] of Tx after a step in the front output, its final value, the
+    calibration's Tx of the final outputs)."""
+    cal = torque_calibration()
+    chain = ArrayChain(ChainConfig(filter_name="none"), MODULES, cal, cutoff_hz)
+    run(chain, [[2.0] * 4] * 600)
+    after = run(chain, [[1.9, 2.0, 2.0, 2.0]] * 400, start=600)
+    tx = np.array([r.torque_x_nm for r in after])
+    final = cal.wrench(after[-1].outputs_v)[3]
+    t10, t90 = (int(np.argmax(tx >= q * final)) for q in (0.1, 0.9))
+    return (t90 - t10) * 1e-3, float(tx[-1]), final
+
+
+def test_a_torque_step_rises_in_the_cutoffs_time_and_settles_on_the_calibration():
+    rise_10, last_10, final = step_rise_s(10.0)
+    rise_20, last_20, _ = step_rise_s(20.0)
+    assert final > 0.01
+    assert last_10 == pytest.approx(final, rel=1e-3) and last_20 == pytest.approx(final, rel=1e-3)
+    assert rise_10 / rise_20 == pytest.approx(2.0, rel=0.1)        # time scales as 1 / cutoff
+    assert rise_10 == pytest.approx(0.34 / 10.0, rel=0.25)        # 2nd-order: ~0.34 / f_c
+
+
+def test_torque_noise_falls_with_the_square_root_of_the_cutoff():
+    rng = np.random.default_rng(4)
+    rows = 2.0 + rng.normal(0.0, 0.05, (3000, 4))
+    spread = {}
+    for cutoff in (5.0, 40.0):
+        chain = ArrayChain(ChainConfig(filter_name="none", tare_max_spread_v=1.0), MODULES,
+                           torque_calibration(), cutoff)
+        run(chain, [[2.0] * 4] * 600)
+        chain.tare()
+        tx = [r.torque_x_nm for r in run(chain, rows, start=600)][200:]
+        spread[cutoff] = float(np.std(tx))
+    assert spread[40.0] / spread[5.0] == pytest.approx(math.sqrt(8.0), rel=0.25)
+
+
+def test_unobserved_components_are_nan_and_a_force_only_calibration_has_no_torque():
+    chain = ArrayChain(ChainConfig(), MODULES, torque_calibration(("fx", "fz", "tx")))
+    last = run(chain, [[2.0] * 4] * 650)[-1]
+    assert math.isnan(last.force_y_n) and math.isnan(last.torque_y_nm)
+    assert math.isnan(last.torque_z_nm) and not math.isnan(last.torque_x_nm)
+    assert not math.isnan(last.force_x_n) and not math.isnan(last.force_n)
+    chain.set_calibration(CAL)                                  # forces only
+    last = run(chain, [[2.0] * 4] * 5, start=650)[-1]
+    assert all(math.isnan(t) for t in (last.torque_x_nm, last.torque_y_nm, last.torque_z_nm))
+    assert last.force_n == pytest.approx(0.0, abs=0.02)
+
+
+def test_a_torque_cutoff_beyond_half_the_rate_is_one_sentence():
+    with pytest.raises(SensingError, match="torque_cutoff_hz = 600 Hz does not fit the 1000 "
+                                           "Hz sample rate") as info:
+        ArrayChain(ChainConfig(), MODULES, CAL, 600.0)
+    assert str(info.value).endswith("below half the sample rate.")
+
+
+def test_modules_at_offsets_parse_to_canonical_labels():
+    assert parse_modules("0:front@-5.5e-3, 1:front@0.0055,2:back@0") == (
+        Module(0, "front@-0.0055"), Module(1, "front@0.0055"), Module(2, "back"))
