@@ -432,8 +432,9 @@ def write_metrics_plot(rows: list[DesignRow], spec: StudySpec, path: Path) -> No
     fig, axes = plt.subplots(len(metrics), len(params), squeeze=False,
                              figsize=(3.2 * len(params) + 1, 2.4 * len(metrics) + 0.6),
                              constrained_layout=True)
-    ok = [r for r in rows if r.ok]
     for j, param in enumerate(params):
+        # a varied board is no physics parameter: the paper's design has none
+        ok = [r for r in rows if r.ok and param in r.values]
         raw = [r.values[param] for r in ok]
         numeric = _numeric(raw)
         cats = sorted({str(v) for v in raw})

@@ -16,10 +16,16 @@ from hypothesis import strategies as st
 from tactile_sensor.physics import cli
 from tactile_sensor.physics.batch import BatchError
 from tactile_sensor.physics.loopback_cluster import loopback_cluster as start_loopback_cluster
+from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.pareto import pareto_mask
 from tactile_sensor.physics.study import run_study
 from tactile_sensor.physics.study_report import write_results
-from tactile_sensor.physics.study_spec import StudySpecError, load_spec, parse_spec
+from tactile_sensor.physics.study_spec import (
+    StudySpecError,
+    board_refusal,
+    load_spec,
+    parse_spec,
+)
 
 SOURCE = Path(__file__).resolve().parents[2]          # tactile_sensor/ (the package's parent)
 STUDIES = SOURCE / "config" / "studies"
@@ -118,6 +124,22 @@ def test_bad_files_are_one_sentence(tmp_path):
 def test_the_shipped_studies_parse_and_stay_modest(path):
     spec = load_spec(path)
     assert 2 <= len(spec.designs()) <= 12
+
+
+def test_the_wide_wrench_study_fits_every_window_and_refuses_one_layout_for_its_board():
+    spec = load_spec(STUDIES / "wrench_layout_wide.yaml")
+    refusals = {}
+    for i, design in enumerate(spec.designs()):
+        physical = {k: v for k, v in design.items() if k != "board"}
+        params = PhysicsParams.from_mapping({**spec.fixed, **physical})  # windows fit
+        assert params.width == params.depth       # square: the x = y symmetry holds
+        refusal = board_refusal(design["board"], params)
+        if refusal:
+            refusals[i] = refusal
+    assert list(refusals) == [6]
+    assert refusals[6] == ("The layout needs 12 modules but board 'nano' has 8 analog "
+                           "channels; use fewer modules or a board with at least 12.")
+    assert spec.bandwidth_hz == 10 and spec.objectives["noise_tz_pct_fs_10hz"] == "min"
 
 
 # -- Pareto --------------------------------------------------------------------------------

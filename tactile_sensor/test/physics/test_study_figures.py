@@ -128,3 +128,21 @@ def test_the_metrics_title_fits_a_two_parameter_study(tmp_path, drawn):
     write_metrics_plot(window_rows(), spec, tmp_path / "metrics.png")
     (fig,) = drawn
     assert inside(fig, fig._suptitle)
+
+
+def test_the_metrics_plot_draws_a_varied_board_the_paper_design_lacks(tmp_path, drawn):
+    spec = load_spec(STUDIES / "wrench_layout_wide.yaml")
+    rows = [DesignRow("paper", {name: 0.022 for name in ("window_width", "width", "depth",
+                                                         "height")} | {"modules": "front"},
+                      "x", {"observed_torques": 0.0, "noise_tz_pct_fs_10hz": 50.0,
+                            "noise_tx_pct_fs_10hz": 50.0})]
+    for k, design in enumerate(spec.designs()[:3]):
+        rows.append(DesignRow(str(k), design, "x", {"observed_torques": 3.0,
+                                                     "noise_tz_pct_fs_10hz": 18.0 - k,
+                                                     "noise_tx_pct_fs_10hz": 19.0 - k}))
+    write_metrics_plot(rows, spec, tmp_path / "metrics.png")
+    (fig,) = drawn
+    board_axes = [ax for ax in fig.axes if ax.get_xlabel() == "board"]
+    assert board_axes
+    assert all(t.get_text() == "nano" for t in board_axes[0].get_xticklabels()
+               if t.get_text())
