@@ -24,6 +24,12 @@ def to_msg(calibration: ArrayCalibration) -> ArrayCalibrationMsg:
         if calibration.has_torque else [],
         torque_z=[float(v) for v in calibration.torque_coefficients[2]]
         if calibration.has_torque else [],
+        force_slow_x=[float(v) for v in calibration.slow_coefficients[0]]
+        if calibration.has_slow else [],
+        force_slow_y=[float(v) for v in calibration.slow_coefficients[1]]
+        if calibration.has_slow else [],
+        force_slow_z=[float(v) for v in calibration.slow_coefficients[2]]
+        if calibration.has_slow else [],
         observed=list(calibration.observed),
         output_scale_v=float(calibration.output_scale_v),
         output_max_v=[float(v) for v in calibration.output_max_v],
@@ -33,15 +39,17 @@ def to_msg(calibration: ArrayCalibration) -> ArrayCalibrationMsg:
 def from_msg(msg: ArrayCalibrationMsg) -> ArrayCalibration:
     """The calibration; ``CalibrationError`` (one sentence) when the message is malformed.
     Empty torque arrays and ``observed`` read as a force-only calibration (older
-    publishers)."""
+    publishers); empty slow-force arrays as none."""
     faces = list(msg.faces)
     m = len(faces)
     matrix = np.asarray(msg.feature_matrix, dtype=float)
     terms = np.asarray(list(msg.terms), dtype=int)
     torque = [list(msg.torque_x), list(msg.torque_y), list(msg.torque_z)]
+    slow = [list(msg.force_slow_x), list(msg.force_slow_y), list(msg.force_slow_z)]
     return ArrayCalibration(
         faces, matrix.reshape(m, -1) if m and matrix.size % m == 0 else matrix,
         terms.reshape(-1, m) if m and terms.size % m == 0 else terms,
         [list(msg.force_x), list(msg.force_y), list(msg.force_z)], msg.output_scale_v,
         list(msg.output_max_v), msg.source or "model",
-        torque if any(torque) else None, list(msg.observed) or None)
+        torque if any(torque) else None, list(msg.observed) or None,
+        slow if any(slow) else None)

@@ -8,8 +8,8 @@ With ``calibration_rate_terms`` the curve carries the physics' Prony terms as it
 rate-aware model on a calibration from simulation alone.
 When the physics parameter ``modules`` names several faces, a second thread loads or
 computes the array grid and latches its fitted outputs -> (Fx, Fy, Fz) calibration on
-``array_calibration`` (docs/array.md), with torque columns when the layout's wrench set is
-cached (``tactile-sensor model array-calibration --wrench``).
+``array_calibration`` (docs/array.md), with torque columns when the layout has windows off
+their faces' centres (the wrench set is computed and cached like the grid).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from tactile_sensor.physics.array_report import fit_grid, fit_wrench
 from tactile_sensor.physics.errors import OutOfRangeError, PhysicsError
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import PredictionCurve, load_or_compute_curve
-from tactile_sensor.physics.wrench import cached_wrench_set
+from tactile_sensor.physics.wrench import load_or_compute_wrench_set, off_centre
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.errors import SensingError
@@ -194,8 +194,10 @@ class ModelNode(Node):
         try:
             folder = Path(cache_dir) if cache_dir else None
             grid = load_or_compute_grid(params, folder, progress)
-            # torque columns when 'model array-calibration --wrench' cached the wrench set
-            wrench_set = cached_wrench_set(params, folder)
+            # torque columns for a layout with off-centre windows (centred ones cannot
+            # observe a torque)
+            wrench_set = load_or_compute_wrench_set(params, folder, progress) \
+                if off_centre(params) else None
             calibration, report = fit_grid(grid, degree=ARRAY_DEGREE) if wrench_set is None \
                 else fit_wrench(grid, wrench_set, degree=ARRAY_DEGREE)
         except (PhysicsError, SensingError) as exc:
@@ -208,7 +210,8 @@ class ModelNode(Node):
             f"points, held-out rmse x {rmse['x'] * 1e3:.1f} mN, y {rmse['y'] * 1e3:.1f} mN, "
             f"z {rmse['z'] * 1e3:.1f} mN ({calibration.source}); observes "
             f"{', '.join(calibration.observed)}"
-            + ("" if wrench_set is not None else " (no cached wrench set: forces only)"))
+            + ("" if wrench_set is not None else
+               " (centred windows cannot observe a torque: forces only)"))
         publisher = self._array_publisher
         if publisher is not None and publisher.is_activated:
             self._publish_array()

@@ -333,10 +333,12 @@ def grid_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Pat
 
 
 def cached_grid(params: PhysicsParams, cache_dir: Path | None = None) -> ArrayGrid | None:
-    """The cached grid for ``params``, or None (missing or damaged: recompute it)."""
+    """The cached grid for ``params``, or None (missing or damaged, or written before grids
+    kept the probe's torque, which a six-column fit needs: recompute it)."""
     from .prediction import read_cache
 
-    return read_cache(grid_cache_path(params, cache_dir), ArrayGrid.from_dict)
+    grid = read_cache(grid_cache_path(params, cache_dir), ArrayGrid.from_dict)
+    return None if grid is None or grid.torque_nm is None else grid
 
 
 def store_grid(params: PhysicsParams, grid: ArrayGrid, cache_dir: Path | None = None) -> None:

@@ -412,14 +412,11 @@ def array_calibration(args: argparse.Namespace) -> int:
 
 def _wrench_set(params: Any, args: argparse.Namespace, progress: Any) -> Any:
     """The layout's wrench set: cached, or solved now (and cached) unless --no-cache."""
-    from .wrench import cached_wrench_set, compute_wrench_set, store_wrench_set
+    from .wrench import compute_wrench_set, load_or_compute_wrench_set
 
-    found = None if args.no_cache else cached_wrench_set(params, args.cache_dir)
-    if found is None:
-        found = compute_wrench_set(params, progress, args.workers)
-        if not args.no_cache:
-            store_wrench_set(params, found, args.cache_dir)
-    return found
+    if args.no_cache:
+        return compute_wrench_set(params, progress, args.workers)
+    return load_or_compute_wrench_set(params, args.cache_dir, progress, args.workers)
 
 
 def study(args: argparse.Namespace) -> int:

@@ -171,3 +171,23 @@ def store_wrench_set(params: PhysicsParams, data: WrenchSet,
     from .prediction import write_cache
 
     write_cache(wrench_cache_path(params, cache_dir), data.to_dict())
+
+
+def load_or_compute_wrench_set(params: PhysicsParams, cache_dir: Path | None = None,
+                               progress: Any = None, workers: int = 1) -> WrenchSet:
+    """The cached wrench set for ``params``, or solved now and cached."""
+    data = cached_wrench_set(params, cache_dir)
+    if data is None:
+        if progress is not None:
+            progress(0.0, "solving the wrench paths (cache miss: "
+                     f"{wrench_cache_path(params, cache_dir).name})")
+        data = compute_wrench_set(params, progress, workers)
+        store_wrench_set(params, data, cache_dir)
+    return data
+
+
+def off_centre(params: PhysicsParams) -> bool:
+    """Whether any module's window sits off its face's centre: centred windows cannot tell
+    a torque from a force (docs/array.md, the symmetry argument), so only such a layout is
+    worth its wrench paths."""
+    return any(offset != 0.0 for _, offset in params.module_windows)

@@ -26,9 +26,17 @@ File (JSON), version 2: ``{"format": "tactile_sensor/array_calibration", "versio
 "faces": [...], "feature_matrix": [[...], ...], "degree": d, "output_scale_v": s, "terms":
 [[e_1, ..., e_m], ...], "force_x_n": [...], "force_y_n": [...], "force_z_n": [...],
 "torque_x_nm": [...], "torque_y_nm": [...], "torque_z_nm": [...], "observed": ["fx", ...],
+"force_slow_x_n": [...], "force_slow_y_n": [...], "force_slow_z_n": [...],
 "output_max_v": [...], "source": "...", "fit": {...}}``: with z = feature_matrix @ (o / s),
 component_k = sum_t coef_k[t] prod_j z_j ** terms[t][j]. Version 1 (forces only, no
 ``torque_*`` nor ``observed``) still loads, observing fx, fy, fz.
+
+The force's slow part (``force_slow_*``, optional, with the torques): the force a tilt or a
+twist adds, which the press-and-shear grid that fits the forces never saw. A tilt about y
+pushes the skin along x as a shear does, and only the torque's few millivolts tell the two
+apart, so this part is fitted like the torques (their degree, their noise) on what the
+force polynomial leaves of the wrench paths' forces; a driver low-passes it with the torques
+and adds it to the force. ``wrench``/``wrenches`` return the static sum.
 """
 
 from __future__ import annotations
@@ -51,6 +59,7 @@ READ_VERSIONS = (1, 2)
 FACES = ("front", "back", "left", "right")
 AXES = ("force_x_n", "force_y_n", "force_z_n")
 TORQUE_AXES = ("torque_x_nm", "torque_y_nm", "torque_z_nm")
+SLOW_AXES = ("force_slow_x_n", "force_slow_y_n", "force_slow_z_n")
 #: Wrench components in column order: forces [N], torques [N m] (as physics' WRENCH_AXES).
 COMPONENTS = ("fx", "fy", "fz", "tx", "ty", "tz")
 FORCES_ONLY = COMPONENTS[:3]
@@ -193,7 +202,8 @@ class ArrayCalibration:
                  terms: Sequence[Sequence[int]], coefficients: Sequence[Sequence[float]],
                  output_scale_v: float, output_max_v: Sequence[float], source: str,
                  torque_coefficients: Sequence[Sequence[float]] | None = None,
-                 observed: Sequence[str] | None = None) -> None:
+                 observed: Sequence[str] | None = None,
+                 slow_coefficients: Sequence[Sequence[float]] | None = None) -> None:
         where = source or "the array calibration"
         self.faces = tuple(str(f) for f in faces)
         try:
@@ -210,6 +220,8 @@ class ArrayCalibration:
             rows = [np.asarray(c, dtype=float).ravel() for c in coefficients]
             torque_rows = None if torque_coefficients is None else [
                 np.asarray(c, dtype=float).ravel() for c in torque_coefficients]
+            slow_rows = None if slow_coefficients is None else [
+                np.asarray(c, dtype=float).ravel() for c in slow_coefficients]
             self.output_max_v = np.asarray(output_max_v, dtype=float)
             scale = float(output_scale_v)
         except (TypeError, ValueError):
@@ -224,9 +236,17 @@ class ArrayCalibration:
             raise CalibrationError(f"{where}: the torque columns need one coefficient per "
                                    f"term ({self.terms.shape[0]}) for each of x, y and z; "
                                    "refit it.")
+        if slow_rows is not None and (torque_rows is None or len(slow_rows) != 3 or any(
+                r.size != self.terms.shape[0] for r in slow_rows)):
+            raise CalibrationError(f"{where}: the force's slow part needs the torque columns "
+                                   f"and one coefficient per term ({self.terms.shape[0]}) for "
+                                   "each of x, y and z; refit it.")
         self.has_torque = torque_rows is not None
+        self.has_slow = slow_rows is not None
         self.coefficients = np.stack(rows)
         self.torque_coefficients = np.stack(torque_rows) if torque_rows is not None else \
+            np.zeros_like(self.coefficients)
+        self.slow_coefficients = np.stack(slow_rows) if slow_rows is not None else \
             np.zeros_like(self.coefficients)
         wanted = FORCES_ONLY if observed is None else tuple(str(c) for c in observed)
         if not wanted or len(set(wanted)) != len(wanted) or any(
@@ -245,6 +265,7 @@ class ArrayCalibration:
         if np.any(self.terms < 0) or not (math.isfinite(scale) and scale > 0) or not np.all(
                 np.isfinite(self.coefficients)) or not np.all(
                 np.isfinite(self.torque_coefficients)) or not np.all(
+                np.isfinite(self.slow_coefficients)) or not np.all(
                 np.isfinite(self.output_max_v)):
             raise CalibrationError(f"{where}: exponents must be >= 0, the output scale > 0 "
                                    "and every number finite; refit it.")
@@ -253,7 +274,13 @@ class ArrayCalibration:
         self._seen = np.array([c in self.observed for c in COMPONENTS])
         self._wrench_one = _compile_wrench(
             self.feature_matrix / scale, self.terms,
-            np.concatenate([self.coefficients, self.torque_coefficients]), self._seen)
+            np.concatenate([self.coefficients + self.slow_coefficients,
+                            self.torque_coefficients]), self._seen)
+        self._parts_one = _compile_wrench(
+            self.feature_matrix / scale, self.terms,
+            np.concatenate([self.coefficients, self.torque_coefficients,
+                            self.slow_coefficients]), np.concatenate([self._seen,
+                                                                      self._seen[:3]]))
         self._limits = tuple(float(v) * 1.05 for v in self.output_max_v)
 
     @property
@@ -306,7 +333,7 @@ class ArrayCalibration:
     def wrenches(self, outputs: np.ndarray) -> np.ndarray:
         """(n, 6) wrenches [N, N m] for (n, modules) outputs [V]; NaN where unobserved."""
         out = self._basis(self._checked(outputs)) @ np.concatenate(
-            [self.coefficients, self.torque_coefficients]).T
+            [self.coefficients + self.slow_coefficients, self.torque_coefficients]).T
         out[:, ~self._seen] = math.nan
         return out
 
@@ -339,6 +366,12 @@ class ArrayCalibration:
         path, without the checks' list."""
         return self._wrench_one(*outputs)
 
+    def wrench_parts_unchecked(self, outputs: Sequence[float]) -> tuple[float, ...]:
+        """(Fx, Fy, Fz, Tx, Ty, Tz, slow Fx, slow Fy, slow Fz) of one reading in ``faces``
+        order, the force without its slow part: a driver low-passes the last six and adds
+        the slow part to the force (module docstring)."""
+        return self._parts_one(*outputs)
+
     def in_range(self, outputs: Sequence[float], margin: float = 0.05) -> bool:
         """Whether no output exceeds the fitted range by more than ``margin`` of it."""
         if margin == 0.05:  # the driver's call, once per sample: no numpy round trip
@@ -360,17 +393,19 @@ class ArrayCalibration:
             return self
         order = [have.index(k) for k in want]
         torque = self.torque_coefficients if self.has_torque else None
+        slow = self.slow_coefficients if self.has_slow else None
         return ArrayCalibration(tuple(faces), self.feature_matrix[:, order], self.terms,
                                 self.coefficients, self.output_scale_v,
-                                self.output_max_v[order], self.source, torque, self.observed)
+                                self.output_max_v[order], self.source, torque, self.observed,
+                                slow)
 
     # -- fitting -----------------------------------------------------------------------------
 
     @classmethod
     def fit(cls, faces: Sequence[str], outputs: np.ndarray, wrench: np.ndarray, degree: int,
             source: str, noise_v: float = 0.0, torque_degree: int = TORQUE_DEGREE,
-            observed: Sequence[str] | None = None, torque_noise_v: float | None = None
-            ) -> ArrayCalibration:
+            observed: Sequence[str] | None = None, torque_noise_v: float | None = None,
+            slow_forces: np.ndarray | None = None) -> ArrayCalibration:
         """Least squares of each component on the monomials of the features that the
         array's mirror symmetry allows it (module docstring): forces up to ``degree``,
         torques up to ``torque_degree``.
@@ -384,6 +419,10 @@ class ArrayCalibration:
         ``torque_noise_v`` (default ``noise_v``) is the torques' own: their signal is a few
         mV, so noise in the fit shrinks their coefficients (regression dilution: 5 mV cut a
         synthetic torque by a fifth) where the forces' many terms need it.
+
+        ``slow_forces`` (points, 3), with the torques: every point's force, also where
+        ``wrench`` leaves it NaN (the wrench paths'); the force's slow part is fitted, like
+        the torques, on what the force polynomial leaves of it (module docstring).
 
         ``noise_v`` > 0 fits every point also as ``NOISE_COPIES`` copies with Gaussian output
         noise of that sigma [V] (fixed seed), so the fit cannot lean on terms that amplify a
@@ -456,8 +495,25 @@ class ArrayCalibration:
             if keep.any():
                 coef[k, keep] = np.linalg.lstsq(basis[rows][:, keep], values[rows, k],
                                                 rcond=None)[0]
+        slow = None
+        if slow_forces is not None and six:
+            slow_forces = np.asarray(slow_forces, dtype=float)
+            if slow_forces.shape != (outputs.shape[0], 3):
+                raise CalibrationError("The slow forces need one (Fx, Fy, Fz) row per point.")
+            left = slow_forces - probe._basis(outputs) @ coef[:3].T
+            basis, _ = bases[torque_noise_v]
+            copies = basis.shape[0] // outputs.shape[0]
+            values = np.tile(left, (copies, 1))
+            slow = np.zeros((3, len(terms)))
+            for k, name in enumerate(COMPONENTS[:3]):
+                rows = np.isfinite(values[:, k])
+                keep = np.all(odd * closed == np.array(COMPONENT_PARITY[name]) * closed,
+                              axis=1) & (total <= torque_degree)
+                if name in wanted and keep.any() and rows.sum() >= keep.sum():
+                    slow[k, keep] = np.linalg.lstsq(basis[rows][:, keep], values[rows, k],
+                                                    rcond=None)[0]
         return cls(faces, matrix, terms, coef[:3], scale, outputs.max(axis=0), source,
-                   coef[3:] if six else None, wanted)
+                   coef[3:] if six else None, wanted, slow)
 
     # -- files -------------------------------------------------------------------------------
 
@@ -475,6 +531,9 @@ class ArrayCalibration:
         if self.has_torque:
             data.update({axis: self.torque_coefficients[k].tolist()
                          for k, axis in enumerate(TORQUE_AXES)})
+        if self.has_slow:
+            data.update({axis: self.slow_coefficients[k].tolist()
+                         for k, axis in enumerate(SLOW_AXES)})
         if fit is not None:
             data["fit"] = dict(fit)
         return data
@@ -500,6 +559,9 @@ class ArrayCalibration:
         torque = [k for k in TORQUE_AXES if k in data]
         if torque and len(torque) != 3:
             missing += [k for k in TORQUE_AXES if k not in data]
+        slow = [k for k in SLOW_AXES if k in data]
+        if slow and len(slow) != 3:
+            missing += [k for k in SLOW_AXES if k not in data]
         if missing:
             raise CalibrationError(f"{source}: missing {', '.join(missing)}; refit it.")
         if not isinstance(data["faces"], list):
@@ -510,7 +572,8 @@ class ArrayCalibration:
                                    f"out of {', '.join(COMPONENTS)}.")
         return cls(data["faces"], data["feature_matrix"], data["terms"],
                    [data[a] for a in AXES], data["output_scale_v"], data["output_max_v"],
-                   source, [data[a] for a in TORQUE_AXES] if torque else None, observed)
+                   source, [data[a] for a in TORQUE_AXES] if torque else None, observed,
+                   [data[a] for a in SLOW_AXES] if slow else None)
 
     @classmethod
     def from_file(cls, path: Path | str) -> ArrayCalibration:

@@ -158,6 +158,9 @@ class ArrayChain:
         self.torque_cutoff_hz = float(torque_cutoff_hz)
         self._torque_filters = [self._new_torque_filter() for _ in range(3)]
         self._torque_seen = (False, False, False)
+        # the force's slow part (tilt, twist), low-passed like the torques
+        self._slow_filters = [self._new_torque_filter() for _ in range(3)]
+        self._slow = False
         self._calibration: ArrayCalibration | None = None
         self.set_calibration(calibration)
         self._baselines: tuple[float, ...] | None = None
@@ -227,10 +230,11 @@ class ArrayChain:
         with self._lock:
             self._calibration = calibration
             self._torque_seen = seen
+            self._slow = calibration is not None and calibration.has_slow
             self._reset_torque()
 
     def _reset_torque(self) -> None:
-        for f in self._torque_filters:
+        for f in (*self._torque_filters, *self._slow_filters):
             f.reset()
 
     def tare(self) -> ArrayTareResult:
@@ -350,7 +354,14 @@ class ArrayChain:
             fx = fy = fz = tx = ty = tz = NAN
             saturated = False
         else:
-            fx, fy, fz, tx, ty, tz = cal.wrench_unchecked(outputs)
+            if self._slow:
+                fx, fy, fz, tx, ty, tz, sx, sy, sz = cal.wrench_parts_unchecked(outputs)
+                slow = self._slow_filters
+                fx += slow[0].update(sx)
+                fy += slow[1].update(sy)
+                fz += slow[2].update(sz)
+            else:
+                fx, fy, fz, tx, ty, tz = cal.wrench_unchecked(outputs)
             saturated = not cal.in_range(outputs)
             seen = self._torque_seen
             if seen[0]:

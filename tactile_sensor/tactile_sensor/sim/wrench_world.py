@@ -182,20 +182,13 @@ class WrenchSkin:
         set, each computed (and cached) first when missing."""
         try:
             from tactile_sensor.physics.errors import PhysicsError
-            from tactile_sensor.physics.wrench import (
-                cached_wrench_set,
-                compute_wrench_set,
-                store_wrench_set,
-            )
+            from tactile_sensor.physics.wrench import load_or_compute_wrench_set
         except ImportError as exc:
             raise SimError(f"The physics model is not available ({exc}); install the "
                            "complete tactile_sensor package.") from None
         skin = ArraySkin.from_params(params, cache_dir, progress, workers)
         try:
-            data = cached_wrench_set(params, cache_dir)
-            if data is None:
-                data = compute_wrench_set(params, progress, workers)
-                store_wrench_set(params, data, cache_dir)
+            data = load_or_compute_wrench_set(params, cache_dir, progress, workers)
         except PhysicsError as exc:
             raise SimError(f"The wrench set failed ({exc}).") from None
         return cls(skin, wrench_points(params, data), params.width / 2, params.depth / 2,

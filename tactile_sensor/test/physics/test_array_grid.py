@@ -148,6 +148,12 @@ def test_the_grid_is_cached_and_a_damaged_entry_recomputed(tiny_grid, tmp_path, 
     assert calls == [1, 2]
     load_or_compute_grid(TINY.replace(array_shear_ratio=0.5), tmp_path)
     assert len(calls) == 3
+    # a grid cached before grids kept the probe's torque is computed again
+    data = json.loads(entry.read_text())
+    del data["torque_nm"]
+    entry.write_text(json.dumps(data))
+    load_or_compute_grid(TINY, tmp_path)
+    assert len(calls) == 4
 
 
 @pytest.mark.slow

@@ -311,3 +311,28 @@ def test_a_torque_cutoff_beyond_half_the_rate_is_one_sentence():
 def test_modules_at_offsets_parse_to_canonical_labels():
     assert parse_modules("0:front@-5.5e-3, 1:front@0.0055,2:back@0") == (
         Module(0, "front@-0.0055"), Module(1, "front@0.0055"), Module(2, "back"))
+
+
+def test_the_forces_slow_part_is_low_passed_with_the_torque_and_added_to_the_force():
+    """A slow Fy of 0.5 N per scaled front - back feature: the force steps at once by its
+    fast part, the slow part follows in the torque's rise time, and the sum settles on the
+    calibration's static wrench."""
+    slow = np.zeros((3, CAL.terms.shape[0]))
+    slow[1, CAL.terms.tolist().index([0, 0, 0, 1])] = 0.5
+    base = torque_calibration(("fx", "fy", "fz", "tx"))
+    cal = ArrayCalibration(base.faces, base.feature_matrix, base.terms, base.coefficients,
+                           base.output_scale_v, base.output_max_v, "test:slow",
+                           base.torque_coefficients, base.observed, slow)
+    assert cal.has_slow
+    chain = ArrayChain(ChainConfig(filter_name="none"), MODULES, cal, 10.0)
+    run(chain, [[2.0] * 4] * 600)
+    after = run(chain, [[1.9, 2.0, 2.0, 2.0]] * 400, start=600)
+    fast = base.wrench(after[-1].outputs_v)[1]
+    total = cal.wrench(after[-1].outputs_v)[1]
+    assert abs(total - fast) > 0.01                            # the slow part is there
+    fy = np.array([r.force_y_n for r in after])
+    assert fy[0] == pytest.approx(fast, abs=0.2 * abs(total - fast))   # not yet added
+    assert fy[-1] == pytest.approx(total, rel=1e-3)
+    parts = cal.wrench_parts_unchecked(after[-1].outputs_v)
+    assert parts[1] + parts[7] == pytest.approx(total, rel=1e-12)
+    assert parts[3] == pytest.approx(cal.wrench(after[-1].outputs_v)[3], rel=1e-12)

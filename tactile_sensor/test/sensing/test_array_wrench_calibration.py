@@ -216,3 +216,58 @@ def test_reordering_keeps_every_component_and_refuses_other_modules():
     with pytest.raises(CalibrationError, match=r"is for modules front@-0\.0055, .* not front, "
                                                r"back"):
         cal.reordered(("front", "back", *EIGHT[2:]))
+
+
+def tilted(w: np.ndarray) -> np.ndarray:
+    """The wrenches with the lateral force a tilt adds (as the FEM's: pushing the skin
+    along x when tilting about y, -40 N per N m)."""
+    out = w.copy()
+    out[:, 0] += -40.0 * w[:, 4]
+    out[:, 1] += 40.0 * w[:, 3]
+    return out
+
+
+def test_the_force_a_tilt_adds_is_fitted_as_the_forces_slow_part():
+    """The grid never tilts, so its force polynomial misreads a tilt's lateral force; the
+    slow part, fitted on the wrench paths' forces, puts it back."""
+    rng = np.random.default_rng(5)
+    loads = tilted(np.concatenate([grid_points(rng, 300), wrench_paths()]))
+    outputs = known_outputs(loads)
+    wrench = loads.copy()
+    wrench[:300, 3:] = np.nan                 # the grid: forces
+    wrench[300:, :3] = np.nan                 # the wrench paths: torques (forces: slow only)
+    plain = ArrayCalibration.fit(EIGHT, outputs, wrench, 3, "s")
+    slow = ArrayCalibration.fit(EIGHT, outputs, wrench, 3, "s", slow_forces=loads[:, :3])
+    assert slow.has_slow and not plain.has_slow
+    test = grid_points(rng, 200)
+    test[:, 3:5] = rng.uniform(-0.02, 0.02, (200, 2))
+    test = tilted(test)
+    outputs = known_outputs(test)
+
+    def lateral_rmse(cal: ArrayCalibration) -> float:
+        return float(np.sqrt(np.mean((cal.wrenches(outputs)[:, :2] - test[:, :2]) ** 2)))
+
+    assert lateral_rmse(plain) > 0.3                       # N: the tilt's force is missed
+    assert lateral_rmse(slow) < 0.1 * lateral_rmse(plain)
+    back = ArrayCalibration.from_mapping(json.loads(json.dumps(slow.to_dict())), "test")
+    assert back.has_slow
+    np.testing.assert_allclose(back.wrenches(outputs), slow.wrenches(outputs), rtol=1e-12,
+                               atol=1e-12)
+
+
+def test_a_slow_part_without_torque_or_of_the_wrong_length_is_refused():
+    outputs, wrench = dataset()
+    data = ArrayCalibration.fit(EIGHT, outputs, wrench, 3, "s",
+                                slow_forces=np.zeros((outputs.shape[0], 3))).to_dict()
+    assert "force_slow_x_n" in data
+    with pytest.raises(CalibrationError, match="missing force_slow_z_n; refit it"):
+        ArrayCalibration.from_mapping({k: v for k, v in data.items()
+                                       if k != "force_slow_z_n"}, "test")
+    with pytest.raises(CalibrationError, match="slow part needs the torque columns"):
+        ArrayCalibration.from_mapping({**data, "force_slow_x_n": [1.0]}, "test")
+    with pytest.raises(CalibrationError, match="slow part needs the torque columns"):
+        ArrayCalibration.from_mapping({k: v for k, v in data.items()
+                                       if not k.startswith("torque_")}
+                                      | {"observed": ["fx", "fy", "fz"]}, "test")
+    with pytest.raises(CalibrationError, match="one \\(Fx, Fy, Fz\\) row per point"):
+        ArrayCalibration.fit(EIGHT, outputs, wrench, 3, "s", slow_forces=np.zeros((3, 3)))
