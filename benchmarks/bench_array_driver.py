@@ -10,6 +10,12 @@ subscribes to both readings, so both pay the same DDS cost. CPU = user+system ti
 each driver process over the window; lost frames = the drivers' own diagnostics counters
 (sequence gaps and backlog overflows) at the end.
 
+``--layout wrench`` runs the eight-module wrench layout (``modules:
+0:front@-0.0055,...,7:right@0.0055``, an eight-channel ADC) with a six-column calibration
+(torque with its own 10 Hz low-pass and the force's slow part) in place of the four-module
+array: the six-axis wrench's goal is at most 1.3 x the single module's CPU. Its figures go to
+``benchmarks/results/bench_wrench_driver.json``.
+
 ``--compare REV`` runs the same pair with the driver of commit REV (its sources unpacked by
 ``git archive``; this checkout's interfaces and mock ADCs) and with this checkout's, one
 pair after the other for ``--rounds`` rounds whose order alternates, and prints the CPU
@@ -17,6 +23,7 @@ of each before and after (issue 35's goal: the array driver at most 0.4 x REV's)
 figures go to ``benchmarks/results/bench_array_driver.json``.
 
     python benchmarks/bench_array_driver.py [--seconds 30] [--compare REV] [--rounds 2]
+        [--layout array|wrench]
 
 Run with ``scripts/env.sh`` sourced. ROS domain: $ROS_DOMAIN_ID (default 216).
 """
@@ -59,9 +66,11 @@ ROOT = Path(__file__).resolve().parents[1]
 WARM_UP_S = 120  # for the first 2,000 readings: a loaded 2-core machine took over 60 s
 MOCK = Variant("mock", ROOT / "tactile_sensor")  # every driver reads this checkout's mock
 FACES = ("front", "back", "left", "right")
+EIGHT = tuple(f"{face}@{c}" for face in FACES for c in ("-0.0055", "0.0055"))
 LOST_KEYS = ("frames_dropped", "frames_overflowed")
 ARRAY_RATIO_GOAL = 0.4  # issue 35: the array driver at most 0.4 x REV's CPU
 SINGLE_RATIO_GOAL = 1.5  # issue 16: the array at most 1.5 x the single module's CPU
+WRENCH_RATIO_GOAL = 1.3  # the wrench layout at most 1.3 x the single module's CPU
 
 
 def write_inputs(tmp: Path) -> None:
@@ -78,6 +87,13 @@ def write_inputs(tmp: Path) -> None:
     forces = np.stack([outputs[:, 3] - outputs[:, 2], outputs[:, 0] - outputs[:, 1],
                        outputs.sum(axis=1) * 3.5], axis=1)
     ArrayCalibration.fit(FACES, outputs, forces, 3, "bench").to_file(tmp / "array.json")
+    eight = rng.uniform(0.0, 0.5, (600, 8))
+    wrench = np.column_stack([eight[:, 6:].sum(axis=1) - eight[:, 4:6].sum(axis=1),
+                              eight[:, :2].sum(axis=1) - eight[:, 2:4].sum(axis=1),
+                              eight.sum(axis=1) * 1.75, eight @ rng.normal(0, 0.01, (8, 3))])
+    ArrayCalibration.fit(EIGHT, eight, wrench, 3, "bench", noise_v=0.005,
+                         slow_forces=wrench[:, :3] + eight[:, :3] * 0.01
+                         ).to_file(tmp / "wrench.json")
 
 
 def start(tmp: Path, name: str, channels: int, modules: str, calibration: str,
@@ -117,12 +133,18 @@ def main() -> int:
     parser.add_argument("--rate", type=float, default=1000.0)
     parser.add_argument("--compare", metavar="REV",
                         help="also run the drivers of commit REV, alternating with these")
+    parser.add_argument("--layout", choices=("array", "wrench"), default="array",
+                        help="array: four centred modules; wrench: eight modules with a "
+                             "six-column calibration")
     parser.add_argument("--rounds", type=int, default=None,
                         help="runs of each version (default 2 with --compare, else 1)")
     args = parser.parse_args()
     rounds = args.rounds if args.rounds is not None else (2 if args.compare else 1)
     if rounds < 1:
         parser.error(f"--rounds must be at least 1, got {rounds}")
+    if args.compare and args.layout == "wrench":
+        parser.error("--compare needs --layout array: older drivers have no six-column "
+                     "calibration")
     os.environ.setdefault("ROS_DOMAIN_ID", "216")
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     tmp = Path(tempfile.mkdtemp(prefix="bench_array_driver_"))
@@ -143,10 +165,11 @@ def main() -> int:
         print(f"bench_array_driver: {exc}", file=sys.stderr)
         return 2
     figures = report(args, [v.label for v in versions], rounds, runs)
-    path = write_results("bench_array_driver", figures, notes=(
+    name = "bench_array_driver" if args.layout == "array" else "bench_wrench_driver"
+    path = write_results(name, figures, notes=(
         f"{rounds} round(s) of {args.seconds:g} s per version, order alternating; the "
-        "single-module and the array driver of one version run side by side; CPU in % of "
-        "one core"))
+        f"single-module and the {args.layout} driver of one version run side by side; CPU "
+        "in % of one core"))
     print(f"figures written to {path.relative_to(ROOT)}")
     return 0
 
@@ -154,7 +177,7 @@ def main() -> int:
 def report(args: argparse.Namespace, labels: list[str], rounds: int,
            runs: dict[str, list[PairRun]]) -> list[Figure]:
     loads = [x for rs in runs.values() for r in rs for x in r.load]
-    print(f"\nsingle-module and array driver side by side at {args.rate:g} Hz, {rounds} "
+    print(f"\nsingle-module and {args.layout} driver side by side at {args.rate:g} Hz, {rounds} "
           f"round(s) x {args.seconds:g} s per version (load average {min(loads):.1f} .. "
           f"{max(loads):.1f} on {os.cpu_count()} cores)")
     figures: list[Figure] = []
@@ -178,11 +201,12 @@ def report(args: argparse.Namespace, labels: list[str], rounds: int,
                         Figure(f"frames lost, {label}, {name}", sum(lost.values()), "",
                                "0")]
         ratio = cpu[(label, "array")] / max(cpu[(label, "single")], 1e-9)
-        print(f"  {label}: CPU ratio array / single: {ratio:.2f} (goal <= "
-              f"{SINGLE_RATIO_GOAL:g}); array readings with 4 outputs: "
+        goal = SINGLE_RATIO_GOAL if args.layout == "array" else WRENCH_RATIO_GOAL
+        print(f"  {label}: CPU ratio {args.layout} / single: {ratio:.2f} (goal <= "
+              f"{goal:g}); {args.layout} readings with {modules_of(args)} outputs: "
               f"{sum(r.lateral for r in runs[label])}")
-        figures.append(Figure(f"CPU ratio array / single, {label}", round(ratio, 3), "",
-                              f"<= {SINGLE_RATIO_GOAL:g}"))
+        figures.append(Figure(f"CPU ratio {args.layout} / single, {label}", round(ratio, 3),
+                              "", f"<= {goal:g}", ratio <= goal))
     if len(labels) == 2:
         before, after = labels
         for name in ("array", "single"):
@@ -197,11 +221,17 @@ def report(args: argparse.Namespace, labels: list[str], rounds: int,
     return figures
 
 
+def modules_of(args: argparse.Namespace) -> int:
+    return len(FACES) if args.layout == "array" else len(EIGHT)
+
+
 def measure(args: argparse.Namespace, tmp: Path, version: Variant) -> PairRun | None:
-    """One run of ``version``'s single-module and array drivers side by side."""
+    """One run of ``version``'s single-module and array (or wrench) drivers side by side."""
+    faces = FACES if args.layout == "array" else EIGHT
     runs = {"single": start(tmp, "single", 1, "", "curve.json", args.rate, version),
-            "array": start(tmp, "array", 4, ",".join(f"{i}:{f}" for i, f in enumerate(FACES)),
-                           "array.json", args.rate, version)}
+            "array": start(tmp, "array", len(faces),
+                           ",".join(f"{i}:{f}" for i, f in enumerate(faces)),
+                           f"{args.layout}.json", args.rate, version)}
     counts = {name: 0 for name in runs}
     lost: dict[str, dict[str, int]] = {}
     lateral = {"array": 0}
@@ -211,7 +241,7 @@ def measure(args: argparse.Namespace, tmp: Path, version: Variant) -> PairRun | 
         def on_reading(msg: TactileReading) -> None:
             with lock:
                 counts[name] += 1
-                if name == "array" and len(msg.outputs) == 4:
+                if name == "array" and len(msg.outputs) == len(faces):
                     lateral["array"] += 1
         return on_reading
 
