@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -11,6 +11,7 @@ import numpy as np
 from . import array as arr
 from . import metrics as m
 from .alignment import Aligned, align
+from .array_fit import ArrayFit, fit_array_recording
 from .bag_reader import Notify, Progress, Recording, TopicSpec, read_recording
 from .calibration_fit import Calibration, fit_calibration
 from .errors import RateFitError, SegmentError, TopicError
@@ -299,6 +300,8 @@ class Analysis:
     metrics: dict[str, Any]
     single: Characterisation | None
     array: arr.ArrayAnalysis | None
+    #: The array calibration fitted from the recording (``--fit-calibration`` on an array)
+    array_fit: ArrayFit | None = None
 
     @property
     def fitted(self) -> Calibration | None:
@@ -338,8 +341,8 @@ def analyse(bag: str, options: Options, progress: Progress | None = None,
         single = characterise(recording, options)
         return Analysis(single.metrics, single, None)
     array = arr.analyse_array(recording, reason)
-    try:
-        single = characterise(recording, options)
+    try:  # the calibration fitted is the array's (below), not the first module's curve
+        single = characterise(recording, replace(options, fit_calibration=False))
         metrics = dict(single.metrics)
     except (SegmentError, TopicError) as err:
         single = None
@@ -348,4 +351,8 @@ def analyse(bag: str, options: Options, progress: Progress | None = None,
             f"recording ({str(err).rstrip('.')}); only the array's metrics are given.")
     metrics.update(array.metrics)
     metrics["notes"] = list(metrics["notes"]) + array.notes
-    return Analysis(metrics, single, array)
+    fitted = None
+    if options.fit_calibration:
+        fitted = fit_array_recording(recording, f"tactile-sensor analyze {recording.path}")
+        metrics["array_calibration_fit"] = fitted.metrics
+    return Analysis(metrics, single, array, fitted)

@@ -42,7 +42,9 @@ def parser() -> argparse.ArgumentParser:
                    help="moving-average length for the noise estimate (default 9, the "
                         "paper's 9-point mean; use 1 if the driver already filters)")
     p.add_argument("--fit-calibration", action="store_true",
-                   help="fit output -> force and write OUT/calibration.json")
+                   help="fit output -> force and write OUT/calibration.json (on a module array: "
+                        "the array calibration of forces and, where the gauge measures them, "
+                        "torques, with held-out errors)")
     p.add_argument("--calibration", type=Path, metavar="FILE",
                    help="evaluate this calibration file (force error per speed)")
     p.add_argument("--prediction", default="auto", metavar="FILE|auto|none",
@@ -121,7 +123,13 @@ def run(args: argparse.Namespace) -> int:
             figures.update(array_figures(result.array, args.out))
     (args.out / "metrics.json").write_text(json.dumps(result.metrics, indent=2) + "\n",
                                            encoding="utf-8")
-    if result.fitted is not None:
+    if result.array_fit is not None:  # an array's calibration, not its first module's curve
+        result.array_fit.calibration.to_file(args.out / "calibration.json",
+                                             result.array_fit.metrics)
+        if verbose:
+            for line in result.array_fit.lines:
+                print(f"tactile-sensor analyze: array calibration {line}", file=sys.stderr)
+    elif result.fitted is not None:
         save_calibration(result.fitted, args.out / "calibration.json")
     md, _ = write_report(result, figures, args.out)
     if verbose:

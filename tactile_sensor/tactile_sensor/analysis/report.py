@@ -67,6 +67,26 @@ def rows(ch: _HasMetrics) -> list[tuple[str, str, str]]:
     return out
 
 
+def array_fit_lines(fit: dict[str, Any] | None) -> list[str]:
+    """The array calibration fitted from the recording: held-out error per component."""
+    if not fit:
+        return []
+    out = ["", f"Array calibration fitted from this recording (calibration.json; degree "
+           f"{fit['degree']}, both sides low-passed at {fit['quasi_static_hz']} Hz; every "
+           f"{fit['hold_every']}th {fit['block_s']} s block held out, "
+           f"{fit['held_out_samples']} of {fit['samples']} samples):", "",
+           "| component | held-out RMSE | range | RMSE / range |", "|---|---|---|---|"]
+    for name, c in fit["components"].items():
+        error = (f"{_fmt(c['rmse'], c['unit'])} | {_fmt(c['range'], c['unit'])} | "
+                 f"{_fmt(c['rmse_pct_range'], '%')}" if name in fit["observed"] else
+                 f"not excited, left out of observed | {_fmt(c['range'], c['unit'])} | n/a")
+        out.append(f"| {name} | {error} |")
+    if len(fit["components"]) == 3:
+        out.append("| tx, ty, tz | the gauge measures no torque (force-only calibration) | "
+                   "n/a | n/a |")
+    return out
+
+
 def array_lines(mt: dict[str, Any]) -> list[str]:
     """The array section (Markdown): force error per axis, sensitivity matrix, cross-talk
     and shear direction; empty for a single module."""
@@ -95,6 +115,7 @@ def array_lines(mt: dict[str, Any]) -> list[str]:
                 error = (f"not observed (the driver publishes NaN) | {_fmt(t_span[a], 'N m')} "
                          "| n/a")
             out.append(f"| T{a} | {error} |")
+    out += array_fit_lines(mt.get("array_calibration_fit"))
     sens = ar["sensitivity_matrix"]
     if sens:
         out += ["", "Sensitivity matrix S [V/N] (least squares outputs = S F + c over the "
