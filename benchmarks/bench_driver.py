@@ -60,7 +60,6 @@ from side_by_side import (
     CompareError,
     Variant,
     cpu_seconds,
-    interleaved,
     load_average,
     variants,
 )
@@ -163,9 +162,13 @@ def main() -> int:
 
 def run_all(args: argparse.Namespace, drivers: list[Variant], models: tuple[str, ...],
             rounds: int) -> dict[tuple[str, str], Totals] | None:
+    """Every (calibration, driver) pair once a round, the order reversed every other round:
+    run one model after the other and the later one measured 39 % more CPU (rate-aware
+    against static, the same driver), alone 4 %."""
     totals: dict[tuple[str, str], Totals] = {}
-    for model in models:
-        for r, driver in interleaved(drivers, rounds):
+    pairs = [(model, driver) for model in models for driver in drivers]
+    for r in range(rounds):
+        for model, driver in (pairs if r % 2 == 0 else pairs[::-1]):
             run = measure(args, model, driver)
             if run is None:
                 return None
