@@ -218,9 +218,14 @@ def _onset_time(x: np.ndarray, top: float, smooth: int, dt: float) -> float | No
 
 def _plateau(x: np.ndarray, smooth: int) -> tuple[float, int]:
     """(level, middle index) of the signal's top: median of the middle half of the
-    longest run where its moving mean stays above 90 % of its maximum."""
+    longest run where its moving mean stays above 90 % of its maximum. A signal that never
+    rises above its rest level (a module whose output falls during the press) has no top:
+    (0.0, the middle), and so no onset."""
     ma = moving_average(x, smooth)
-    runs = _runs(ma >= 0.9 * float(ma.max()))
+    peak = float(ma.max()) if ma.size else 0.0
+    if not peak > 0:
+        return 0.0, x.size // 2
+    runs = _runs(ma >= 0.9 * peak)
     a, b = max(runs, key=lambda r: r[1] - r[0])
     a, b = a + smooth // 2, b + smooth // 2  # 'valid' mean index -> sample index
     quarter = (b - a) // 4

@@ -88,3 +88,21 @@ def test_default_play_meets_the_papers_lags_with_low_hysteresis(skin):
     for key, lag in lags.items():
         assert lag == pytest.approx(paper[key], rel=0.3), (key, lag)
     assert max(hyst.values()) < 6.0  # % of full-scale output
+
+
+def test_an_output_that_falls_during_the_press_has_no_lag_instead_of_an_error(skin):
+    """A module that reads the press inverted (an array's far face draws in) never rises
+    above its rest level: no onset, so no lag, and the force's cycles still segment."""
+    profile = LoadProfile(depth_m=0.003, speeds_m_s=(0.001,), cycles=2, hold_s=0.0,
+                          rest_s=1.0)
+    world = BenchWorld(profile, skin, RateDependentForce.from_params(PhysicsParams()))
+    t = np.arange(0.0, world.duration_s, 1.0 / RATE_HZ)
+    volts = world.photoreflector_voltage(t)
+    aligned = Aligned(t_s=t, output_v=volts - volts[0], force_n=world.force_n(t),
+                      indentation_m=world.indentation_m(t), rate_hz=RATE_HZ, start_ns=0,
+                      force_flipped=False)
+    seg = segment(aligned)
+    sig = m.baseline(aligned, seg)
+    assert len(seg.cycles) == 2 and np.max(sig.output_v) <= 1e-9
+    assert m.phase_lags(sig, seg.cycles, RATE_HZ) == []
+    assert m.phase_lag(sig, seg.cycles, RATE_HZ) is None
