@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+pytestmark = pytest.mark.slow  # each case starts the benchmark's process
 
 
 @pytest.mark.parametrize("bench", ["bench_driver.py", "bench_array_driver.py"])
