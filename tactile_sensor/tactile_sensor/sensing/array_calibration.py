@@ -308,7 +308,8 @@ class ArrayCalibration:
         parts = []
         if torques:
             why = ("the layout's modules cannot observe torque" if self.has_torque else
-                   "the calibration has no torque columns (force only)")
+                   "the calibration has no torque columns (force only; centred "
+                   "windows cannot observe a torque at all)")
             parts.append(f"{', '.join(torques)}: {why}")
         if forces:
             parts.append(f"{', '.join(forces)}: the layout's modules cannot observe "
