@@ -17,7 +17,8 @@ PACKAGES = [REPO / "tactile_sensor", REPO / "tactile_sensor_interfaces"]
 def changelog_problem(package: Path) -> str | None:
     """Why the package's CHANGELOG.rst does not describe its version, or None."""
     parsed = get_changelog_from_path(str(package / "CHANGELOG.rst"))
-    sections = list(parsed.foreach_version()) if parsed is not None else []
+    # newest first: catkin_pkg iterates versions oldest first unless reversed
+    sections = list(parsed.foreach_version(reverse=True)) if parsed is not None else []
     if not sections:
         return f"{package.name}/CHANGELOG.rst has no version section catkin_pkg can read"
     version, _, content = sections[0]
@@ -37,8 +38,8 @@ def test_the_changelog_starts_at_the_package_version_with_entries(package: Path)
 def test_a_changelog_behind_the_package_version_is_found(tmp_path: Path) -> None:
     (tmp_path / "package.xml").write_text(
         (REPO / "tactile_sensor_interfaces" / "package.xml").read_text()
-        .replace("<version>0.1.0</version>", "<version>0.2.0</version>"))
+        .replace("<version>0.2.0</version>", "<version>0.3.0</version>"))
     (tmp_path / "CHANGELOG.rst").write_text(
         (REPO / "tactile_sensor_interfaces" / "CHANGELOG.rst").read_text())
     assert changelog_problem(tmp_path) == (
-        f"{tmp_path.name}/CHANGELOG.rst starts at 0.1.0, package.xml is 0.2.0")
+        f"{tmp_path.name}/CHANGELOG.rst starts at 0.2.0, package.xml is 0.3.0")
