@@ -174,7 +174,8 @@ def test_four_modules_give_the_wrench_and_every_module_in_the_reading(spawn, ros
     assert np.isnan(ros.torques[-300:]).all()  # a force-only calibration: torque NaN
     status = ros.diagnostics[-1]
     assert _value(status, "unobserved") == ("tx, ty, tz: the calibration has no torque "
-                                            "columns (force only)")
+                                            "columns (force only; centred windows cannot "
+                                            "observe a torque at all)")
     for face, rest in zip(FACES, REST_V, strict=True):
         assert float(_value(status, f"baseline_v.{face}")) == pytest.approx(rest, abs=0.01)
 

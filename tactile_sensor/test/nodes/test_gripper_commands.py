@@ -236,7 +236,8 @@ def test_both_control_msgs_interfaces_grip_the_rod_by_tactile_force_and_open(gri
     assert status == GoalStatus.STATUS_SUCCEEDED
     assert result.stalled and not result.reached_goal
     assert list(result.state.name) == [JOINT]
-    assert result.state.effort[0] == pytest.approx(2.0, abs=0.2)
+    # as the GripperCommand's above: 2.26 N once on Kilted beside a busy core
+    assert result.state.effort[0] == pytest.approx(2.0, abs=0.3)
     assert ROD_M - 0.008 < result.state.position[0] < ROD_M
 
     status, result = client.run("parallel", parallel(0.03))
