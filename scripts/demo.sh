@@ -77,8 +77,9 @@ for kind, unit in (("force", "n"), ("torque", "nm")):
         if r is None or not s:
             print(f"  {label}: not estimated")
         else:
-            print(f"  {label}: rmse {r:.4g} {'N' if unit == 'n' else 'N m'} over a "
-                  f"{s:.4g} range = {100 * r / s:.1f} %")
+            name = "N" if unit == "n" else "N m"
+            print(f"  {label}: rmse {r:.4g} {name} over a {s:.4g} {name} range = "
+                  f"{100 * r / s:.1f} %")
 PY
     echo "== plots"
     ls -1 "$run"/analysis/*.png
