@@ -297,10 +297,13 @@ def test_a_grasp_timed_out_at_the_full_scale_backs_off_to_its_target(
         # by the samples' stamps: under load they arrive late
         _until(lambda: client.truth and client.truth[-1][0] > done + 0.5,
                "no ground truth")
-    # the saturated reading sits a little below the full scale (the tare's offset)
+    # the target is beyond the full scale, so the back-off starts only from a saturated
+    # reading: within SATURATION_BAND of the full scale (how far into the band depends on how
+    # long the fingers had to squeeze: 6.27 N of 6.77 N once beside a busy core)
     backed_off = re.fullmatch(r"timeout: no result within 5 s; backed off from (\S+) N to "
                               + re.escape(f"{result.force:.2f}") + " N", result.message)
-    assert backed_off and float(backed_off[1]) >= 0.95 * full_scale, result.message
+    assert backed_off and float(backed_off[1]) >= (1 - SATURATION_BAND) * full_scale, \
+        result.message
     pressed = max(f for t, f in client.truth if t < done)
     after = [f for t, f in client.truth if t > done + 0.2]
     assert pressed > target and max(after) <= target, (pressed, after[:10], result.message)
