@@ -196,6 +196,65 @@ def test_composed_recorder_records_and_finishes_on_destroy(node, tmp_path: Path)
     assert forces == [float(i) for i in range(20)]
 
 
+def test_messages_at_1khz_do_not_wake_the_executor_once_each(node, tmp_path: Path):
+    """The subscriptions are drained on a timer: while a publisher sends at 1 kHz, the
+    executor spinning the recorder wakes about once per drain, not once per message."""
+    import threading
+
+    from rclpy.executors import SingleThreadedExecutor
+
+    from tactile_sensor.nodes.recorder import DRAIN_PERIOD_S
+
+    recorder = make_recorder(node, path=str(tmp_path / "bag"), topics=["/inproc/wrench"])
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(recorder)
+    pub = node.create_publisher(WrenchStamped, "/inproc/wrench", 1000)
+    deadline = time.monotonic() + PATIENCE_S
+    while time.monotonic() < deadline and pub.get_subscription_count() == 0:
+        executor.spin_once(timeout_sec=0.05)
+    n = 1000
+
+    def publish() -> None:
+        start = time.monotonic()
+        for i in range(n):
+            msg = WrenchStamped()
+            msg.wrench.force.z = float(i)
+            pub.publish(msg)
+            delay = start + (i + 1) * 1e-3 - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+
+    sender = threading.Thread(target=publish)
+    wakes, start = 0, time.monotonic()
+    sender.start()
+    while sender.is_alive():
+        executor.spin_once(timeout_sec=0.05)
+        wakes += 1
+    elapsed_s = time.monotonic() - start
+    deadline = time.monotonic() + PATIENCE_S
+    while time.monotonic() < deadline and recorder.counts.get("/inproc/wrench", 0) < n:
+        executor.spin_once(timeout_sec=0.05)
+    assert recorder.counts.get("/inproc/wrench", 0) == n
+    # the drain timer, the 50 ms spin timeouts and the other timers; once per message
+    # would be n
+    assert wakes <= elapsed_s / DRAIN_PERIOD_S * 1.5 + 20 < n / 2, (wakes, elapsed_s)
+    recorder.destroy_node()
+    executor.shutdown()
+
+
+def test_bag_time_is_the_reception_time_or_the_sim_clock_less_the_wait() -> None:
+    from tactile_sensor.nodes.recorder import reception_stamp_ns
+
+    # system clock: the middleware's reception time, however late the drain
+    assert reception_stamp_ns(1_000, 9_000, 50, sim_time=False) == 1_000
+    # sim time: the node clock at the drain, less the 8 us the message waited
+    assert reception_stamp_ns(1_000, 9_000, 50_000, sim_time=True) == 42_000
+    # a reception time from the future (clocks adjusted) waited 0 s
+    assert reception_stamp_ns(10_000, 9_000, 50_000, sim_time=True) == 50_000
+    # no reception time: the node clock
+    assert reception_stamp_ns(0, 9_000, 50_000, sim_time=False) == 50_000
+
+
 @pytest.mark.parametrize(("params", "match"), [
     ({"topics": ["/ok", "not a topic"]}, "Parameter 'topics' holds 'not a topic'"),
     ({"topics": ["/a"], "topic_types": ["/a:std_msgs/msg/String"]},
