@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import threading
 import time
 from collections.abc import Callable
@@ -445,3 +446,53 @@ def test_batches_carry_every_frame_in_order_with_the_chunks_read_time(tmp_path):
     assert np.all(np.diff([s.seq for s in samples]) % 65536 == 1)
     assert all(s.counts[0] == (s.device_time_us // 1000) % 4096 for s in samples)
     assert all(len(set(b.host_time_ns)) == 1 for b in batches[1:])  # one read, one time
+
+
+def test_a_network_serial_port_url_is_read_like_a_device(tmp_path):
+    """A pyserial URL (``socket://host:port``, e.g. a ser2net bridge) has no descriptor to
+    poll: the reader asks pyserial what is waiting. Every frame arrives, in order."""
+    import socket
+
+    server = socket.create_server(("127.0.0.1", 0))
+    host, port = server.getsockname()
+    frames = 200
+
+    opened = threading.Event()
+
+    def serve() -> None:
+        conn, _ = server.accept()
+        with conn:
+            opened.wait(PATIENCE_S)  # pyserial's socket open() flushes what arrived before
+            conn.sendall(encode_info(12, 1, 5.0, 1000, "bridge"))
+            for seq in range(frames):
+                conn.sendall(encode_frame(seq, seq * 1000, [seq % 4096]))
+                if seq % 20 == 0:
+                    time.sleep(0.002)  # arrives in several chunks
+            # keep the connection open until the reader has everything
+            assert wait_until(lambda: rec.count() >= frames)
+
+    rec = Recorder()
+    sender = threading.Thread(target=serve, daemon=True)
+    sender.start()
+    with server, reader_for(f"socket://{host}:{port}", rec) as reader:
+        assert wait_until(lambda: port_opened(reader)), reader.reason
+        opened.set()
+        assert wait_until(lambda: rec.count() >= frames), (rec.count(), reader.stats().frames)
+        sender.join(PATIENCE_S)
+        with rec.lock:
+            counts = [s.counts[0] for s in rec.samples]
+        assert counts == list(range(frames))
+        assert reader.stats().connections == 1
+
+
+@pytest.mark.parametrize(("code", "says"), [
+    (errno.EACCES, "permission denied on /dev/ttyACM9; add the user to the 'dialout' group"),
+    (errno.EPERM, "permission denied on /dev/ttyACM9"),
+    (errno.EBUSY, "/dev/ttyACM9 is busy (another program has it open)"),
+    (errno.EIO, "cannot open /dev/ttyACM9: [Errno 5] gone"),
+])
+def test_an_open_failure_names_its_cause_and_the_retry(code, says):
+    rec = Recorder()
+    reader = reader_for("/dev/ttyACM9", rec)
+    reason = reader._open_failure(OSError(code, "gone"))
+    assert reason.startswith(says) and reason.endswith("retrying every 0.2 s"), reason
