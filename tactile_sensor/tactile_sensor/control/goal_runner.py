@@ -352,8 +352,11 @@ class GoalRunner:
             state = servo.state
             if servo.comm_error:
                 return f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}"
-            if state is None or state.hardware_error:
+            if state is None:
                 return None
+            if state.hardware_error:  # torque is off: the grasp holds nothing any more
+                self._on_hardware_error(state.hardware_error)
+                return f"{Outcome.HARDWARE_ERROR}: " + ", ".join(sorted(state.hardware_error))
             if effective_s is not None:
                 if self._clock() < effective_s or state.moving:
                     continue

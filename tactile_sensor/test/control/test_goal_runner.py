@@ -109,6 +109,9 @@ class Rig:
         #: The tactile force arrives this late [s], stamped when it was true (CPU load).
         self.force_delay_s = force_delay_s
         self._in_flight: collections.deque[tuple[float, float]] = collections.deque()
+        #: Cleared, the tactile force stops arriving (the driver went silent).
+        self.sensing = threading.Event()
+        self.sensing.set()
         self.feedback: list[dict] = []
         self.cancel = threading.Event()
         self._running = True
@@ -123,7 +126,8 @@ class Rig:
                                                  self.full_scale_n)))
             while self._in_flight and self._in_flight[0][0] <= now - self.force_delay_s:
                 stamp, force = self._in_flight.popleft()
-                self.forces.add(force, stamp)
+                if self.sensing.is_set():
+                    self.forces.add(force, stamp)
             time.sleep(TICK_S)
 
     def true_force(self, position_rad: float) -> float:
@@ -454,3 +458,101 @@ def test_an_abort_below_the_target_stays_where_it_stopped():
         sent = len(rig.client.commands)
     assert end.message == "timeout: no result within 0.2 s"
     assert sent == 2  # the closing and the stop: no back-off
+
+
+def backing_off(rig: Rig):
+    """A grasp timed out at the full scale, past the back-off's first opening command."""
+    thread, out = saturated_grasp(rig, timeout_s=0.6)
+    closest = GEOMETRY.opening_m(rig.client.position)
+    while thread.is_alive() and not any(GEOMETRY.opening_m(c) > closest + 1e-4
+                                        for c in rig.client.commands[-3:]):
+        closest = min(closest, GEOMETRY.opening_m(rig.client.position))
+        rig.servo.await_sample(1.0)
+    return thread, out
+
+
+def test_a_back_off_without_fresh_force_holds_and_says_so():
+    with Rig(full_scale_n=3.0) as rig:
+        thread, out = backing_off(rig)
+        rig.sensing.clear()
+        thread.join()
+    assert out["end"].message.endswith(" N (stopped: no fresh tactile force)"), out["end"]
+    assert rig.client.velocity == 0.0 or rig.client.goal == rig.client.commands[-1]
+
+
+def test_a_back_off_stops_when_the_servo_fails():
+    with Rig(full_scale_n=3.0) as rig:
+        thread, out = backing_off(rig)
+        rig.client.fail_reads = CommunicationTimeout("no status packet")
+        thread.join()
+    assert out["end"].message.endswith(" N (stopped: the servo failed)"), out["end"]
+
+
+def test_a_back_off_yields_to_a_newer_goal():
+    with Rig(full_scale_n=3.0) as rig:
+        thread, out = backing_off(rig)
+        rig.slot.take_over("newer goal")
+        thread.join()
+    assert out["end"].message.endswith(" N (a newer goal took over)"), out["end"]
+
+
+def test_a_back_off_whose_first_command_fails_stops_there():
+    with Rig(full_scale_n=3.0) as rig:
+        thread, out = saturated_grasp(rig, timeout_s=0.6)
+        # every command after the closing's fails: the timeout's stop, then the back-off's
+        rig.client.fail_commands = [PortLost("unplugged")] * 1000
+        thread.join()
+    end = out["end"]
+    assert end.status is GoalStatus.ABORTED
+    assert end.message.startswith("servo_unreachable: unplugged") or end.message.endswith(
+        "(stopped: servo unreachable: unplugged)"), end.message
+
+
+def test_a_servo_unreachable_at_the_start_aborts_the_goal():
+    with Rig() as rig:
+        rig.client.fail_commands = [PortLost("unplugged")]
+        end = rig.run(accept_grasp, grasp())
+    assert (end.status, end.message) == (GoalStatus.ABORTED, "servo_unreachable: unplugged")
+
+
+def settling(rig: Rig):
+    """A grasp on a skin stiffer than the settler assumes: it never settles; returned once
+    it has made a few corrections."""
+    thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(force_n=2.0)))
+    while not (rig.forces.latest and rig.forces.latest[0] >= 2.0):
+        rig.servo.await_sample(1.0)
+    corrections = len(rig.client.commands) + 3
+    while len(rig.client.commands) < corrections:
+        rig.servo.await_sample(1.0)
+    return thread, out
+
+
+def test_a_cancel_while_settling_ends_canceled():
+    with Rig(stiffness=20000.0, settle_time_s=60.0) as rig:
+        thread, out = settling(rig)
+        rig.runner.stop("goal")
+        rig.cancel.set()
+        thread.join()
+    assert out["end"].status is GoalStatus.CANCELED, out["end"]
+    assert out["end"].message.startswith("canceled: stopped where the fingers were")
+
+
+def test_a_hardware_error_while_settling_ends_the_goal_with_it():
+    """Torque is off after a hardware error: a grasp that was settling holds nothing, so it
+    ends aborted with the error (it once ended succeeded, settled at the relaxed force)."""
+    with Rig(stiffness=20000.0, settle_time_s=60.0) as rig:
+        thread, out = settling(rig)
+        rig.client.bits = frozenset({"overload"})
+        thread.join()
+    assert (out["end"].status, out["end"].message) == (GoalStatus.ABORTED,
+                                                       "hardware_error: overload")
+    assert rig.hardware_errors == [frozenset({"overload"})]
+
+
+def test_a_correction_that_cannot_be_written_aborts_the_settle():
+    with Rig(stiffness=20000.0, settle_time_s=60.0) as rig:
+        thread, out = settling(rig)
+        rig.client.fail_commands = [PortLost("unplugged")] * 1000
+        thread.join()
+    assert (out["end"].status, out["end"].message) == (
+        GoalStatus.ABORTED, "servo_unreachable: unplugged")
