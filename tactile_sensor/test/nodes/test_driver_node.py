@@ -90,6 +90,14 @@ class Listener:
             if "tactile ADC" in status.name:
                 self.diagnostics.append((time.monotonic(), status))
 
+    def await_driver(self) -> bool:
+        """This listener has discovered the driver's sample topics, so it receives from
+        their first message on (discovery beside a busy core once took longer than the
+        mock's rest before its press, and the press's start was never received)."""
+        return self.wait_for(lambda: all(
+            self.node.count_publishers(t) > 0 for t in ("/driver/reading", "/driver/wrench")),
+            PATIENCE_S)
+
     def wait_for(self, predicate, timeout_s: float) -> bool:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
@@ -142,6 +150,7 @@ def test_force_tracks_a_3mm_press_and_contact_has_hysteresis(spawn, ros, files):
     driver = start_driver(spawn, files["link"], files["calibration"],
                           "-p", "contact_on_force:=1.0", "-p", "contact_off_force:=0.5")
     assert driver.wait_for_output("active", 30), driver.output()
+    assert ros.await_driver(), driver.output()
     mock = start_mock(spawn, files)
     duration = parse_profile(PROFILE).duration_s
     assert ros.wait_for(lambda: len(ros.wrenches) > 100, 15), driver.output()
