@@ -1,5 +1,6 @@
 """Every bench protocol end to end: ``tactile-sensor bringup bench --protocol ... --record``
-on mock hardware, then ``tactile-sensor analyze`` on the bag, checked against the paper.
+on mock hardware, then ``tactile-sensor analyze`` on the bag, checked against the paper
+(compression: test_bringup.py, which also checks that protocol's bag).
 
 Shortened where the paper's length adds nothing a test can see (``NAME:key=value``
 overrides): repeatability with 6 cycles instead of 100, speeds with two cycles per speed
@@ -50,12 +51,6 @@ def record_and_analyse(spawn, tmp_path: Path, protocol: str, timeout_s: float
         assert (out / f"{name}.png").stat().st_size > 1000, name
         assert f"({name}.png)" in report, name
     return json.loads((out / "metrics.json").read_text()), report
-
-
-def test_compression_meets_the_papers_response(spawn, ros_domain, tmp_path,
-                                               check_compression_metrics):
-    mt, _ = record_and_analyse(spawn, tmp_path, "compression", 240)
-    check_compression_metrics(mt)
 
 
 def test_repeatability_has_no_drift(spawn, ros_domain, tmp_path):

@@ -3,6 +3,7 @@ recorded data against the world's ground truth; and the command's bad-input path
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 import yaml
 from rosbags.highlevel import AnyReader
 
+from tactile_sensor.analysis import cli as analyze_cli
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import load_or_compute_curve
 
@@ -70,7 +72,10 @@ def bringup(spawn, tmp_path: Path, *args: str):
     return spawn("bringup", *args, module="tactile_sensor.cli")
 
 
-def test_bench_compression_records_plausible_data(spawn, ros_domain, tmp_path):
+def test_bench_compression_records_plausible_data_and_meets_the_papers_response(
+        spawn, ros_domain, tmp_path, check_compression_metrics):
+    """The compression protocol recorded: the bag against the world's ground truth, then
+    'tactile-sensor analyze' on it against the paper's response."""
     bag = tmp_path / "bench_bag"
     run = bringup(spawn, tmp_path, "bench", "--protocol", "compression", "--record", str(bag),
                   "--port", f"adc_port={tmp_path / 'adc'}")
@@ -105,6 +110,10 @@ def test_bench_compression_records_plausible_data(spawn, ros_domain, tmp_path):
     rmse = float(np.sqrt(np.mean((force[inside] - reference) ** 2)))
     assert rmse < 0.07 * curve.force_n[-1], rmse
     assert force.max() == pytest.approx(gauge_f.max(), rel=0.12)
+    out = tmp_path / "analysis"
+    assert analyze_cli.main([str(bag), "--out", str(out), "--prediction", "auto",
+                             "--quiet"]) == 0
+    check_compression_metrics(json.loads((out / "metrics.json").read_text()))
 
 
 def test_gripper_grasp_records_contact_near_target(spawn, ros_domain, tmp_path):

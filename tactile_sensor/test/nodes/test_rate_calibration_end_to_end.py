@@ -52,7 +52,8 @@ def test_record_fit_record_with_the_fitted_file_and_analyse(spawn, ros_domain, t
     config.write_text(yaml.safe_dump({"/**/driver": {"ros__parameters": {
         "calibration_source": "file", "calibration_file": str(fit / "calibration.json")}}}))
     check, out = tmp_path / "check", tmp_path / "check-analysis"
-    log = record(spawn, tmp_path, "rate_check:hold=1.0,rest=0.5", check,
+    # 2 mm deep (inside the fitted 3 mm): every speed and phase, in two thirds of the time
+    log = record(spawn, tmp_path, "rate_check:hold=1.0,rest=0.5,depth=0.002", check,
                  "--config", str(config))
     assert "rate-aware" in log, log  # the driver says which model it runs
     assert ("play: half-gap" in log) == played, log
