@@ -300,14 +300,7 @@ def test_a_hardware_error_while_moving_ends_the_goal_and_is_reported():
 
 def test_settling_aborts_when_the_servo_is_lost():
     with Rig(stiffness=20000.0, settle_time_s=60.0) as rig:
-        # the settler assumes 2500 N/m: on this stiffer skin each correction overshoots
-        # (3x the error, the other way) and it never settles
-        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(force_n=2.0)))
-        while not (rig.forces.latest and rig.forces.latest[0] >= 2.0):
-            rig.servo.await_sample(1.0)
-        settling = len(rig.client.commands) + 3
-        while len(rig.client.commands) < settling:
-            rig.servo.await_sample(1.0)
+        thread, out = settling(rig)
         rig.client.fail_reads = CommunicationTimeout("no status packet")
         thread.join()
     assert out["end"].message == "servo_unreachable: no status packet"
@@ -516,7 +509,8 @@ def test_a_servo_unreachable_at_the_start_aborts_the_goal():
 
 
 def settling(rig: Rig):
-    """A grasp on a skin stiffer than the settler assumes: it never settles; returned once
+    """A grasp on a skin stiffer than the settler assumes (2500 N/m: on ``stiffness=20000``
+    each correction overshoots 3x the error, the other way) never settles; returned once
     it has made a few corrections."""
     thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(force_n=2.0)))
     while not (rig.forces.latest and rig.forces.latest[0] >= 2.0):
