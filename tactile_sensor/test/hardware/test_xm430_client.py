@@ -8,9 +8,11 @@ import time
 
 import numpy as np
 import pytest
+from dynamixel_sdk import COMM_PORT_BUSY, COMM_RX_CORRUPT, COMM_TX_FAIL
 
 from tactile_sensor.hardware.errors import (
     CommunicationTimeout,
+    CorruptPacket,
     DynamixelError,
     InvalidServoValue,
     ModelMismatch,
@@ -128,6 +130,7 @@ def test_hardware_error_reported_in_state_raised_on_command_cleared_by_reboot(
     client.set_torque(True)
     emulator.inject_hardware_error("overload")
     assert client.read_state().hardware_error == {"overload"}
+    assert client.read_hardware_error() == {"overload"}
     with pytest.raises(ServoHardwareError, match="overload") as info:
         client.set_goal_current_a(0.1)
     assert info.value.bits == {"overload"}
@@ -169,6 +172,8 @@ def test_port_and_argument_errors(tmp_path):
         Xm430Client(str(tmp_path / "missing"), 12345, 1).connect()
     with pytest.raises(InvalidServoValue, match=r"outside 0\.\.252"):
         Xm430Client("x", BAUD, 300)
+    with pytest.raises(InvalidServoValue, match=r"timeout_s must be positive, not 0\.0"):
+        Xm430Client("x", BAUD, 1, timeout_s=0.0)
     with pytest.raises(DynamixelError, match="not connected"):
         Xm430Client("x", BAUD, 1).read_state()
 
@@ -179,3 +184,16 @@ def test_a_vanished_device_raises_port_lost_every_time(client, emulator):
     for _ in range(2):  # and again, not "port was busy": the SDK's busy flag is cleared
         with pytest.raises(PortLost, match=r"serial port .* failed .*reconnect it"):
             client.read_state()
+
+
+@pytest.mark.parametrize(("result", "says"), [
+    (COMM_RX_CORRUPT, "Damaged reply from servo id 1 on x at 1000000 bps to a ping: check "
+                      "the baud rate"),
+    (COMM_PORT_BUSY, "The port x was busy during a ping: use one client per port"),
+    (COMM_TX_FAIL, "Could not exchange a ping with servo id 1 on x at 1000000 bps ("),
+])
+def test_each_failed_exchange_is_typed_and_names_the_fix(result, says):
+    with pytest.raises(DynamixelError) as info:
+        Xm430Client("x", BAUD, 1)._check("a ping", result, 0)
+    assert str(info.value).startswith(says), str(info.value)
+    assert isinstance(info.value, CorruptPacket) == (result == COMM_RX_CORRUPT)

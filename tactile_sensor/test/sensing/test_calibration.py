@@ -26,6 +26,8 @@ def test_interpolates_linearly_and_flags_saturation():
 
 def test_the_full_scale_is_the_most_force_the_curve_reports():
     assert CAL.full_scale_force_n == 7.0
+    assert CAL.max_output_v == 0.5
+    assert repr(CAL) == "Calibration(3 points, output 0..0.500 V, source='test')"
     assert max(CAL.force(x) for x in (0.4, 0.5, 0.6, 10.0)) == CAL.full_scale_force_n
 
 

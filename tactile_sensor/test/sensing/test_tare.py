@@ -19,6 +19,10 @@ def test_noisy_rest_is_accepted_with_the_mean_as_baseline():
     result = fill(TareWindow(1000.0, 0.5, 0.05), values).evaluate()
     assert result.baseline_v == pytest.approx(values.mean())
     assert result.samples == 500
+    # what the driver logs on a tare
+    assert result.describe() == (f"baseline {result.baseline_v:.4f} V "
+                                 f"(spread {result.spread_v * 1e3:.1f} mV)")
+    assert result.describe().startswith("baseline 1.97")
 
 
 def test_a_press_in_progress_is_refused():
