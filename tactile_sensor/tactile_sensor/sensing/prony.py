@@ -48,14 +48,6 @@ class PronySeries:
         self.reset()
 
     @property
-    def g(self) -> tuple[float, ...]:
-        return self._g
-
-    @property
-    def tau_s(self) -> tuple[float, ...]:
-        return self._tau
-
-    @property
     def state(self) -> tuple[tuple[float, ...], float | None]:
         """(terms h_i, last driving value): what ``restore`` puts back."""
         return tuple(self._h), self._last
