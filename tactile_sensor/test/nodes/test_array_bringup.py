@@ -2,9 +2,11 @@
 --record`` on mock hardware (four modules on one ADC, three-axis stage and gauge), then
 ``tactile-sensor analyze`` on the bag.
 
-Shortened to the four axis directions (``shear:shear_directions=4``, ~55 s instead of
-104 s). The bounds are issue 16's goals (``force_rmse_n`` x, y within 10 % and z within
-5 % of the gauge's range), which the full protocol is measured against in
+Shortened to the four axis directions at 2 mm/s
+(``shear:shear_directions=4,speeds=0.002``, 29 s instead of 104 s; at 2 mm/s the
+viscoelastic force the calibration does not know is a few % larger, and a run gave x, y 2 %
+and z 4 % of range). The bounds are the array's goals (``force_rmse_n`` x, y within 10 %
+and z within 5 % of the gauge's range), which the full protocol is measured against in
 benchmarks/bench_array_shear.py: the mock's skin and the driver's calibration come from
 the same FEM grid, so what remains is noise, the filter's lag, the viscoelastic force the
 calibration does not know, and the output play.
@@ -26,8 +28,9 @@ ARRAY_FIGURES = ("array_force_time", "array_force_scatter", "array_crosstalk",
 
 def test_array_shear_run_gives_three_axis_force_within_the_goals(spawn, ros_domain, tmp_path):
     bag, out = tmp_path / "bag", tmp_path / "out"
-    run = spawn("bringup", "array", "--protocol", "shear:shear_directions=4", "--record",
-                str(bag), "--port", f"adc_port={tmp_path / 'adc'}", module="tactile_sensor.cli")
+    run = spawn("bringup", "array", "--protocol", "shear:shear_directions=4,speeds=0.002",
+                "--record", str(bag), "--port", f"adc_port={tmp_path / 'adc'}",
+                module="tactile_sensor.cli")
     assert run.proc.wait(timeout=400) == 0, run.output()
     assert "protocol 100 %" in run.output()
     code = analyze_cli.main([str(bag), "--out", str(out), "--quiet"])

@@ -127,11 +127,18 @@ class Client:
         return handle
 
     def send_moving(self, name: str, goal):
-        """Send a goal and return once the fingers move (under way, not only accepted)."""
-        rest = self.opening[-1][1]
+        """Send a goal and return once the fingers move (under way, not only accepted):
+        judged on joint states stamped after the send, since this listener may still be
+        taking older ones (beside a busy core it once took the end of the previous goal's
+        move for this one's start)."""
+        sent = time.time()
         handle = self.send(name, goal)
-        _until(lambda: abs(self.opening[-1][1] - rest) > MOVED_M, PATIENCE_S,
-               "the fingers did not start moving")
+
+        def moved() -> bool:
+            after = [o for t, o in list(self.opening) if t >= sent]
+            return len(after) >= 2 and abs(after[-1] - after[0]) > MOVED_M
+
+        _until(moved, PATIENCE_S, "the fingers did not start moving")
         return handle
 
     def run(self, name: str, goal, timeout_s: float = PATIENCE_S):
