@@ -34,7 +34,6 @@ import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
@@ -73,7 +72,8 @@ SPECS = [
     ParamSpec("seed", -1, "random seed of the noise; < 0 = different every run"),
     ParamSpec("cache_dir", "", "prediction cache folder; empty = default"),
     # bench
-    ParamSpec("gauge_rate", 1000.0, "stage and gauge publishing rate [Hz] (paper: 1 kHz)",
+    ParamSpec("gauge_rate", 1000.0, "stage and gauge sampling rate [Hz] (paper: 1 kHz); the "
+              "samples go out in 5 ms bursts, each stamped with its own time",
               minimum=1.0, maximum=10_000.0),
     ParamSpec("protocol.name", "compression", "protocol name (for the log and the bag)"),
     ParamSpec("protocol.depth", 0.003, "indentation at the bottom of each stroke [m]",
@@ -153,15 +153,31 @@ class ProtocolSource:
 
     def __init__(self, world: BenchWorld | ArrayBenchWorld) -> None:
         self.world = world
-        self.start_device_s: float | None = None
+        self._start_device_s: float | None = None
+        #: Bumped at each start: the ADC samples ahead of time and must sample again.
+        self.revision = 0
+
+    @property
+    def start_device_s(self) -> float | None:
+        return self._start_device_s
+
+    @start_device_s.setter
+    def start_device_s(self, value: float | None) -> None:
+        self._start_device_s = value
+        self.revision += 1
 
     def __call__(self, t: Any) -> Any:
-        start = self.start_device_s
+        start = self._start_device_s
         if start is None:
             return self.world.photoreflector_voltage(np.zeros_like(np.asarray(t, float)))
         return self.world.photoreflector_voltage(np.maximum(np.asarray(t, float) - start, 0.0))
 
 
+#: How far ahead [s] the stage and gauge are evaluated, in one call.
+GAUGE_BLOCK_S = 0.05
+#: The gauge publishes its samples in bursts this long [s], each stamped with its own time,
+#: as a USB gauge delivers them: waking a thread every millisecond costs more than the work.
+GAUGE_BURST_S = 0.005
 #: The stage's joints: indentation (+ into the skin), lateral probe displacement along +x, +y.
 STAGE_JOINTS = ("stage_z", "stage_x", "stage_y")
 #: The six-axis stage adds the probe's tilt about x and y and twist about z [rad].
@@ -173,14 +189,20 @@ def stage_and_gauge(world: BenchWorld | ArrayBenchWorld, t: float
     """Stage positions (d, sx, sy [m], and rx, ry, rz [rad] on the six-axis bench) and gauge
     (Fx, Fy, Fz [N], then Tx, Ty, Tz [N m] on the six-axis bench) at protocol time t; a
     single-module bench has no lateral axis (0)."""
+    stage, gauge = stage_and_gauge_block(world, np.array([t], dtype=float))
+    return stage[0].tolist(), tuple(gauge[0].tolist())
+
+
+def stage_and_gauge_block(world: BenchWorld | ArrayBenchWorld, t: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """``stage_and_gauge`` at every time of ``t`` in one call: shapes (n, 3 or 6) each."""
     if isinstance(world, WrenchBenchWorld):
-        return ([float(x) for x in world.stage_m(t)],
-                tuple(float(x) for x in world.wrench_n(t)))
+        return np.asarray(world.stage_m(t), float), np.asarray(world.wrench_n(t), float)
     if isinstance(world, ArrayBenchWorld):
-        d, sx, sy = (float(x) for x in world.stage_m(t))
-        fx, fy, fz = (float(x) for x in world.force_n(t))
-        return [d, sx, sy], (fx, fy, fz)
-    return [float(world.indentation_m(t)), 0.0, 0.0], (0.0, 0.0, float(world.force_n(t)))
+        return np.asarray(world.stage_m(t), float), np.asarray(world.force_n(t), float)
+    d, zero = np.asarray(world.indentation_m(t), float), np.zeros(len(t))
+    return (np.stack([d, zero, zero], axis=-1),
+            np.stack([zero, zero, np.asarray(world.force_n(t), float)], axis=-1))
 
 
 class MockHardwareNode(Node):
@@ -337,29 +359,41 @@ class MockHardwareNode(Node):
         return response
 
     def _publish_gauge(self) -> None:
-        """Stage and gauge at ``gauge_rate``, each sample stamped with its own time."""
+        """Stage and gauge at ``gauge_rate``, each sample stamped with its own time. The
+        world is evaluated a block of samples at a time and the two messages are reused:
+        one sample a millisecond leaves no room for per-sample numpy calls."""
         period_ns = int(1e9 / self.values["gauge_rate"])
+        block = max(1, int(GAUGE_BLOCK_S * 1e9) // period_ns)
+        burst_ns = max(period_ns, int(GAUGE_BURST_S * 1e9))
+        stage, gauge = JointState(), WrenchStamped()
+        gauge.header.frame_id = "force_gauge"
+        force, torque = gauge.wrench.force, gauge.wrench.torque
+        first_ns, block_start, rows = 0, None, []  # the block: samples from first_ns on
         next_ns = time.time_ns()
         while not self._stop.is_set():
             now = time.time_ns()
-            if now < next_ns:
-                self._stop.wait(min((next_ns - now) * 1e-9, 0.01))
+            if now < next_ns + burst_ns - period_ns:
+                self._stop.wait(min((next_ns + burst_ns - period_ns - now) * 1e-9, 0.01))
                 continue
             start = self._start_host_ns
             while next_ns <= now and not self._stop.is_set():  # catch up after a stall
-                t = 0.0 if start is None else max(0.0, (next_ns - start) * 1e-9)
-                stamp = Time(nanoseconds=next_ns).to_msg()
-                position, force = stage_and_gauge(self.world, t)
-                stage = JointState(name=list(WRENCH_STAGE_JOINTS[:len(position)]),
-                                   position=position)
-                stage.header.stamp = stamp
-                gauge = WrenchStamped()
-                gauge.header.stamp, gauge.header.frame_id = stamp, "force_gauge"
-                f = gauge.wrench.force
-                f.x, f.y, f.z = force[:3]
-                if len(force) == 6:
-                    tq = gauge.wrench.torque
-                    tq.x, tq.y, tq.z = force[3:]
+                i = (next_ns - first_ns) // period_ns
+                if start != block_start or not 0 <= i < len(rows):
+                    first_ns, block_start, i = next_ns, start, 0
+                    times = next_ns + period_ns * np.arange(block)
+                    t = (np.zeros(block) if start is None
+                         else np.maximum(0.0, (times - start) * 1e-9))
+                    positions, forces = stage_and_gauge_block(self.world, t)
+                    rows = list(zip(positions.tolist(), forces.tolist(), strict=True))
+                    stage.name = list(WRENCH_STAGE_JOINTS[:positions.shape[1]])
+                position, f = rows[i]
+                sec, nanosec = divmod(next_ns, 1_000_000_000)
+                for header in (stage.header, gauge.header):
+                    header.stamp.sec, header.stamp.nanosec = sec, nanosec
+                stage.position = position
+                force.x, force.y, force.z = f[:3]
+                if len(f) == 6:
+                    torque.x, torque.y, torque.z = f[3:]
                 self._stage_pub.publish(stage)
                 self._gauge_pub.publish(gauge)
                 self.published_until_ns = next_ns

@@ -141,17 +141,27 @@ class AdcSampler:
         """Codes (shape ``(n, channels)``) for noise-free voltages of shape ``(n,)`` (the
         same voltage on every channel) or ``(n, channels)`` (one per channel: an array)."""
         v = np.asarray(voltages_v, dtype=float)
-        v = (v if v.ndim == 2 else v.reshape(-1, 1)) + np.zeros((1, self.channels))
+        v = v if v.ndim == 2 else v.reshape(-1, 1)
+        return self.quantise(v + self.noise_v(len(v)))
+
+    def noise_v(self, n: int) -> np.ndarray:
+        """The next ``n`` samples' noise [V], shape ``(n, channels)``. It does not depend on
+        the signal, so a device can draw it before it knows the voltages."""
+        out = np.zeros((n, self.channels))
         noise = self.noise
         if noise.white_v > 0:
-            v = v + self._rng.normal(0.0, noise.white_v, v.shape)
+            out += self._rng.normal(0.0, noise.white_v, out.shape)
         if noise.drift_v > 0:  # Ornstein–Uhlenbeck, exact AR(1) discretisation
             a = self._a
-            innov = self._rng.normal(0.0, noise.drift_v * math.sqrt(1 - a * a), v.shape)
+            innov = self._rng.normal(0.0, noise.drift_v * math.sqrt(1 - a * a), out.shape)
             drift = _ar1(a, self._drift, innov)
             self._drift = drift[-1].copy()
-            v = v + drift
-        return np.clip(np.rint(v * self._scale), 0, self._full_scale).astype(np.int64)
+            out += drift
+        return out
+
+    def quantise(self, voltages_v: np.ndarray) -> np.ndarray:
+        """Codes for voltages that already carry their noise."""
+        return np.clip(np.rint(voltages_v * self._scale), 0, self._full_scale).astype(np.int64)
 
 
 def _ar1(a: float, start: np.ndarray, innov: np.ndarray) -> np.ndarray:
@@ -186,6 +196,8 @@ class MockAdcDevice:
     """A microcontroller ADC streaming frames on a pseudo-terminal at ``link_path``."""
 
     GARBAGE_CHUNK = 1024  # bytes of injected garbage per batch (~1 MB/s at most)
+    #: How far ahead [s] a source that announces its changes is sampled, in one call.
+    LOOKAHEAD_S = 0.05
 
     def __init__(
         self,
@@ -242,6 +254,12 @@ class MockAdcDevice:
         self._info = (encode_info(adc_bits, channels, vref_v, round(1e6 / rate_hz), board)
                       if protocol >= 2 else b"")
         self._info_every = max(1, round(info_period_s * rate_hz))
+        # Frames sampled ahead of their time (see _frames): from sample _ahead_k on.
+        self._ahead: list[bytes] = []
+        self._ahead_noise = np.zeros((0, channels))
+        self._ahead_k = 0
+        self._ahead_revision: Any = None
+        self._ahead_n = max(1, int(self.rate_hz * self.LOOKAHEAD_S))
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -407,13 +425,46 @@ class MockAdcDevice:
             return v.reshape(-1)
         return np.fromiter((self._source(float(t)) for t in times), float, len(times))
 
-    def _counts(self, k: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    def _frames(self, k: int, n: int) -> list[bytes]:
+        """Frames ``k .. k+n-1``. Per-call numpy costs dominate at one frame a millisecond,
+        so a source with a ``revision`` (bumped whenever what it will output changes, as
+        ``ProtocolSource`` does when its protocol starts) is sampled up to ``LOOKAHEAD_S``
+        ahead in one call, and sampled again when its revision moves. Any other source
+        is sampled as its frames fall due: it may follow a world in motion (the gripper)."""
+        if k != self._ahead_k:
+            self._ahead, self._ahead_noise, self._ahead_k = [], self._ahead_noise[:0], k
+        revision = getattr(self._source, "revision", None)
+        if revision != self._ahead_revision and self._ahead:
+            self._ahead = self._pack(k, self._ahead_noise)
+        self._ahead_revision = revision
+        missing = n - len(self._ahead)
+        if missing > 0:
+            m = missing if revision is None else max(missing, self._ahead_n)
+            noise = self._sampler.noise_v(m)
+            self._ahead += self._pack(k + len(self._ahead), noise)
+            self._ahead_noise = np.concatenate([self._ahead_noise, noise])
+        frames = self._ahead[:n]
+        del self._ahead[:n]
+        self._ahead_noise = self._ahead_noise[n:]
+        self._ahead_k = k + n
+        return frames
+
+    def _pack(self, k: int, noise: np.ndarray) -> list[bytes]:
+        """Frames for samples ``k ..`` carrying ``noise`` (one row per sample)."""
+        n = len(noise)
         times = (k + np.arange(n)) / self.rate_hz
-        return times, self._sampler.counts(self._voltages(times))
+        v = self._voltages(times)
+        counts = self._sampler.quantise((v if v.ndim == 2 else v[:, None]) + noise)
+        t_us = (np.rint(times * 1e6).astype(np.int64) + self.clock_offset_us) % (1 << 32)
+        pack, sync, header = self._frame.pack, SYNC, self._header
+        frames = []
+        for i, (t, row) in enumerate(zip(t_us.tolist(), counts.tolist(), strict=True)):
+            body = pack(sync, header, (k + i) & 0xFFFF, t, *row)
+            frames.append(body + crc_hqx(body[2:], CRC_INIT).to_bytes(2, "little"))
+        return frames
 
     def _emit(self, k: int, n: int) -> None:
-        times, counts = self._counts(k, n)
-        t_us = (np.rint(times * 1e6).astype(np.int64) + self.clock_offset_us) % (1 << 32)
+        frames = self._frames(k, n)
         with self._lock:
             drop = min(self._drop_pending, n)
             self._drop_pending -= drop
@@ -421,16 +472,13 @@ class MockAdcDevice:
             self._garbage_pending -= garbage
             self._generated += n
             self._dropped += drop
-        pack, sync, header = self._frame.pack, SYNC, self._header
         parts = []
         info, every = self._info, self._info_every
         for i in range(n):
             if info and (k + i) % every == 0:
                 parts.append(info)  # the info is sent even when frames are dropped
-            if i < drop:
-                continue
-            body = pack(sync, header, (k + i) & 0xFFFF, int(t_us[i]), *counts[i].tolist())
-            parts.append(body + (crc_hqx(body[2:], CRC_INIT)).to_bytes(2, "little"))
+            if i >= drop:
+                parts.append(frames[i])
         data = b"".join(parts)
         if garbage:
             cut = int(self._rng.integers(0, len(data) + 1))

@@ -118,6 +118,56 @@ def test_version_2_states_its_adc_four_times_a_second(tmp_path):
     assert frames[-1].counts == (310, 310)  # round(1.0 V / 3.3 V * 1023)
 
 
+class StepSource:
+    """1 V, then 3 V from ``at_s`` on; ``step`` announces the change like ProtocolSource."""
+
+    def __init__(self, announce: bool) -> None:
+        self.at_s = math.inf
+        if announce:
+            self.revision = 0
+
+    def __call__(self, t):
+        return np.where(np.asarray(t, dtype=float) >= self.at_s, 3.0, 1.0)
+
+    def step(self, at_s: float) -> None:
+        self.at_s = at_s
+        if hasattr(self, "revision"):
+            self.revision += 1
+
+
+@pytest.mark.parametrize("announce", [True, False])
+def test_a_change_reaches_every_frame_after_it_sampled_ahead_or_not(tmp_path, announce):
+    # An announcing source is sampled 50 ms ahead: frames already sampled must be sampled
+    # again. One that does not announce is sampled as each frame falls due.
+    path, source = tmp_path / "adc", StepSource(announce)
+    parser, frames = FrameParser(), []
+    with MockAdcDevice(path, source, noise=QUIET) as device:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
+        try:
+            def read_until(n: int) -> None:
+                deadline = time.monotonic() + 60.0
+                while len(frames) < n and time.monotonic() < deadline:
+                    try:
+                        data = os.read(fd, 65536)
+                    except BlockingIOError:
+                        time.sleep(0.005)
+                        continue
+                    frames.extend(i for i in parser.feed(data) if isinstance(i, Frame))
+                assert len(frames) >= n
+
+            read_until(100)
+            at_s = device.elapsed_s + 0.005
+            source.step(at_s)
+            read_until(len(frames) + 200)
+        finally:
+            os.close(fd)
+    one_v, three_v = round(1.0 / 5.0 * 4095), round(3.0 / 5.0 * 4095)
+    after = [f for f in frames if f.t_us >= at_s * 1e6]
+    assert len(after) >= 100
+    assert {f.counts for f in after} == {(three_v,)}
+    assert {f.counts for f in frames if f.t_us < at_s * 1e6} == {(one_v,)}
+
+
 def test_version_1_states_nothing(tmp_path):
     path = tmp_path / "adc"
     with MockAdcDevice(path, lambda t: 1.0, noise=QUIET, protocol=1):
