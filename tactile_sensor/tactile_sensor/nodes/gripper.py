@@ -48,7 +48,7 @@ from tactile_sensor.control.goal_runner import (
     RunnerTiming,
     interrupted,
 )
-from tactile_sensor.control.servo_link import ServoLink
+from tactile_sensor.control.servo_link import ServoLink, call_retrying
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError
 from tactile_sensor.hardware.xm430 import Xm430Client
@@ -120,7 +120,8 @@ class GripperNode(Node):
         servo = ServoLink(client, settings.config, period_s=period,
                           retries=values["comm_retries"])
         try:
-            client.connect()
+            # a lost reply to the first ping is a bus fault like any other (comm_retries)
+            call_retrying(client.connect, values["comm_retries"])
             servo.prepare(values["current_limit"])
         except DynamixelError as exc:
             client.close()

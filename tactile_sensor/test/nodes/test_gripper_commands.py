@@ -413,8 +413,10 @@ def test_an_inactive_gripper_rejects_goals_naming_the_fix(spawn, ros_domain, tmp
     servo = tmp_path / "xm430"
     emulator = spawn("mock", "xm430", "--link", str(servo), "--baud", "1000000", "--no-world",
                      module="tactile_sensor.cli")
-    _until(servo.exists, PATIENCE_S, emulator.output())
+    assert emulator.wait_for_output("xm430: id 1", PATIENCE_S), emulator.output()
+    # packet_timeout, comm_retries: as Launch's (a busy machine holds the emulator up)
     gripper = spawn("--ros-args", "-r", "__node:=gripper", "-p", f"port:={servo}",
+                    "-p", "packet_timeout:=0.5", "-p", "comm_retries:=4",
                     module="tactile_sensor.nodes.gripper")
     with ros_session():
         client = Client()

@@ -383,11 +383,13 @@ def test_without_control_msgs_the_gripper_starts_and_says_which_actions_are_miss
     servo = tmp_path / "xm430"
     emulator = spawn("mock", "xm430", "--link", str(servo), "--baud", "1000000", "--no-world",
                      module="tactile_sensor.cli")
-    _until(servo.exists, emulator.output())
+    assert emulator.wait_for_output("xm430: id 1", PATIENCE_S), emulator.output()
     shim = (f"import sys; sys.path.insert(0, {str(hidden.parent)!r}); "
             "from tactile_sensor.nodes.gripper import main; sys.exit(main())")
+    # packet_timeout, comm_retries: as Rig's (a busy machine holds the emulator up)
     gripper = spawn(sys.executable, "-c", shim, "--ros-args", "-r", "__node:=gripper",
-                    "-p", f"port:={servo}", "-p", "autostart:=true")
+                    "-p", f"port:={servo}", "-p", "autostart:=true",
+                    "-p", "packet_timeout:=0.5", "-p", "comm_retries:=4")
     assert gripper.wait_for_output("active", PATIENCE_S), gripper.output()
     output = gripper.output()
     warnings = [line for line in output.splitlines() if "[WARN]" in line]
