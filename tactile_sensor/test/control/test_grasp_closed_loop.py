@@ -24,7 +24,10 @@ def _share_the_gil_fairly():
     sys.setswitchinterval(before)
 
 
-def run_grasp(tmp_path, rod_diameter_m):
+def run_grasp(tmp_path, rod_diameter_m, forces=None):
+    """The grasp's last step and the force held 0.2 s after it; ``forces`` collects the
+    force each control tick saw."""
+    forces = [] if forces is None else forces
     d = np.linspace(0.0, 0.003, 31)
     force = 7.0 * d / 0.003
     world = GripperWorld(TabulatedSkin(d, force, 2.0 - 0.07 * force, thickness_m=0.005),
@@ -45,16 +48,23 @@ def run_grasp(tmp_path, rod_diameter_m):
                 break
             state = client.read_state()
             now = time.monotonic()
-            step = controller.tick(now, world.latest.force_a_n, now, state)
+            forces.append(world.latest.force_a_n)
+            step = controller.tick(now, forces[-1], now, state)
         time.sleep(0.2)
         return step, world.latest.force_a_n
 
 
 def test_closing_on_the_rod_reaches_the_target_force(tmp_path):
-    step, held = run_grasp(tmp_path, 0.020)
+    forces: list[float] = []
+    step, held = run_grasp(tmp_path, 0.020, forces)
     assert step.outcome is Outcome.CONTACT
-    # held where the fingers were read (0.088 deg position steps ~ 0.05 N on this skin)
-    assert 1.8 <= held < 2.6
+    # Contact at the first tick whose force reached the 2 N target, and held where the
+    # fingers were read then (0.088 deg position steps ~ 0.05 N on this skin). How far past
+    # 2 N that tick read depends on how long the loop was held up between two ticks (the
+    # world moves in real time: at 20 mm/s, 0.1 s is about 4 N): a quiet machine reads
+    # within a few tenths, a busy one further, so the bound is the force the tick saw.
+    assert forces[-2] < 2.0 <= forces[-1]
+    assert 1.8 <= held < max(2.6, forces[-1] + 0.1)
 
 
 def test_no_rod_ends_at_the_closed_limit(tmp_path):
