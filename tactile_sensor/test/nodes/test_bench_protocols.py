@@ -14,6 +14,11 @@ overrides): repeatability with 6 cycles instead of 100, speeds with two cycles p
 - hysteresis < 8 % FS: "nearly identical for loading and unloading"; the mock's output play
   (0.065 mm) and the force's viscoelastic loop give ~4-5 %.
 - peak-output CV < 2 % and |drift| < 2 %: "no change observed in the maximum output".
+- peak output the same at every speed within 8 %: one cycle per speed, and a peak output is
+  the mean over the samples at >= 98 % of the peak indentation, which at 10 mm/s is the
+  12 ms around the turn, about 12 filtered samples: it scatters by about +-0.02 V (4 % of
+  0.5 V) from run to run (0.524 V at 10 mm/s against 0.496-0.500 V at the slower speeds in
+  one run, 0.501-0.508 V in the next).
 - phase lag: the onset fit scatters from cycle to cycle (one standard deviation: ~0.1 s
   at 0.1 mm/s, ~0.04 s at 1 mm/s, ~0.01 s at 10 mm/s with the mock's noise; one cycle
   per speed can break the ordering below, e.g. 0.37 s at 0.1 and 0.13 s at 1 mm/s), so:
@@ -78,7 +83,7 @@ def test_speeds_lag_falls_with_speed_and_force_rises(spawn, ros_domain, tmp_path
     # force rises with speed while the peak output does not (Fig. 9)
     assert by["10.0"]["peak_force_n"] > by["1.0"]["peak_force_n"] > by["0.1"]["peak_force_n"]
     outputs = [by[k]["peak_output_v"] for k in ("0.1", "1.0", "10.0")]
-    assert max(outputs) - min(outputs) < 0.05 * max(outputs)
+    assert max(outputs) - min(outputs) < 0.08 * max(outputs)
 
 
 def test_rest_protocol_has_no_press_to_analyse(spawn, ros_domain, tmp_path, capsys):
