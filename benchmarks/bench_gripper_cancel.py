@@ -306,6 +306,8 @@ def measure(args, gripper, emulator, emu, rclpy, WrenchStamped, ActionClient,
     finally:
         stop.set()
         spin.stop()
+        grasp.destroy()  # destroy_node() leaves action clients to the garbage collector
+        release.destroy()
         client.destroy_node()
     emulator.send_signal(signal.SIGTERM)
     emulator.wait(30)

@@ -122,6 +122,7 @@ class Recorder:
 
     def close(self) -> None:
         self.spin.stop()
+        self.action.destroy()  # destroy_node() leaves action clients to the garbage collector
         self.node.destroy_node()
 
 

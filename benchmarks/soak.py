@@ -247,6 +247,8 @@ class Monitor:
             self.spinning.clear()
             self.thread.join(5.0)
             self.executor.shutdown(timeout_sec=2.0)
+            self.grasp.destroy()  # destroy_node() leaves action clients to the collector
+            self.release.destroy()
             self.node.destroy_node()
             rclpy.try_shutdown()
 

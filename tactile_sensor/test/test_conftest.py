@@ -1,12 +1,19 @@
-"""The test harness's own arithmetic: the ROS domain ids it hands out."""
+"""The test harness's own rules: the ROS domain ids it hands out, the lane that runs the
+protocols at device pace beside the other pytest-xdist workers, the watchdog on hung tests."""
 
 from __future__ import annotations
 
 import importlib.util
+import json
+import os
+import subprocess
+import sys
+import textwrap
 from pathlib import Path
 from types import ModuleType
 
 import pytest
+from xdist.scheduler import LoadScopeScheduling
 
 
 def _harness() -> ModuleType:  # conftest.py is not importable by name under --import-mode=importlib
@@ -56,3 +63,185 @@ def test_without_xdist_the_whole_block_is_one_workers():
 def test_more_workers_than_domain_ids_is_refused_in_one_sentence():
     with pytest.raises(pytest.UsageError, match="cannot give each of 8 pytest-xdist workers two"):
         worker_domains(domain_ids(225), "gw0", 8)
+
+
+class FakeWorker:
+    """What the scheduler sees of a pytest-xdist worker: the tests sent, a shutdown."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.gateway = type("Gateway", (), {"id": name})()
+        self.shutting_down = False
+        self.sent: list[int] = []
+
+    def shutdown(self) -> None:
+        self.shutting_down = True
+
+    def send_runtest_some(self, indices: list[int]) -> None:
+        self.sent.extend(indices)
+
+
+class FakeConfig:
+    def __init__(self, workers: int) -> None:
+        self.option = type("Option", (), {"loadscopereorder": False})()
+        self._workers = workers
+
+    def getvalue(self, name: str) -> list[str]:
+        assert name == "tx"
+        return [f"{self._workers}*popen"]
+
+
+COLLECTION = ["nodes/test_a.py::one", "nodes/test_p.py::soak", "nodes/test_a.py::two",
+              "nodes/test_q.py::speeds", "physics/test_b.py::fem", "test_c.py::quick"]
+PACED = {1, 3}
+Scheduling = harness.lane_scheduling(
+    LoadScopeScheduling, lambda nodeid: nodeid in {COLLECTION[i] for i in PACED})
+
+
+def test_every_paced_test_named_exists():
+    """A paced test renamed or moved would silently leave the lane."""
+    for nodeid in harness.PACED_TESTS:
+        path, name = nodeid.split("::")
+        source = (Path(__file__).parent / path).read_text()
+        assert f"def {name}(" in source, nodeid
+        assert harness.is_paced(f"tactile_sensor/test/{nodeid}")
+    assert not harness.is_paced("tactile_sensor/test/nodes/test_soak.py::test_a_run_too_short")
+
+
+def _started(workers: int, collection: list[str] = COLLECTION
+             ) -> tuple[object, list[FakeWorker]]:
+    sched = Scheduling(FakeConfig(workers))
+    nodes = [FakeWorker(f"gw{i}") for i in range(workers)]
+    for node in nodes:
+        sched.add_node(node)
+    for node in nodes:
+        sched.add_node_collection(node, collection)
+    sched.schedule()
+    return sched, nodes
+
+
+def _run_until_done(sched, nodes: list[FakeWorker], *, stop_before: int | None = None) -> None:
+    """Each worker finishes its sent tests in turn, as their reports would arrive."""
+    done: dict[str, int] = {node.name: 0 for node in nodes}
+    progress = True
+    while progress:
+        progress = False
+        for node in list(sched.nodes):
+            if done[node.name] < len(node.sent):
+                if stop_before is not None and node.sent[done[node.name]] == stop_before:
+                    continue
+                sched.mark_test_complete(node, node.sent[done[node.name]])
+                done[node.name] += 1
+                progress = True
+
+
+def test_the_lane_runs_every_paced_test_and_nothing_else():
+    sched, (gw0, gw1, lane) = _started(3)
+    _run_until_done(sched, [gw0, gw1, lane])
+    assert set(lane.sent) == PACED and lane.shutting_down
+    assert not PACED & set(gw0.sent + gw1.sent)
+    assert sorted(gw0.sent + gw1.sent + lane.sent) == list(range(len(COLLECTION)))
+    assert not sched.workqueue and sched.tests_finished
+    # whole files stay on one worker, so their module fixtures are built once
+    assert {0, 2} <= set(gw0.sent) or {0, 2} <= set(gw1.sent)
+
+
+def test_a_single_worker_runs_the_paced_tests_after_the_rest():
+    sched, (only,) = _started(1)
+    _run_until_done(sched, [only])
+    assert sorted(only.sent) == list(range(len(COLLECTION)))
+    assert set(only.sent[-2:]) == PACED
+
+
+def test_a_crashed_lane_is_replaced_and_the_new_worker_takes_its_tests():
+    sched, (gw0, gw1, lane) = _started(3)
+    sched.remove_node(lane)  # crashed before reporting anything
+    _run_until_done(sched, [gw0, gw1])
+    assert not PACED & set(gw0.sent + gw1.sent) and "paced" in sched.workqueue
+    replacement = FakeWorker("gw3")
+    sched.add_node(replacement)
+    sched.add_node_collection(replacement, COLLECTION)
+    sched.schedule()
+    _run_until_done(sched, [gw0, gw1, replacement])
+    assert set(replacement.sent) == PACED and not sched.workqueue
+
+
+def test_a_worker_with_files_left_when_the_lane_crashes_takes_the_paced_tests_last():
+    more = COLLECTION + [f"sim/test_{name}.py::one" for name in "defgh"]
+    sched, (gw0, gw1, lane) = _started(3, more)
+    sched.remove_node(lane)  # pytest-xdist may not replace it (its crash limit)
+    _run_until_done(sched, [gw0, gw1])
+    ran = gw0.sent + gw1.sent
+    assert sorted(ran) == list(range(len(more))) and not sched.workqueue
+    assert set((gw0.sent if set(gw0.sent) >= PACED else gw1.sent)[-2:]) == PACED
+
+
+LANE_SUITE = """
+import json, os, pytest
+
+def _record(name):
+    with open(os.environ["LANE_LOG"], "a") as log:
+        log.write(json.dumps({"test": name, "worker": os.environ["PYTEST_XDIST_WORKER"],
+                              "nice": os.nice(0)}) + "\\n")
+
+def test_paced_one():
+    _record("paced_one")
+
+def test_paced_two():
+    _record("paced_two")
+
+@pytest.mark.parametrize("i", range(6))
+def test_other(i):
+    _record(f"other{i}")
+"""
+
+
+@pytest.mark.slow
+def test_under_xdist_the_paced_tests_share_one_niced_worker(tmp_path: Path):
+    """The real pytest-xdist with the harness as its plugin, on a file named like the
+    project's array bring-up tests, whose two paced tests it holds beside six others."""
+    shear, wrench = sorted(t for t in harness.PACED_TESTS if "test_array_bringup" in t)
+    path = tmp_path / "test" / shear.split("::")[0]
+    path.parent.mkdir(parents=True)
+    path.write_text(LANE_SUITE.replace("test_paced_one", shear.split("::")[1]).replace(
+        "test_paced_two", wrench.split("::")[1]))
+    log = tmp_path / "lane.jsonl"
+    env = dict(os.environ, LANE_LOG=str(log),
+               PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get(
+                   "PYTHONPATH", "")]))
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-c", os.devnull, "--rootdir", str(tmp_path),
+         "-p", "conftest", "-n", "3", "--dist", "loadgroup", "-q", "-p", "no:cacheprovider",
+         str(path)],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    runs = [json.loads(line) for line in log.read_text().splitlines()]
+    assert len(runs) == 8
+    paced = [r for r in runs if r["test"] == "paced_one" or r["test"] == "paced_two"]
+    assert len(paced) == 2
+    lane = {r["worker"] for r in paced}
+    others = [r for r in runs if r["test"].startswith("other")]
+    assert len(lane) == 1 and not lane & {r["worker"] for r in others}, runs
+    base = os.nice(0)
+    assert {r["nice"] for r in paced} == {min(base + harness.LANE_NICENESS, 19)}
+    assert {r["nice"] for r in others} == {base}
+
+
+@pytest.mark.slow
+def test_a_test_that_hangs_holding_the_interpreter_lock_is_ended_with_its_stack(
+        tmp_path: Path):
+    (tmp_path / "test_hang.py").write_text(textwrap.dedent("""
+        import ctypes
+
+        def test_hangs_in_c():
+            ctypes.PyDLL(None).sleep(600)  # PyDLL keeps the interpreter lock, as a C hang does
+    """))
+    project = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-c", str(project), "--rootdir", str(tmp_path),
+         "-o", "faulthandler_timeout=2", "-p", "no:cacheprovider",
+         str(tmp_path / "test_hang.py")],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode != 0
+    assert "Timeout (0:00:02)!" in done.stderr, done.stderr
+    assert "test_hang.py\", line 5 in test_hangs_in_c" in done.stderr, done.stderr

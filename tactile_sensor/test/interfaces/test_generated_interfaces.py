@@ -47,6 +47,7 @@ def test_grasp_action_across_processes(servers):
         result_future = handle.get_result_async()
         rclpy.spin_until_future_complete(node, result_future, timeout_sec=10.0)
         result = result_future.result().result
+        client.destroy()  # destroy_node() leaves action clients to the garbage collector
         node.destroy_node()
     assert result.contact_detected and result.force == pytest.approx(3.0)
     assert result.message == "contact"

@@ -148,6 +148,8 @@ class Client:
 
     def close(self) -> None:
         self.spin.stop()
+        for action in self.actions.values():
+            action.destroy()  # destroy_node() leaves them to the garbage collector
         self.node.destroy_node()
 
 

@@ -143,6 +143,10 @@ class Client:
 
     def close(self) -> None:
         self.spin.stop()
+        # destroy_node() leaves action clients to the garbage collector, which may finalize
+        # them in a later test, where Fast DDS can hang waiting for its event thread
+        self.grasp.destroy()
+        self.release.destroy()
         self.node.destroy_node()
 
 
@@ -402,6 +406,7 @@ def test_without_control_msgs_the_gripper_starts_and_says_which_actions_are_miss
             assert grasp.wait_for_server(timeout_sec=PATIENCE_S)
             names = {name for name, _ in get_action_names_and_types(node)}
             assert "/gripper/grasp" in names and "/gripper/gripper_cmd" not in names
+            grasp.destroy()
         finally:
             node.destroy_node()
 
