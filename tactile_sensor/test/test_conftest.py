@@ -199,12 +199,12 @@ def test_other(i):
 @pytest.mark.slow
 def test_under_xdist_the_paced_tests_share_one_niced_worker(tmp_path: Path):
     """The real pytest-xdist with the harness as its plugin, on a file named like the
-    project's array bring-up tests, whose two paced tests it holds beside six others."""
-    shear, wrench = sorted(t for t in harness.PACED_TESTS if "test_array_bringup" in t)
-    path = tmp_path / "test" / shear.split("::")[0]
+    project's bench protocol tests, whose two paced tests it holds beside six others."""
+    one, two = sorted(t for t in harness.PACED_TESTS if "test_bench_protocols" in t)
+    path = tmp_path / "test" / one.split("::")[0]
     path.parent.mkdir(parents=True)
-    path.write_text(LANE_SUITE.replace("test_paced_one", shear.split("::")[1]).replace(
-        "test_paced_two", wrench.split("::")[1]))
+    path.write_text(LANE_SUITE.replace("test_paced_one", one.split("::")[1]).replace(
+        "test_paced_two", two.split("::")[1]))
     log = tmp_path / "lane.jsonl"
     env = dict(os.environ, LANE_LOG=str(log),
                PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get(
