@@ -19,9 +19,9 @@ export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
 # Tests that start processes mostly wait (DDS discovery, protocols at device pace), so two
 # pytest-xdist workers overlap their waits; each worker takes whole files (module fixtures
 # are built once) and its own share of the domain ids (conftest.py: worker_domains). With
-# --dist loadgroup a third worker, the lane, runs only the protocols at device pace
-# (conftest.py: PACED_TESTS), one after another and niced, so they never queue behind the
-# rest nor crowd the real-time tests.
+# --dist loadgroup a third worker, the lane, runs only the two longest protocols at device
+# pace (conftest.py: PACED_TESTS), niced, while the two take the files without real-time parts
+# first (conftest.py: REAL_TIME_FOLDERS).
 workers=${TACTILE_TEST_WORKERS:-2}
 xdist=()
 # --no-loadscope-reorder: files in the order conftest.py sorts them (longest first), not by

@@ -224,36 +224,42 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
                                  "/test/nodes/" not in str(item.path)))
 
 
-#: The tests that run a whole protocol at device pace (a minute or more each, judged on
-#: stamped, recorded data) and mostly wait for it. Under ``--dist loadgroup``
-#: (scripts/test.sh) they run one after another on a worker of their own, the lane, beside
-#: the other workers. (The wrench bring-up is not one: half of it solves its FEM grid, which
-#: a niced worker would only stretch.) Named here, not by an ``xdist_group`` mark:
-#: pytest-xdist 3.8 cannot rename pytest 9's node ids to group them.
+#: The two longest tests: each runs a whole protocol at device pace (one and a half minutes,
+#: judged on stamped, recorded data) and mostly waits for it. Under ``--dist loadgroup``
+#: (scripts/test.sh) they run one after the other on a worker of their own, the lane, beside
+#: the other workers. Named here, not by an ``xdist_group`` mark: pytest-xdist 3.8 cannot
+#: rename pytest 9's node ids to group them.
 PACED_TESTS = frozenset({
     "nodes/test_soak.py::test_a_soak_with_every_fault_once_meets_the_goals",
     "nodes/test_rate_calibration_end_to_end.py::"
     "test_record_fit_record_with_the_fitted_file_and_analyse",
-    "nodes/test_bench_protocols.py::test_speeds_lag_falls_with_speed_and_force_rises",
-    "nodes/test_bench_protocols.py::test_repeatability_has_no_drift",
-    "nodes/test_array_bringup.py::test_array_shear_run_gives_three_axis_force_within_the_goals",
 })
 PACED_GROUP = "paced"
-#: The lane's niceness: beside a busy machine the real-time tests on the other workers (a
-#: grasp's control loop, a reader draining a port) come first; a paced test is only delayed.
+#: The lane's niceness: beside a busy machine the other workers' tests come first; a paced
+#: test is only delayed.
 LANE_NICENESS = 5
+#: Folders of tests with real-time parts (a grasp's control loop, a reader draining a port,
+#: an emulated device at its pace). While the lane runs, the other workers take every other
+#: file first, so these mostly run once it is done, with the machine's CPU to themselves.
+REAL_TIME_FOLDERS = ("nodes", "launch", "sim", "hardware")
 
 
 def is_paced(nodeid: str) -> bool:
     return f"/{nodeid}".partition("/test/")[2] in PACED_TESTS
 
 
-def lane_scheduling(base: type, paced: Callable[[str], bool] = is_paced) -> type:
+def is_real_time(scope: str) -> bool:
+    return f"/{scope}".partition("/test/")[2].split("/", 1)[0] in REAL_TIME_FOLDERS
+
+
+def lane_scheduling(base: type, paced: Callable[[str], bool] = is_paced,
+                    real_time: Callable[[str], bool] = is_real_time) -> type:
     """pytest-xdist's scope scheduling with whole files as units, except that the ``paced``
     tests are one unit that only the lane takes: the last worker, which takes nothing
-    else. Without a lane (one worker, or the lane crashed and none replaced it) any worker
-    takes the paced unit once no other is left. ``base`` is xdist's LoadScopeScheduling
-    (imported where xdist runs)."""
+    else. While the lane has work, the other workers take the files that are not
+    ``real_time`` first. Without a lane (one worker, or the lane crashed and none replaced
+    it) any worker takes the paced unit once no other is left. ``base`` is xdist's
+    LoadScopeScheduling (imported where xdist runs)."""
 
     class LaneScheduling(base):  # type: ignore[valid-type,misc]
         lane: object | None = None
@@ -269,9 +275,16 @@ def lane_scheduling(base: type, paced: Callable[[str], bool] = is_paced) -> type
             if node is self.lane:
                 return PACED_GROUP if PACED_GROUP in scopes else None
             others = [scope for scope in scopes if scope != PACED_GROUP]
+            if self._lane_busy():
+                others.sort(key=real_time)  # stable: in collection order otherwise
             if others:
                 return others[0]
             return PACED_GROUP if scopes and self.lane is None else None
+
+        def _lane_busy(self) -> bool:
+            return self.lane is not None and (
+                PACED_GROUP in self.workqueue
+                or self._pending_of(self.assigned_work.get(self.lane, {})) > 0)
 
         def add_node(self, node: object) -> None:
             super().add_node(node)

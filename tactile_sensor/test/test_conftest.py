@@ -65,6 +65,9 @@ def test_more_workers_than_domain_ids_is_refused_in_one_sentence():
         worker_domains(domain_ids(225), "gw0", 8)
 
 
+SENT: list[int] = []  # every test sent to any worker, in order
+
+
 class FakeWorker:
     """What the scheduler sees of a pytest-xdist worker: the tests sent, a shutdown."""
 
@@ -79,6 +82,7 @@ class FakeWorker:
 
     def send_runtest_some(self, indices: list[int]) -> None:
         self.sent.extend(indices)
+        SENT.extend(indices)
 
 
 class FakeConfig:
@@ -108,9 +112,10 @@ def test_every_paced_test_named_exists():
     assert not harness.is_paced("tactile_sensor/test/nodes/test_soak.py::test_a_run_too_short")
 
 
-def _started(workers: int, collection: list[str] = COLLECTION
+def _started(workers: int, collection: list[str] = COLLECTION, scheduling: type = Scheduling
              ) -> tuple[object, list[FakeWorker]]:
-    sched = Scheduling(FakeConfig(workers))
+    SENT.clear()
+    sched = scheduling(FakeConfig(workers))
     nodes = [FakeWorker(f"gw{i}") for i in range(workers)]
     for node in nodes:
         sched.add_node(node)
@@ -176,35 +181,56 @@ def test_a_worker_with_files_left_when_the_lane_crashes_takes_the_paced_tests_la
     assert set((gw0.sent if set(gw0.sent) >= PACED else gw1.sent)[-2:]) == PACED
 
 
-LANE_SUITE = """
-import json, os, pytest
+REAL_TIME = ["pkg/test/nodes/test_grip.py::grasp", "pkg/test/nodes/test_soak.py::soak",
+             "pkg/test/physics/test_fem.py::a", "pkg/test/sim/test_adc.py::pace",
+             "pkg/test/physics/test_fem.py::b", "pkg/test/analysis/test_bags.py::m",
+             "pkg/test/control/test_loop.py::c", "pkg/test/test_top.py::t",
+             "pkg/test/launch/test_launch.py::l", "pkg/test/hardware/test_link.py::h"]
+REAL_TIME_SCHEDULING = harness.lane_scheduling(
+    LoadScopeScheduling, lambda nodeid: nodeid == REAL_TIME[1])
+
+
+def test_while_the_lane_runs_the_others_take_the_real_time_files_last():
+    sched, (gw0, gw1, lane) = _started(3, REAL_TIME, REAL_TIME_SCHEDULING)
+    _run_until_done(sched, [gw0, gw1, lane], stop_before=1)  # the soak still runs
+    general = [i for i in SENT if i != 1]
+    folders = [REAL_TIME[i].split("/")[2] for i in general]
+    real_time = [f in ("nodes", "launch", "sim", "hardware") for f in folders]
+    assert real_time == sorted(real_time), folders  # every other file first
+    assert lane.sent == [1] and sorted(general) == [0, *range(2, 10)]
+
+
+def test_once_the_lane_is_done_the_files_go_in_collection_order():
+    sched, (gw0, gw1, lane) = _started(3, REAL_TIME, REAL_TIME_SCHEDULING)
+    sched.mark_test_complete(lane, 1)  # the soak is done before any other test
+    first = len(SENT)
+    _run_until_done(sched, [gw0, gw1, lane])
+    assert SENT[first:] == sorted(SENT[first:]) and len(SENT[first:]) >= 3, SENT
+
+
+RECORD = """
+import json, os
 
 def _record(name):
     with open(os.environ["LANE_LOG"], "a") as log:
         log.write(json.dumps({"test": name, "worker": os.environ["PYTEST_XDIST_WORKER"],
                               "nice": os.nice(0)}) + "\\n")
-
-def test_paced_one():
-    _record("paced_one")
-
-def test_paced_two():
-    _record("paced_two")
-
-@pytest.mark.parametrize("i", range(6))
-def test_other(i):
-    _record(f"other{i}")
 """
 
 
 @pytest.mark.slow
 def test_under_xdist_the_paced_tests_share_one_niced_worker(tmp_path: Path):
     """The real pytest-xdist with the harness as its plugin, on a file named like the
-    project's bench protocol tests, whose two paced tests it holds beside six others."""
-    one, two = sorted(t for t in harness.PACED_TESTS if "test_bench_protocols" in t)
-    path = tmp_path / "test" / one.split("::")[0]
-    path.parent.mkdir(parents=True)
-    path.write_text(LANE_SUITE.replace("test_paced_one", one.split("::")[1]).replace(
-        "test_paced_two", two.split("::")[1]))
+    project's two paced tests, one of them beside six others."""
+    soak, rate = sorted(harness.PACED_TESTS, reverse=True)
+    for nodeid, name in ((soak, "paced_one"), (rate, "paced_two")):
+        path = tmp_path / "test" / nodeid.split("::")[0]
+        path.parent.mkdir(parents=True, exist_ok=True)
+        others = "" if name == "paced_two" else (
+            "import pytest\n\n@pytest.mark.parametrize('i', range(6))\n"
+            "def test_other(i):\n    _record(f'other{i}')\n")
+        path.write_text(f"{RECORD}\n\ndef {nodeid.split('::')[1]}():\n    _record('{name}')\n"
+                        f"\n\n{others}")
     log = tmp_path / "lane.jsonl"
     env = dict(os.environ, LANE_LOG=str(log),
                PYTHONPATH=os.pathsep.join([str(Path(__file__).parent), os.environ.get(
@@ -212,7 +238,7 @@ def test_under_xdist_the_paced_tests_share_one_niced_worker(tmp_path: Path):
     done = subprocess.run(
         [sys.executable, "-m", "pytest", "-c", os.devnull, "--rootdir", str(tmp_path),
          "-p", "conftest", "-n", "3", "--dist", "loadgroup", "-q", "-p", "no:cacheprovider",
-         str(path)],
+         str(tmp_path / "test")],
         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
     runs = [json.loads(line) for line in log.read_text().splitlines()]
