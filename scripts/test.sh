@@ -18,16 +18,13 @@ export MPLBACKEND=Agg
 export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
 # Tests that start processes mostly wait (DDS discovery, protocols at device pace), so two
 # pytest-xdist workers overlap their waits; each worker takes whole files (module fixtures
-# are built once) and its own share of the domain ids (conftest.py: worker_domains). With
-# --dist loadgroup a third worker, the lane, runs only the two longest protocols at device
-# pace (conftest.py: PACED_TESTS), niced, while the two take the files without real-time parts
-# first (conftest.py: REAL_TIME_FOLDERS).
+# are built once) and its own share of the domain ids (conftest.py: worker_domains).
 workers=${TACTILE_TEST_WORKERS:-2}
 xdist=()
 # --no-loadscope-reorder: files in the order conftest.py sorts them (longest first), not by
 # their number of tests.
-[ "$workers" -gt 1 ] && xdist=(-n "$(( workers + 1 ))" --dist loadgroup --no-loadscope-reorder)
+[ "$workers" -gt 1 ] && xdist=(-n "$workers" --dist loadfile --no-loadscope-reorder)
 echo "[test] pytest on ROS 2 $DISTRO (ROS_DOMAIN_ID base $base, localhost discovery," \
-  "$workers worker(s)$([ "$workers" -gt 1 ] && echo " and the lane"))" >&2
+  "$workers worker(s))" >&2
 # A rerun attempt's failure is printed too, so a flaky test shows why it failed.
 exec python -m pytest "${xdist[@]}" --rerun-show-tracebacks "$@"

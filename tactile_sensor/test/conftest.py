@@ -224,123 +224,6 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
                                  "/test/nodes/" not in str(item.path)))
 
 
-#: The two longest tests: each runs a whole protocol at device pace (one and a half minutes,
-#: judged on stamped, recorded data) and mostly waits for it. Under ``--dist loadgroup``
-#: (scripts/test.sh) they run one after the other on a worker of their own, the lane, beside
-#: the other workers. Named here, not by an ``xdist_group`` mark: pytest-xdist 3.8 cannot
-#: rename pytest 9's node ids to group them.
-PACED_TESTS = frozenset({
-    "nodes/test_soak.py::test_a_soak_with_every_fault_once_meets_the_goals",
-    "nodes/test_rate_calibration_end_to_end.py::"
-    "test_record_fit_record_with_the_fitted_file_and_analyse",
-})
-PACED_GROUP = "paced"
-#: The lane's niceness: beside a busy machine the other workers' tests come first; a paced
-#: test is only delayed.
-LANE_NICENESS = 5
-#: Folders of tests with real-time parts (a grasp's control loop, a reader draining a port,
-#: an emulated device at its pace). While the lane runs, the other workers take every other
-#: file first, so these mostly run once it is done, with the machine's CPU to themselves.
-REAL_TIME_FOLDERS = ("nodes", "launch", "sim", "hardware")
-
-
-def is_paced(nodeid: str) -> bool:
-    return f"/{nodeid}".partition("/test/")[2] in PACED_TESTS
-
-
-def is_real_time(scope: str) -> bool:
-    return f"/{scope}".partition("/test/")[2].split("/", 1)[0] in REAL_TIME_FOLDERS
-
-
-def lane_scheduling(base: type, paced: Callable[[str], bool] = is_paced,
-                    real_time: Callable[[str], bool] = is_real_time) -> type:
-    """pytest-xdist's scope scheduling with whole files as units, except that the ``paced``
-    tests are one unit that only the lane takes: the last worker, which takes nothing
-    else. While the lane has work, the other workers take the files that are not
-    ``real_time`` first. Without a lane (one worker, or the lane crashed and none replaced
-    it) any worker takes the paced unit once no other is left. ``base`` is xdist's
-    LoadScopeScheduling (imported where xdist runs)."""
-
-    class LaneScheduling(base):  # type: ignore[valid-type,misc]
-        lane: object | None = None
-        lane_chosen = False
-
-        def _split_scope(self, nodeid: str) -> str:
-            if paced(nodeid):
-                return PACED_GROUP
-            return nodeid.split("::", 1)[0]
-
-        def _next_scope(self, node: object) -> str | None:
-            scopes = list(self.workqueue)
-            if node is self.lane:
-                return PACED_GROUP if PACED_GROUP in scopes else None
-            others = [scope for scope in scopes if scope != PACED_GROUP]
-            if self._lane_busy():
-                others.sort(key=real_time)  # stable: in collection order otherwise
-            if others:
-                return others[0]
-            return PACED_GROUP if scopes and self.lane is None else None
-
-        def _lane_busy(self) -> bool:
-            return self.lane is not None and (
-                PACED_GROUP in self.workqueue
-                or self._pending_of(self.assigned_work.get(self.lane, {})) > 0)
-
-        def add_node(self, node: object) -> None:
-            super().add_node(node)
-            if self.lane_chosen and self.lane is None and PACED_GROUP in self.workqueue:
-                self.lane = node  # replaces a lane that crashed
-
-        def remove_node(self, node: object) -> str | None:
-            if node is self.lane:
-                self.lane = None
-            return super().remove_node(node)
-
-        def _assign_work_unit(self, node: object) -> None:
-            if not self.lane_chosen:  # the first assignment: workers without work are gone
-                self.lane_chosen = True
-                if len(self.nodes) > 1 and PACED_GROUP in self.workqueue:
-                    self.lane = self.nodes[-1]
-            scope = self._next_scope(node)
-            if scope is None:
-                node.shutdown()  # type: ignore[attr-defined]
-                return
-            work_unit = self.workqueue.pop(scope)
-            self.assigned_work.setdefault(node, {})[scope] = work_unit
-            collection = self.registered_collections[node]
-            node.send_runtest_some(  # type: ignore[attr-defined]
-                [collection.index(nodeid) for nodeid, done in work_unit.items() if not done])
-
-        def _reschedule(self, node: object) -> None:
-            if node.shutting_down:  # type: ignore[attr-defined]
-                return
-            if self._next_scope(node) is None:
-                node.shutdown()  # type: ignore[attr-defined]
-                return
-            if self._pending_of(self.assigned_work[node]) > 2:
-                return
-            self._assign_work_unit(node)
-
-    return LaneScheduling
-
-
-def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
-    """``--dist loadgroup`` is the lane scheduling (scripts/test.sh); other modes are xdist's."""
-    if config.getvalue("dist") != "loadgroup":
-        return None
-    from xdist.scheduler import LoadScopeScheduling
-
-    return lane_scheduling(LoadScopeScheduling)(config, log)
-
-
-def _in_lane(item: pytest.Item) -> bool:
-    """A worker sees ``--dist loadgroup`` as its ``loadgroup`` option."""
-    return (os.environ.get("PYTEST_XDIST_WORKER") is not None
-            and bool(item.config.getvalue("loadgroup"))
-            and int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1
-            and is_paced(item.nodeid))
-
-
 #: Fixtures that start processes: a test using one is slow by definition.
 PROCESS_FIXTURES = frozenset({"spawn", "ros2", "lifecycle_states", "own_processes"})
 
@@ -380,15 +263,9 @@ def _fast_loop_starts_no_process() -> Iterator[None]:
     subprocess.Popen.__init__, multiprocessing.process.BaseProcess.start = saved
 
 
-_niced = [False]
-
-
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item: pytest.Item) -> None:
     _running[0] = item.nodeid
-    if not _niced[0] and _in_lane(item):
-        os.nice(LANE_NICENESS)  # this worker and every process its tests start from now on
-        _niced[0] = True
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
