@@ -1,5 +1,5 @@
 """Driver with four modules against one module at 1 kHz, side by side in one run: CPU and
-lost frames (issue 16's goal: no dropped frames, CPU at most 1.5x the single module's).
+lost frames (the array's goal: no dropped frames, CPU at most 1.5x the single module's).
 
 Two drivers run at once, each in its own process with its own mock ADC process (1 kHz,
 a looping 3 mm press; the four-channel ADC sends the press on every channel): ``single``
@@ -19,7 +19,7 @@ array: the six-axis wrench's goal is at most 1.3 x the single module's CPU. Its 
 ``--compare REV`` runs the same pair with the driver of commit REV (its sources unpacked by
 ``git archive``; this checkout's interfaces and mock ADCs) and with this checkout's, one
 pair after the other for ``--rounds`` rounds whose order alternates, and prints the CPU
-of each before and after (issue 35's goal: the array driver at most 0.4 x REV's). The
+of each before and after (the hot-path goal: the array driver at most 0.4 x REV's). The
 figures go to ``benchmarks/results/bench_array_driver.json``.
 
     python benchmarks/bench_array_driver.py [--seconds 30] [--compare REV] [--rounds 2]
@@ -68,8 +68,8 @@ MOCK = Variant("mock", ROOT / "tactile_sensor")  # every driver reads this check
 FACES = ("front", "back", "left", "right")
 EIGHT = tuple(f"{face}@{c}" for face in FACES for c in ("-0.0055", "0.0055"))
 LOST_KEYS = ("frames_dropped", "frames_overflowed")
-ARRAY_RATIO_GOAL = 0.4  # issue 35: the array driver at most 0.4 x REV's CPU
-SINGLE_RATIO_GOAL = 1.5  # issue 16: the array at most 1.5 x the single module's CPU
+ARRAY_RATIO_GOAL = 0.4  # the array driver at most 0.4 x REV's CPU (b36bc06)
+SINGLE_RATIO_GOAL = 1.5  # the array at most 1.5 x the single module's CPU
 WRENCH_RATIO_GOAL = 1.3  # the wrench layout at most 1.3 x the single module's CPU
 
 

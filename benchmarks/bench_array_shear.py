@@ -1,4 +1,4 @@
-"""Issue 16's accuracy goal: ``bringup array --protocol shear`` recorded and analysed.
+"""The array's accuracy goal: ``bringup array --protocol shear`` recorded and analysed.
 
 Runs the full shear protocol (press 3 mm at 1 mm/s, probe out 6 mm and back along eight
 directions, release; 104 s) on mock hardware through ``tactile-sensor bringup array``, then

@@ -72,7 +72,7 @@ from tactile_sensor_interfaces.msg import TactileReading
 ROOT = Path(__file__).resolve().parents[1]
 WARM_UP_S = 120  # for the first 2,000 readings: a loaded 2-core machine took over 60 s
 MOCK = Variant("mock", ROOT / "tactile_sensor")  # every driver reads this checkout's mock
-CPU_RATIO_GOAL = 0.37  # issue 35: at most 0.37 x b36bc06's CPU, static calibration
+CPU_RATIO_GOAL = 0.37  # at most 0.37 x b36bc06's CPU, static calibration
 P99_GOAL_MS = 1.0  # sample -> subscriber (DDS), static calibration
 RATE_OVERHEAD_GOAL = 10.0  # rate-aware (with play) at most +10 % CPU over static
 

@@ -1,4 +1,4 @@
-"""Calibration across indentation speeds (issue 21): static against rate-aware, held out.
+"""Calibration across indentation speeds: static against rate-aware, held out.
 
 Usage (in the sourced workspace, ``DISTRO=jazzy . scripts/env.sh``):
     python benchmarks/bench_rate_calibration.py [--keep DIR] [--speeds speeds:cycles=1,hold=2]

@@ -1,4 +1,5 @@
-"""The noise floor of issue 21's goal: how often the exact model itself meets it.
+"""The noise floor of the rate-aware calibration's goal: how often the exact model itself
+meets it.
 
 Usage (in the sourced workspace, ``DISTRO=jazzy . scripts/env.sh``):
     python benchmarks/bench_rate_floor.py [--seeds 64] [--fit 4] [--filter savgol]

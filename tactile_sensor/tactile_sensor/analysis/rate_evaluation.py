@@ -45,7 +45,7 @@ class PhaseError:
     noise_rmse_n: float = math.nan  # what the low-pass removed from the rate-aware estimate
 
     def meets_goal(self, full_scale_n: float, model: bool) -> bool:
-        """Issue 21's goal on one measure: rate-aware at most ``GOAL_RATIO`` of the static
+        """The goal on one measure: rate-aware at most ``GOAL_RATIO`` of the static
         error and at most ``GOAL_SHARE_FS`` of full scale."""
         static, rate = ((self.static_model_rmse_n, self.rate_model_rmse_n) if model
                         else (self.static_rmse_n, self.rate_rmse_n))

@@ -17,7 +17,7 @@ Why this way:
   curve's instant response, a slower one from a constant offset. (Without the low-pass's
   limit a `speeds` record without holds fitted a third term, 0.15 @ 28 ms.)
 - Number of terms (and play) by held-out error: leave one speed out, fit on the rest, and
-  score the held-out speed as issue 21's goal scores a recording: the error low-passed at
+  score the held-out speed as the goal scores a recording: the error low-passed at
   ``rate_evaluation.MODEL_CUTOFF_HZ`` (the output's white noise, the same for every
   choice, would hide the differences), RMS per phase, the worst phase counting
   (``TermCount.worst_phase_n``). Held-out speeds only rule counts out: the fold that holds

@@ -1,7 +1,7 @@
 """The rate check's noise floor: the mock bench run offline, and the exact model on it.
 
-Why: issue 21's goal (rate-aware error at most half the static one and at most 1.5 % of
-full scale, in every speed and phase) is scored on recordings whose output carries the
+Why: the calibration's goal (rate-aware error at most half the static one and at most
+1.5 % of full scale, in every speed and phase) is scored on recordings whose output carries the
 paper's noise (31.5 dB: 39 mV white at the ADC). To tell a fit's error from the noise's,
 this module runs the same pieces the mock hardware and the driver run (the FEM skin's
 world, the Prony terms and output play of the physics parameters, the ADC's noise and

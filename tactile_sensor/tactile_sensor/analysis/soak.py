@@ -139,7 +139,7 @@ class Goal:
 def evaluate_goals(loss: LossAccount, recorded: int, published_during_recording: int,
                    faults_unrecovered: list[str], rss_growth_mb_per_h: dict[str, float],
                    rss_limit_mb_per_h: float = 5.0) -> list[Goal]:
-    """PASS/FAIL of each goal of issue 23 (NaN growth: too short to judge, counts as a pass
+    """PASS/FAIL of each of the soak's goals (NaN growth: too short to judge, counts as a pass
     with that said)."""
     growing = {name: g for name, g in rss_growth_mb_per_h.items() if g >= rss_limit_mb_per_h}
     unknown = sorted(name for name, g in rss_growth_mb_per_h.items() if math.isnan(g))

@@ -1,4 +1,4 @@
-"""How the rate fit denoises its record and picks the number of terms (issue 21).
+"""How the rate fit denoises its record and picks the number of terms.
 
 Each phase run is low-passed on its own (a corner stays a corner), and of the counts the
 held-out speeds do not rule out, the most terms the fit resolves win: the fold that holds

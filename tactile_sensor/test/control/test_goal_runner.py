@@ -405,7 +405,7 @@ def held_force(rig: Rig) -> float:
 
 
 def test_a_grasp_that_times_out_at_the_full_scale_backs_off_to_its_target():
-    """Issue 34: a grasp timed out at the sensor's full scale held 27.9 N on the mock, four
+    """A grasp timed out at the sensor's full scale once held 27.9 N on the mock, four
     times what the sensor reads. It now opens until the reading is below the full scale
     and at most the target, then holds: the true force is as low."""
     with Rig(full_scale_n=3.0) as rig:

@@ -191,7 +191,7 @@ def rig(spawn, ros_domain, tmp_path, calibration_file):
 
 def test_a_target_beyond_the_ceiling_is_refused_one_within_is_reached_and_reported(
         rig, calibration_file):
-    """Issue 34: a 1e9 N target was accepted, and the fingers squeezed 27.9 N until the
+    """A 1e9 N target was once accepted, and the fingers squeezed 27.9 N until the
     timeout while the sensor read its 6.77 N full scale. The driver's latched full scale
     and max_grasp_force now bound the target; a result states the force its field holds."""
     devices, client = rig
@@ -278,7 +278,7 @@ def check_latencies(latencies: list[float]) -> None:
 
 def test_a_grasp_timed_out_at_the_full_scale_backs_off_to_its_target(
         spawn, ros_domain, tmp_path, calibration_file):
-    """Issue 34's crushed object, and its safe end: a grasp accepted before the driver's
+    """The crushed object, and its safe end: a grasp accepted before the driver's
     range was known (its target above the full scale, within max_grasp_force) squeezes
     the rod far beyond the target while the sensor reads its full scale. When it times
     out it opens until the reading is below the full scale and the target: the mock
