@@ -378,7 +378,7 @@ class MockAdcDevice:
         max_batch = max(1, int(rate * 0.05))
         min_gap_s = 0.001  # at most ~1000 writes/s; higher rates go in batches
         k = 0
-        last_write = 0.0
+        last_write = -math.inf
         while not self._stop.is_set():
             now = time.monotonic()
             self._serve_link(now)
@@ -390,8 +390,11 @@ class MockAdcDevice:
                 continue
             n = min(due, max_batch)
             self._emit(k, n)
+            # The gap counts from when this write was due, not from when it went out:
+            # counted from the write, each wake-up's lateness would add to the next, and at
+            # 1 kHz frames would leave up to a period late (a sawtooth).
+            last_write = max(self._t0 + k / rate, last_write + min_gap_s)
             k += n
-            last_write = now
 
     def _serve_link(self, now: float) -> None:
         with self._lock:
@@ -503,6 +506,20 @@ class MockAdcDevice:
         if self._backlog and self.link.is_open:
             written = self.link.write(bytes(self._backlog[:65536]))
             del self._backlog[:written]
+
+
+class FixedSource:
+    """A source whose output never changes once the device streams it, such as the
+    command line's profile: its ``revision`` never moves, so the device samples it ahead in
+    blocks (``MockAdcDevice._frames``) instead of as each frame falls due."""
+
+    revision = 0
+
+    def __init__(self, source: VoltageSource) -> None:
+        self._source = source
+
+    def __call__(self, t: Any) -> Any:
+        return self._source(t)
 
 
 def _is_vectorised(source: VoltageSource) -> bool:
@@ -644,7 +661,8 @@ def main(argv: list[str] | None = None) -> int:
         noise = AdcNoise(white_v=args.noise, drift_v=args.drift, drift_tau_s=args.drift_tau)
         skin = _load_skin(args.skin_table)
         world = BenchWorld(profile, skin, loop=args.loop)
-        device = MockAdcDevice(args.link, world.photoreflector_voltage, rate_hz=args.rate,
+        device = MockAdcDevice(args.link, FixedSource(world.photoreflector_voltage),
+                               rate_hz=args.rate,
                                noise=noise, adc_bits=args.adc_bits, vref_v=args.vref,
                                channels=args.channels, seed=args.seed,
                                protocol=args.protocol)

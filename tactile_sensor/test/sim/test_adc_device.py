@@ -19,6 +19,7 @@ from tactile_sensor.hardware.adc_frame import DeviceInfo, Frame, FrameParser
 from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.filters import make_filter
+from tactile_sensor.sim import adc_device
 from tactile_sensor.sim.adc_device import (
     QUIET,
     AdcNoise,
@@ -133,6 +134,54 @@ class StepSource:
         self.at_s = at_s
         if hasattr(self, "revision"):
             self.revision += 1
+
+
+class LateClock:
+    """The device loop's clock and stop event: every wait oversleeps by ``late_s``, as a
+    thread's wake-up does; ``writes`` emits, then the loop is told to stop."""
+
+    def __init__(self, late_s: float, writes: int) -> None:
+        self.now, self.late_s, self.left = 0.0, late_s, writes
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def wait(self, timeout: float) -> bool:
+        self.now += timeout + self.late_s
+        return False
+
+    def is_set(self) -> bool:
+        return self.left <= 0
+
+
+@pytest.mark.parametrize(("rate", "per_write"), [(1000.0, 1), (500.0, 1), (10_000.0, 10)])
+def test_frames_leave_when_they_fall_due_however_late_each_wake_up_is(tmp_path, monkeypatch,
+                                                                       rate, per_write):
+    # Each wake-up 0.1 ms late: a frame leaves at most that late, and the lateness does not
+    # add up from one write to the next (it did: at 1 kHz frames left up to a period late).
+    clock = LateClock(late_s=1e-4, writes=400)
+    sent: list[tuple[float, int, int]] = []
+
+    def emit(k: int, n: int) -> None:
+        sent.append((clock.now, k, n))
+        clock.left -= 1
+
+    device = MockAdcDevice(tmp_path / "adc", StepSource(False), rate_hz=rate, noise=QUIET)
+    try:
+        monkeypatch.setattr(adc_device, "time", clock)
+        monkeypatch.setattr(device, "_stop", clock)
+        monkeypatch.setattr(device, "_emit", emit)
+        monkeypatch.setattr(device, "_serve_link", lambda now: None)
+        monkeypatch.setattr(device, "_flush", lambda: None)
+        device._run()
+    finally:
+        monkeypatch.undo()
+        device.link.close()
+    lateness = [t - (k + n - 1) / rate for t, k, n in sent]
+    assert max(lateness) <= 1.5e-4, max(lateness)
+    # at most one write a millisecond: faster rates go in batches
+    assert len(sent) <= sent[-1][0] * 1000 + 2
+    assert all(n <= per_write + 1 for _, _, n in sent), sent[:5]
 
 
 @pytest.mark.parametrize("announce", [True, False])
