@@ -161,23 +161,11 @@ class _ForceTrace:
 
 def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
     node = runner.nodes["gripper"]
+    p = runner.protocol
     trace = _ForceTrace()
     node.create_subscription(WrenchStamped, "driver/wrench", trace, 100)
     grasp = RaceFreeActionClient(node, Grasp, "~/grasp")
     release = RaceFreeActionClient(node, Release, "~/release")
-    try:
-        return _grasp_hold_release(runner, trace, grasp, release)
-    finally:
-        # destroy_node() would leave them to the garbage collector, which may finalize them
-        # at any later moment, where Fast DDS can hang waiting for its event thread
-        grasp.destroy()
-        release.destroy()
-
-
-def _grasp_hold_release(runner: RunningBringup, trace: _ForceTrace, grasp: ActionClient,
-                        release: ActionClient) -> int:
-    node = runner.nodes["gripper"]
-    p = runner.protocol
     if not grasp.wait_for_server(timeout_sec=10.0):
         say("the gripper's ~/grasp action is not available")
         return 1
