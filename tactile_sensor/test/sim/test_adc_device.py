@@ -24,6 +24,7 @@ from tactile_sensor.sim.adc_device import (
     QUIET,
     AdcNoise,
     AdcSampler,
+    FixedSource,
     MockAdcDevice,
     white_noise_for_dynamic_range,
 )
@@ -182,6 +183,32 @@ def test_frames_leave_when_they_fall_due_however_late_each_wake_up_is(tmp_path, 
     # at most one write a millisecond: faster rates go in batches
     assert len(sent) <= sent[-1][0] * 1000 + 2
     assert all(n <= per_write + 1 for _, _, n in sent), sent[:5]
+
+
+def test_the_command_lines_fixed_profile_is_sampled_in_blocks(tmp_path):
+    calls: list[int] = []
+
+    def profile(t):
+        calls.append(np.size(t))
+        return np.full(np.shape(t), 1.0)
+
+    parser, frames = FrameParser(), []
+    with MockAdcDevice(tmp_path / "adc", FixedSource(profile), noise=QUIET):
+        fd = os.open(tmp_path / "adc", os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
+        try:
+            deadline = time.monotonic() + 60.0
+            while len(frames) < 300 and time.monotonic() < deadline:
+                try:
+                    data = os.read(fd, 65536)
+                except BlockingIOError:
+                    time.sleep(0.005)
+                    continue
+                frames.extend(i for i in parser.feed(data) if isinstance(i, Frame))
+        finally:
+            os.close(fd)
+    assert len(frames) >= 300
+    streamed = [n for n in calls[1:] if n > 0]  # the first call probes for arrays
+    assert sum(streamed) >= 300 and len(streamed) <= sum(streamed) / 20, streamed[:10]
 
 
 @pytest.mark.parametrize("announce", [True, False])
