@@ -185,6 +185,19 @@ def test_frames_leave_when_they_fall_due_however_late_each_wake_up_is(tmp_path, 
     assert all(n <= per_write + 1 for _, _, n in sent), sent[:5]
 
 
+def read_frames_until(fd: int, parser: FrameParser, frames: list[Frame], n: int) -> None:
+    """Read the device's port until ``frames`` holds ``n`` (a minute at most)."""
+    deadline = time.monotonic() + 60.0
+    while len(frames) < n and time.monotonic() < deadline:
+        try:
+            data = os.read(fd, 65536)
+        except BlockingIOError:
+            time.sleep(0.005)
+            continue
+        frames.extend(i for i in parser.feed(data) if isinstance(i, Frame))
+    assert len(frames) >= n
+
+
 def test_the_command_lines_fixed_profile_is_sampled_in_blocks(tmp_path):
     calls: list[int] = []
 
@@ -196,17 +209,9 @@ def test_the_command_lines_fixed_profile_is_sampled_in_blocks(tmp_path):
     with MockAdcDevice(tmp_path / "adc", FixedSource(profile), noise=QUIET):
         fd = os.open(tmp_path / "adc", os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
         try:
-            deadline = time.monotonic() + 60.0
-            while len(frames) < 300 and time.monotonic() < deadline:
-                try:
-                    data = os.read(fd, 65536)
-                except BlockingIOError:
-                    time.sleep(0.005)
-                    continue
-                frames.extend(i for i in parser.feed(data) if isinstance(i, Frame))
+            read_frames_until(fd, parser, frames, 300)
         finally:
             os.close(fd)
-    assert len(frames) >= 300
     streamed = [n for n in calls[1:] if n > 0]  # the first call probes for arrays
     assert sum(streamed) >= 300 and len(streamed) <= sum(streamed) / 20, streamed[:10]
 
@@ -220,21 +225,10 @@ def test_a_change_reaches_every_frame_after_it_sampled_ahead_or_not(tmp_path, an
     with MockAdcDevice(path, source, noise=QUIET) as device:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
         try:
-            def read_until(n: int) -> None:
-                deadline = time.monotonic() + 60.0
-                while len(frames) < n and time.monotonic() < deadline:
-                    try:
-                        data = os.read(fd, 65536)
-                    except BlockingIOError:
-                        time.sleep(0.005)
-                        continue
-                    frames.extend(i for i in parser.feed(data) if isinstance(i, Frame))
-                assert len(frames) >= n
-
-            read_until(100)
+            read_frames_until(fd, parser, frames, 100)
             at_s = device.elapsed_s + 0.005
             source.step(at_s)
-            read_until(len(frames) + 200)
+            read_frames_until(fd, parser, frames, len(frames) + 200)
         finally:
             os.close(fd)
     one_v, three_v = round(1.0 / 5.0 * 4095), round(3.0 / 5.0 * 4095)
