@@ -798,7 +798,10 @@ def main(argv: list[str] | None = None) -> int:
     split_s = args.split or max(10.0, args.minutes * 60.0 / 3.0)
     run_s = args.minutes * 60.0
     try:
-        schedule = fault_schedule(run_s, spacing_s=min(30.0, max(15.0, run_s / 12)))
+        # inject() waits for each fault's recovery before the schedule goes on, so the
+        # spacing spreads the faults over the run; 10 s leaves room for the slowest (the
+        # 10 s busy process) and makes one of each fit in a minute
+        schedule = fault_schedule(run_s, spacing_s=min(30.0, max(10.0, run_s / 12)))
     except ValueError as exc:
         print(f"soak: --minutes {args.minutes:g}: {exc}", file=sys.stderr)
         return 2
