@@ -71,6 +71,13 @@ colcon --log-base "$TS_LOG" build --base-paths "${BASE_PATHS[@]}" --symlink-inst
   --event-handlers console_direct- summary+ \
   --cmake-args -DPython3_EXECUTABLE="$VIRTUAL_ENV/bin/python" -DBUILD_TESTING=OFF >&2
 
+# The package's modules compiled once, here: where PYTHONDONTWRITEBYTECODE is set (as in
+# many containers) every process would otherwise compile each module it imports, and the
+# nodes, the mock devices and the tests start hundreds of them. Python still recompiles a
+# module whose source changed after this.
+python -m compileall -q -j 0 tactile_sensor/tactile_sensor >/dev/null \
+  || log "some package modules did not compile; Python compiles them on import"
+
 # The user-facing command on the venv's PATH, running inside the built workspace.
 cat > "$TS_VENV/bin/tactile-sensor" <<WRAP
 #!/usr/bin/env bash
