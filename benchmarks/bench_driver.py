@@ -22,7 +22,8 @@ object reused, and the bytes the driver publishes now (nodes/reading_cdr.py).
 ``--mock-floor`` reads the mock ADC with a bare poll/read loop in this process instead (no
 driver, no ROS) and reports how late its frames arrive against the earliest one, the
 same measure as the latency above: the mock's own pacing jitter, which every driver's
-latency includes.
+latency includes. It also reports the loop's own CPU per frame (wake-up, read, parse): with
+``--floor``'s publish cost, the least any driver publishing both topics can use.
 
 ``--compare REV`` runs the driver of commit REV (its sources unpacked by ``git archive``,
 this checkout's interfaces and mock ADC) and this checkout's, one after the other, for
@@ -435,14 +436,20 @@ def mock_floor(args: argparse.Namespace) -> int:
         parser = FrameParser()
         start = time.monotonic()
         warm_up_until = start + 2.0  # what waited in the port before it was opened
+        cpu_from: float | None = None  # this process's CPU time when the window opened
+        window_from = warm_up_until
         while time.monotonic() < warm_up_until + args.seconds:
             if poll.poll(50):
                 data = os.read(port.fd, 1 << 16)
                 now = time.time_ns()
                 if time.monotonic() > warm_up_until:
+                    if cpu_from is None:
+                        cpu_from, window_from = time.process_time(), time.monotonic()
                     arrivals += [(f.t_us, now) for f in parser.feed(data) if type(f) is Frame]
                 else:
                     parser.feed(data)
+        cpu_s = time.process_time() - (cpu_from or 0.0)
+        window_s = time.monotonic() - window_from
         port.close()
     finally:
         mock.send_signal(signal.SIGINT)
@@ -454,9 +461,17 @@ def mock_floor(args: argparse.Namespace) -> int:
     print(f"mock ADC at {args.rate:g} Hz read by a bare poll/read loop for {args.seconds:g} s "
           f"({len(arrivals)} frames, load average {load_average():.1f}): arrival after the "
           f"earliest frame's delay: median {med:.2f} ms, p99 {p99:.2f} ms, max {worst:.2f} ms")
+    # the reading side's floor: one wake-up, read and parse per frame (the device sends each
+    # frame as it samples it, so a latency bound of 1 ms leaves no room to batch them)
+    read_us = cpu_s / max(len(arrivals), 1) * 1e6
+    print(f"the loop's own CPU: {100 * cpu_s / window_s:.1f} % of one core, {read_us:.0f} us "
+          "per frame (wake-up, read, parse)")
     figures = [Figure("mock arrival delay median", round(float(med), 3), "ms"),
                Figure("mock arrival delay p99", round(float(p99), 3), "ms"),
                Figure("mock arrival delay max", round(float(worst), 3), "ms"),
+               Figure("bare read loop CPU", round(100 * cpu_s / window_s, 1),
+                      "% of one core"),
+               Figure("bare read loop CPU per frame", round(read_us, 1), "us"),
                Figure("load average during the run", round(load_average(), 1),
                       f"on {os.cpu_count()} cores")]
     path = write_results("bench_driver_mock_floor", figures, notes=(
