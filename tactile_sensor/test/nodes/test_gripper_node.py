@@ -220,7 +220,11 @@ def test_a_target_beyond_the_ceiling_is_refused_one_within_is_reached_and_report
     done = time.time()
     _until(lambda: client.force[-1][0] >= done + 0.8, "the force stream stopped")
     held = [f for t, f in client.force if done + 0.5 <= t < done + 0.8]
-    assert np.mean(held) == pytest.approx(2.0, rel=0.10), (np.mean(held), result.message)
+    # within the hold's documented 0.3 N (docs/gripper.md; test_gripper_commands holds the
+    # same): the settle judges 30 ms means of a force whose noise is correlated over
+    # ~0.1 s, so the held force scatters about the target (beside three busy loops, 14
+    # grasps held 1.88-2.17 N while their answers said 1.87-2.25 N)
+    assert np.mean(held) == pytest.approx(2.0, abs=0.3), (np.mean(held), result.message)
     # streamed along the grasp (feedback_rate 50 Hz), not only at its end; the bound leaves
     # room for a busy machine (rates are for benchmarks/, not for a test)
     gaps = np.diff(feedback_times)
