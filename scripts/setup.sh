@@ -65,6 +65,14 @@ if [ -z "${ROS_DISTRO:-}" ]; then
   BASE_PATHS+=("$ROOT/wheels_overlay/control_msgs")
 fi
 
+# colcon runs make with -jN -lN (N cores) unless MAKEFLAGS sets the jobs. The load limit
+# holds each package to one compiler while anything else keeps the machine busy, and the
+# interface packages' generated C and C++ are most of setup's time: N jobs, no load limit,
+# unless the caller's MAKEFLAGS chose the jobs ('make -j4 setup').
+case " ${MAKEFLAGS:-} " in
+  *" -j"*|*--jobs*) ;;
+  *) export MAKEFLAGS="-j$(nproc)" ;;
+esac
 log "colcon build ($TS_BUILD -> $TS_INSTALL)"
 colcon --log-base "$TS_LOG" build --base-paths "${BASE_PATHS[@]}" --symlink-install \
   --build-base "$TS_BUILD" --install-base "$TS_INSTALL" \
