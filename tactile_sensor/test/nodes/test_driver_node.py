@@ -267,7 +267,9 @@ def test_the_model_nodes_prony_terms_make_the_driver_rate_aware(spawn, ros, file
     assert ros.wait_for(lambda: ros.diagnostics, PATIENCE_S)
     assert _value(ros.diagnostics[-1][1], "calibration_model") == "none"
     assert _value(ros.diagnostics[-1][1], "full_scale_force_n") == "none"
-    ros.node.destroy_publisher(bad)
+    # `bad` lives on with the node: destroying it while the listener's thread spins raced
+    # that thread's wait set (rclpy took the destroyed publisher's event handler and the
+    # thread died with "cannot use Destroyable because destruction was requested").
     full_scales: list[float] = []
     ros.node.create_subscription(Float64, "/driver/full_scale_force",
                                  lambda m: full_scales.append(m.data), latched)
