@@ -232,13 +232,16 @@ class GoalRunner:
         tail = ""
         settler = goal.settler(step)
         if settler is not None:
-            aborted = self._settle(link, settler, step, feedback)
+            aborted, settled = self._settle(link, settler, step, feedback)
             if aborted is not None:
                 return finish(step, False, aborted)
             if link.cancel_requested() and not self.slot.superseded(token):
                 return canceled(step)
             step = self._at_rest(link, step)
-            tail = ", settled at {force:.2f} N"
+            # a hold that ran out of settle_time says so: its force may be off the target
+            tail = (", settled at {force:.2f} N" if settled else
+                    f", not settled within settle_time ({self.timing.settle_time_s:g} s): "
+                    "holding {force:.2f} N")
         if step.outcome is Outcome.HARDWARE_ERROR and servo.state is not None:
             self._on_hardware_error(servo.state.hardware_error)
         failure = goal.failure(step)
@@ -334,8 +337,8 @@ class GoalRunner:
         return replace(step, opening_m=self.servo.config.geometry.opening_m(state.position_rad))
 
     def _settle(self, link: GoalLink, settler: ForceSettler, step: Step,
-                feedback: Callable[[Step], None]) -> str | None:
-        """Regulate the force onto the target; an abort reason, or None when done.
+                feedback: Callable[[Step], None]) -> tuple[str | None, bool]:
+        """Regulate the force onto the target: (an abort reason or None, settled?).
 
         Each correction is judged on forces stamped after the fingers stopped from it (the
         servo's Moving flag, and no earlier than its travel time): under CPU load the
@@ -347,16 +350,17 @@ class GoalRunner:
         effective_s: float | None = self._clock()  # the closing's stop: judged like a move
         while self._clock() < deadline:
             if link.cancel_requested() or self.slot.superseded(link.token):
-                return None  # the fingers hold where they are; the caller finishes
+                return None, False  # the fingers hold where they are; the caller finishes
             servo.await_sample(2 * period)
             state = servo.state
             if servo.comm_error:
-                return f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}"
+                return f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}", False
             if state is None:
-                return None
+                return None, False
             if state.hardware_error:  # torque is off: the grasp holds nothing any more
                 self._on_hardware_error(state.hardware_error)
-                return f"{Outcome.HARDWARE_ERROR}: " + ", ".join(sorted(state.hardware_error))
+                return (f"{Outcome.HARDWARE_ERROR}: " + ", ".join(sorted(state.hardware_error)),
+                        False)
             if effective_s is not None:
                 if self._clock() < effective_s or state.moving:
                     continue
@@ -368,13 +372,13 @@ class GoalRunner:
             command, settled = settler.command(force, state, config.hold_current_a,
                                                config.stop_velocity_rad_s)
             if settled:
-                return None
+                return None, True
             if command is None:
                 continue
             if (error := servo.send_safely(command, link.token)) is not None:
-                return f"{Outcome.SERVO_UNREACHABLE}: {error}"
+                return f"{Outcome.SERVO_UNREACHABLE}: {error}", False
             travel_s = abs(command.goal_position_rad - state.position_rad) / max(
                 command.profile_velocity_rad_s, 1e-9)
             effective_s = self._clock() + travel_s + period
             feedback(step)
-        return None
+        return None, False

@@ -182,6 +182,17 @@ def test_a_grasp_closes_to_contact_settles_and_reports():
     assert rig.slot.superseded("goal")  # the slot is free again
 
 
+def test_a_hold_that_runs_out_of_settle_time_says_so():
+    """settle_time 0 (hold where contact was found): the grasp succeeds, and its answer says
+    the force was not settled instead of "settled at" a force that may be off the target."""
+    with Rig(settle_time_s=0.0) as rig:
+        end = rig.run(accept_grasp, grasp())
+    assert end.status is GoalStatus.SUCCEEDED
+    assert re.fullmatch(r"contact: contact at \d+\.\d\d N, not settled within settle_time "
+                        r"\(0 s\): holding " + re.escape(f"{end.result['force']:.2f}") + " N",
+                        end.message), end.message
+
+
 def test_a_release_opens():
     with Rig() as rig:
         end = rig.run(accept_release, SimpleNamespace(opening=0.050))
