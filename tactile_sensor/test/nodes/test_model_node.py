@@ -48,10 +48,24 @@ def spin_until(node, predicate, timeout_s: float = PATIENCE_S) -> bool:
     return bool(predicate())
 
 
+ATTEMPT_S = 10.0  # one request's wait for its answer before it is sent again
+
+
 def call(node, client, request, timeout_s: float = PATIENCE_S):
-    future = client.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=timeout_s)
-    assert future.done()
+    """The service's answer, asked again when none came (the queries are read-only).
+
+    ``wait_for_service`` can return before the middleware has matched the reply's path
+    back to this client; a request sent then is served and its reply lost. Beside a busy
+    core a first call once waited its full 60 s (the rerun passed)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        future = client.call_async(request)
+        rclpy.spin_until_future_complete(
+            node, future, timeout_sec=min(ATTEMPT_S, max(0.0, deadline - time.monotonic())))
+        if future.done() or time.monotonic() >= deadline:
+            break
+        client.remove_pending_request(future)
+    assert future.done(), f"no answer from {client.service_name} in {timeout_s:g} s"
     return future.result()
 
 
