@@ -16,10 +16,12 @@ export TACTILE_TEST_DOMAIN_BASE="$base" ROS_DOMAIN_ID="$base"
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
 export MPLBACKEND=Agg
 export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
-# Tests that start processes mostly wait (DDS discovery, protocols at device pace), so two
+# Tests that start processes mostly wait (DDS discovery, protocols at device pace), so
 # pytest-xdist workers overlap their waits; each worker takes whole files (module fixtures
-# are built once) and its own share of the domain ids (conftest.py: worker_domains).
-workers=${TACTILE_TEST_WORKERS:-2}
+# are built once) and its own share of the domain ids (conftest.py: worker_domains). Of three
+# or more, one runs the device-paced protocol files and nothing else, the others the rest
+# (conftest.py: protocol_lane_scheduling).
+workers=${TACTILE_TEST_WORKERS:-3}
 xdist=()
 # --no-loadscope-reorder: files in the order conftest.py sorts them (longest first), not by
 # their number of tests.

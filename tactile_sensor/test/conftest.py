@@ -220,8 +220,70 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     # start early and the short ones fill the gaps instead of one long file running alone
     # at the end.
     slow_files = {item.path for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: (item.path not in slow_files,
+    items.sort(key=lambda item: (item.path.name not in DEVICE_PACED_FILES,
+                                 item.path not in slow_files,
                                  "/test/nodes/" not in str(item.path)))
+
+
+#: The files of the whole protocols run at device pace (1 kHz, real time): minutes of mostly
+#: waiting, each a mock device, a driver and a recorder using under half a core.
+DEVICE_PACED_FILES = frozenset({"test_bench_protocols.py", "test_array_bringup.py",
+                                "test_soak.py", "test_rate_calibration_end_to_end.py"})
+#: Their work unit under ``ProtocolLaneScheduling``.
+DEVICE_PACED_LANE = "device-paced protocols"
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
+    """With three or more workers and ``--dist loadfile`` (scripts/test.sh), one worker runs
+    the device-paced protocol files and nothing else (``ProtocolLaneScheduling``)."""
+    workers = getattr(config.option, "numprocesses", None) or 0
+    if config.getvalue("dist") != "loadfile" or workers < 3:
+        return None
+    return protocol_lane_scheduling()(config, log)
+
+
+def protocol_lane_scheduling() -> type:
+    """pytest-xdist's file scheduling with one lane for the device-paced protocols.
+
+    The protocols wait most of their minutes at device pace while the other tests mostly
+    compute, so running them beside two workers of the rest overlaps the waits with work. A
+    third worker that takes any file puts three real-time tests side by side on two cores,
+    where gripper goals and readers miss their deadlines: the lane's worker
+    takes the protocol files as one unit and then stops, so at most one protocol runs beside
+    the two other workers. Should the lane's worker die, its unit goes back in the queue and
+    the next worker to ask takes it over (and becomes the lane). Without protocol files in
+    the run there is no lane."""
+    from xdist.scheduler import LoadFileScheduling  # only where pytest-xdist runs the tests
+
+    class ProtocolLaneScheduling(LoadFileScheduling):
+        def __init__(self, config: pytest.Config, log: object = None) -> None:
+            super().__init__(config, log)
+            self.lane: object | None = None
+
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            if path.rsplit("/", 1)[-1] in DEVICE_PACED_FILES:
+                return DEVICE_PACED_LANE
+            return super()._split_scope(nodeid)
+
+        def _assign_work_unit(self, node: object) -> None:
+            if self.lane is None and DEVICE_PACED_LANE in self.workqueue:
+                self.workqueue.move_to_end(DEVICE_PACED_LANE, last=False)
+                self.lane = node
+                super()._assign_work_unit(node)
+                # Once it has run what it was sent (the whole lane), it stops: a worker shutting
+                # down is never sent more.
+                node.shutdown()
+                return
+            super()._assign_work_unit(node)
+
+        def remove_node(self, node: object) -> str | None:
+            if node is self.lane and self._pending_of(self.assigned_work[node]):
+                self.lane = None  # it died with protocols left: they go back in the queue
+            return super().remove_node(node)
+
+    return ProtocolLaneScheduling
 
 
 #: Fixtures that start processes: a test using one is slow by definition.

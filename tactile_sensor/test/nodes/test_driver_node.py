@@ -242,7 +242,10 @@ def test_a_rate_aware_file_runs_its_model_on_every_sample(spawn, ros, files, tmp
     static_force = np.array([static.evaluate(v)[0] for v in output])
     peak = int(np.argmax(static_force))
     rise = int(np.argmax(static_force > 1.0))
-    assert peak - rise > 300, (rise, peak)
+    # The rise was heard, in time (about 0.86 s) and in readings (a listener starved on a
+    # busy machine drops some of the 1 kHz stream: once 68 of about 860 were left).
+    assert stamps[peak] - stamps[rise] > 0.5 and peak - rise >= 30, (
+        stamps[peak] - stamps[rise], peak - rise)
     excess = force[rise:peak] - static_force[rise:peak]
     assert np.median(excess) > 0.5, np.median(excess)
 

@@ -47,6 +47,7 @@ PROVIDER = {
     "catkin_pkg": "python3-catkin-pkg",
     "pytest": "python3-pytest",
     "hypothesis": "python3-hypothesis",
+    "xdist": "python3-pytest-xdist",
     "action_msgs": "action_msgs",
     "xacro": "xacro",
     "urdf_parser_py": "urdfdom_py",
