@@ -117,17 +117,20 @@ def test_records_every_message_published_at_1khz(node, spawn, tmp_path: Path):
         curves = [reader.deserialize(raw, c.msgtype)
                   for c, _, raw in reader.messages(connections=[conns["/test/curve"]])]
 
-    assert [m.wrench.force.z for _, m in rows] == [float(i) for i in range(N_WRENCH)]
+    # Every message, once. The bag's time is the middleware's reception time and the bag is
+    # in that order, which need not be the order sent: beside a busy core one message of
+    # 3000 was received 12 ms after the 552 sent after it (all of them after a 0.54 s stall).
+    assert sorted(m.wrench.force.z for _, m in rows) == [float(i) for i in range(N_WRENCH)]
     bag_stamps = [t for t, _ in rows]
     header_ns = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for _, m in rows]
     assert bag_stamps == sorted(bag_stamps)
-    assert header_ns == sorted(header_ns)
     # Reception stamps, on the senders' host clock: after each send, before the recorder
     # was stopped (how long after is the scheduler's business: 0.05-0.18 s beside a busy
     # loop)
     lags_s = [(b - h) / 1e9 for b, h in zip(bag_stamps, header_ns, strict=True)]
     assert min(lags_s) >= 0.0 and max(bag_stamps) <= stopped_ns, (min(lags_s), max(lags_s))
-    assert [r.force for r in readings] == [float(i) for i in range(0, N_WRENCH, READING_EVERY)]
+    assert sorted(r.force for r in readings) == [float(i)
+                                                 for i in range(0, N_WRENCH, READING_EVERY)]
     assert len(curves) == 1 and list(curves[0].force) == [0.0, 1.0, 3.0]
 
 
