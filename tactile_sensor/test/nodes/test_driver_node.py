@@ -74,12 +74,14 @@ class Listener:
         self.readings: list[tuple[float, TactileReading]] = []
         self.wrenches: list[tuple[float, float]] = []
         self.diagnostics: list[tuple[float, DiagnosticStatus]] = []
+        # As deep as the driver's queues (SAMPLE_QUEUE_DEPTH): 10 s of samples wait for a
+        # listener that a busy machine starves.
         self.node.create_subscription(TactileReading, "/driver/reading",
                                       lambda m: self.readings.append((time.monotonic(), m)),
-                                      1000)
+                                      10_000)
         self.node.create_subscription(
             WrenchStamped, "/driver/wrench",
-            lambda m: self.wrenches.append((_stamp(m), m.wrench.force.z)), 1000)
+            lambda m: self.wrenches.append((_stamp(m), m.wrench.force.z)), 10_000)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
         self.executor = rclpy.executors.SingleThreadedExecutor()
         self.executor.add_node(self.node)
@@ -231,17 +233,28 @@ def test_a_rate_aware_file_runs_its_model_on_every_sample(spawn, ros, files, tmp
     # missed is bridged as a straight line; the period grid above is a reconstruction): it
     # has stayed within 0.013 N, against the up to 1.4 N the term adds while loading, which
     # the checks below measure.
+    # A gap of many readings (this listener starved beside a busy core: 196 in a row, once)
+    # bridges more of the driver's noise, and the replay strayed 0.026 N: readings within
+    # 3 tau (1.5 s) after a gap of more than 10 are not judged, and at least 2 s of readings
+    # are, 0.2 s of them pressing (above 1 N, where the term is at work).
     settled = stamps > stamps[0] + 1.0
-    error = np.abs(force - replayed)[settled]
-    worst = int(np.argmax(error))
-    assert error[worst] < 0.02, (
-        f"published force {error[worst]:.4f} N off the replay at "
-        f"{stamps[settled][worst] - stamps[0]:.3f} s; stamp steps {np.unique(steps)}")
-    # Loading: from 1 N on the rise to the peak (7 N/s for 1 s). The term then carries
-    # g * rate * tau * (1 - exp(-t / tau)), up to 1.4 N; the static curve carries none.
+    after_gap = np.zeros(stamps.size, dtype=bool)
+    for gap_end in stamps[1:][steps > 10]:
+        after_gap |= (stamps >= gap_end) & (stamps < gap_end + 1.5)
+    judged = settled & ~after_gap
     static_force = np.array([static.evaluate(v)[0] for v in output])
     peak = int(np.argmax(static_force))
     rise = int(np.argmax(static_force > 1.0))
+    pressing = static_force > 1.0
+    assert judged.sum() > 2000 and (judged & pressing).sum() > 200, (
+        judged.sum(), (judged & pressing).sum(), np.unique(steps))
+    error = np.abs(force - replayed)[judged]
+    worst = int(np.argmax(error))
+    assert error[worst] < 0.02, (
+        f"published force {error[worst]:.4f} N off the replay at "
+        f"{stamps[judged][worst] - stamps[0]:.3f} s; stamp steps {np.unique(steps)}")
+    # Loading: from 1 N on the rise to the peak (7 N/s for 1 s). The term then carries
+    # g * rate * tau * (1 - exp(-t / tau)), up to 1.4 N; the static curve carries none.
     # The rise was heard, in time (about 0.86 s) and in readings (a listener starved on a
     # busy machine drops some of the 1 kHz stream: once 68 of about 860 were left).
     assert stamps[peak] - stamps[rise] > 0.5 and peak - rise >= 30, (
