@@ -18,10 +18,11 @@ export MPLBACKEND=Agg
 export XDG_CACHE_HOME="${XDG_CACHE_HOME:-$ROOT/.cache}"
 # Tests that start processes mostly wait (DDS discovery, protocols at device pace), so
 # pytest-xdist workers overlap their waits; each worker takes whole files (module fixtures
-# are built once) and its own share of the domain ids (conftest.py: worker_domains). Of three
-# or more, one runs the device-paced protocol files and nothing else, the others the rest
-# (conftest.py: protocol_lane_scheduling).
-workers=${TACTILE_TEST_WORKERS:-3}
+# are built once) and its own share of the domain ids (conftest.py: worker_domains). One
+# starts with the device-paced protocol files, one after the other, while the other runs the
+# rest beside them (conftest.py: protocol_lane_scheduling). A third worker starves the
+# real-time tests beside a busy core (a gripper's closed loop, a reader's buffer).
+workers=${TACTILE_TEST_WORKERS:-2}
 xdist=()
 # --no-loadscope-reorder: files in the order conftest.py sorts them (longest first), not by
 # their number of tests.

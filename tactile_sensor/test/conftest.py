@@ -235,25 +235,26 @@ DEVICE_PACED_LANE = "device-paced protocols"
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object | None:
-    """With three or more workers and ``--dist loadfile`` (scripts/test.sh), one worker runs
-    the device-paced protocol files and nothing else (``ProtocolLaneScheduling``)."""
+    """With two or more workers and ``--dist loadfile`` (scripts/test.sh), one worker starts
+    with the device-paced protocol files, the others with the rest
+    (``ProtocolLaneScheduling``)."""
     workers = getattr(config.option, "numprocesses", None) or 0
-    if config.getvalue("dist") != "loadfile" or workers < 3:
+    if config.getvalue("dist") != "loadfile" or workers < 2:
         return None
     return protocol_lane_scheduling()(config, log)
 
 
 def protocol_lane_scheduling() -> type:
-    """pytest-xdist's file scheduling with one lane for the device-paced protocols.
+    """pytest-xdist's file scheduling with the device-paced protocols in one lane.
 
     The protocols wait most of their minutes at device pace while the other tests mostly
-    compute, so running them beside two workers of the rest overlaps the waits with work. A
-    third worker that takes any file puts three real-time tests side by side on two cores,
-    where gripper goals and readers miss their deadlines: the lane's worker
-    takes the protocol files as one unit and then stops, so at most one protocol runs beside
-    the two other workers. Should the lane's worker die, its unit goes back in the queue and
-    the next worker to ask takes it over (and becomes the lane). Without protocol files in
-    the run there is no lane."""
+    compute. Handed out like any file, they ran side by side on both workers first, and the
+    computing tests then shared the cores with each other. Here one worker (the lane) takes
+    the protocol files as one unit, one after the other, while the others run the rest beside
+    it; once its protocols are sent, the lane's worker shares the rest too. At most one
+    protocol runs at a time, and the number of tests running at once stays the number of
+    workers. Should the lane's worker die, its unit goes back in the queue and the next
+    worker to ask takes it over. Without protocol files in the run there is no lane."""
     from xdist.scheduler import LoadFileScheduling  # only where pytest-xdist runs the tests
 
     class ProtocolLaneScheduling(LoadFileScheduling):
@@ -271,16 +272,11 @@ def protocol_lane_scheduling() -> type:
             if self.lane is None and DEVICE_PACED_LANE in self.workqueue:
                 self.workqueue.move_to_end(DEVICE_PACED_LANE, last=False)
                 self.lane = node
-                super()._assign_work_unit(node)
-                # Once it has run what it was sent (the whole lane), it stops: a worker shutting
-                # down is never sent more.
-                node.shutdown()
-                return
             super()._assign_work_unit(node)
 
         def remove_node(self, node: object) -> str | None:
             if node is self.lane and self._pending_of(self.assigned_work[node]):
-                self.lane = None  # it died with protocols left: they go back in the queue
+                self.lane = None  # it died with tests left: they go back in the queue
             return super().remove_node(node)
 
     return ProtocolLaneScheduling

@@ -82,9 +82,9 @@ def test_a_test_that_hangs_holding_the_interpreter_lock_is_ended_with_its_stack(
 
 
 class _Config:
-    """What pytest-xdist's schedulers read of the configuration: ``-n 3 --dist loadfile``."""
+    """What pytest-xdist's schedulers read of the configuration: ``-n N --dist loadfile``."""
 
-    def __init__(self, workers: int = 3, dist: str = "loadfile") -> None:
+    def __init__(self, workers: int = 2, dist: str = "loadfile") -> None:
         self.option = SimpleNamespace(numprocesses=workers, loadscopereorder=False)
         self._values = {"tx": [f"{workers}*popen"], "dist": dist}
 
@@ -106,18 +106,19 @@ class _Worker:
         self.shutting_down = True
 
 
-RUN = [f"tactile_sensor/test/nodes/{name}::test_{i}" for name in
-       ("test_soak.py", "test_bench_protocols.py", "test_array_bringup.py",
-        "test_rate_calibration_end_to_end.py") for i in range(2)] + [
-       f"tactile_sensor/test/{folder}/test_{name}.py::test_{i}"
+RUN = [f"tactile_sensor/test/{folder}/test_{name}.py::test_{i}"
        for folder, name in [("nodes", "driver_node"), ("nodes", "gripper_node"),
                             ("physics", "fem"), ("analysis", "metrics"), ("sensing", "tare"),
-                            ("control", "grasp")] for i in range(3)]
+                            ("control", "grasp"), ("sim", "adc"), ("hardware", "xm430")]
+       for i in range(3)] + [
+       f"tactile_sensor/test/nodes/{name}::test_{i}" for name in
+       ("test_soak.py", "test_bench_protocols.py", "test_array_bringup.py",
+        "test_rate_calibration_end_to_end.py") for i in range(2)]
 LANE_FILES = {"test_soak.py", "test_bench_protocols.py", "test_array_bringup.py",
               "test_rate_calibration_end_to_end.py"}
 
 
-def _started(collection: list[str], workers: int = 3) -> tuple[object, list[_Worker]]:
+def _started(collection: list[str], workers: int = 2) -> tuple[object, list[_Worker]]:
     scheduler = harness.pytest_xdist_make_scheduler(_Config(workers), None)
     nodes = [_Worker(f"gw{i}") for i in range(workers)]
     for node in nodes:
@@ -128,17 +129,15 @@ def _started(collection: list[str], workers: int = 3) -> tuple[object, list[_Wor
     return scheduler, nodes
 
 
-def _run_until_done(scheduler: object, nodes: list[_Worker], collection: list[str]
-                    ) -> dict[str, list[str]]:
-    """Completes the tests each worker was sent, in turn, as the workers would; returns which
-    worker ran which test."""
+def _finish(scheduler: object, nodes: list[_Worker], collection: list[str]
+            ) -> dict[str, list[str]]:
+    """Completes the tests each worker was sent, one per worker in turn, as workers would;
+    returns which worker ran which test, in order."""
     ran = {node.name: [] for node in nodes}
-    done = {node.name: 0 for node in nodes}
-    while any(done[node.name] < len(node.sent) for node in nodes):
+    while any(len(ran[node.name]) < len(node.sent) for node in nodes):
         for node in nodes:
-            if done[node.name] < len(node.sent):
-                index = node.sent[done[node.name]]
-                done[node.name] += 1
+            if len(ran[node.name]) < len(node.sent):
+                index = node.sent[len(ran[node.name])]
                 ran[node.name].append(collection[index])
                 scheduler.mark_test_complete(node, index)
     assert scheduler.tests_finished
@@ -149,48 +148,57 @@ def _file(nodeid: str) -> str:
     return nodeid.split("::")[0].rsplit("/", 1)[-1]
 
 
-def test_one_worker_runs_the_device_paced_protocols_and_nothing_else():
+def _lane_first(tests: list[str]) -> bool:
+    """The protocol files come first and together, then only other files."""
+    files = [_file(t) in LANE_FILES for t in tests]
+    return files == sorted(files, reverse=True)
+
+
+def test_one_worker_starts_with_the_protocols_while_the_other_runs_the_rest():
     scheduler, nodes = _started(RUN)
     lane = next(node for node in nodes if _file(RUN[node.sent[0]]) in LANE_FILES)
-    # It was sent the whole lane at once and is told to stop after it; the others go on.
-    assert {_file(RUN[index]) for index in lane.sent} == LANE_FILES
-    assert lane.shutting_down and not any(n.shutting_down for n in nodes if n is not lane)
-    ran = _run_until_done(scheduler, nodes, RUN)
-    assert {_file(t) for t in ran[lane.name]} == LANE_FILES
-    assert all(ran[node.name] for node in nodes)  # the other two share the rest
-    assert not {_file(t) for n in nodes if n is not lane for t in ran[n.name]} & LANE_FILES
+    other = next(node for node in nodes if node is not lane)
+    # The lane was sent every protocol at once, the other none of them, even though the
+    # protocol files come last in this collection.
+    assert {_file(RUN[i]) for i in lane.sent if _file(RUN[i]) in LANE_FILES} == LANE_FILES
+    assert not {_file(RUN[i]) for i in other.sent} & LANE_FILES
+    ran = _finish(scheduler, nodes, RUN)
+    assert _lane_first(ran[lane.name]) and len(ran[lane.name]) > 8  # then it shared the rest
+    assert not {_file(t) for t in ran[other.name]} & LANE_FILES
     assert sorted(t for tests in ran.values() for t in tests) == sorted(RUN)  # each once
+    assert all(node.shutting_down for node in nodes)
 
 
 def test_protocols_of_a_lane_worker_that_died_are_taken_over_by_the_next_to_ask():
-    scheduler, nodes = _started(RUN)
+    scheduler, nodes = _started(RUN, workers=3)
     lane = next(node for node in nodes if _file(RUN[node.sent[0]]) in LANE_FILES)
     crashed = scheduler.remove_node(lane)  # it died in its first test
     assert crashed == RUN[lane.sent[0]]
     survivors = [node for node in nodes if node is not lane]
     before = {node.name: len(node.sent) for node in survivors}
     done = dict.fromkeys(before, 0)
-    while all(len(node.sent) == before[node.name] for node in survivors):
+    taker = None
+    while taker is None:
         for node in survivors:  # the workers finish their tests until one asks for more
             scheduler.mark_test_complete(node, node.sent[done[node.name]])
             done[node.name] += 1
             if len(node.sent) > before[node.name]:
                 taker = node
                 break
-    assert {_file(RUN[index]) for index in taker.sent[before[taker.name]:]} == LANE_FILES
-    assert taker.shutting_down  # the new lane: nothing else after the protocols
-    assert {_file(RUN[index]) for node in survivors if node is not taker
-            for index in node.sent} & LANE_FILES == set()
+    # The first unit handed out after the crash is the whole lane, to one worker.
+    assert {_file(RUN[i]) for i in taker.sent[before[taker.name]:]} == LANE_FILES
+    ran = _finish(scheduler, survivors, RUN)
+    assert sum(bool({_file(t) for t in tests} & LANE_FILES) for tests in ran.values()) == 1
+    assert set(RUN) - {RUN[lane.sent[0]]} <= {t for tests in ran.values() for t in tests}
 
 
 def test_without_protocol_files_every_worker_shares_the_run():
     rest = [nodeid for nodeid in RUN if _file(nodeid) not in LANE_FILES]
     scheduler, nodes = _started(rest)
-    ran = _run_until_done(scheduler, nodes, rest)
+    ran = _finish(scheduler, nodes, rest)
     assert all(ran.values()) and sorted(t for ts in ran.values() for t in ts) == sorted(rest)
 
 
-@pytest.mark.parametrize(("workers", "dist"), [(2, "loadfile"), (3, "load"), (3, "loadscope")])
-def test_fewer_than_three_workers_or_another_distribution_keep_xdists_scheduling(
-        workers: int, dist: str):
+@pytest.mark.parametrize(("workers", "dist"), [(1, "loadfile"), (2, "load"), (2, "loadscope")])
+def test_one_worker_or_another_distribution_keep_xdists_scheduling(workers: int, dist: str):
     assert harness.pytest_xdist_make_scheduler(_Config(workers, dist), None) is None
