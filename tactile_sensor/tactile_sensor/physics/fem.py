@@ -44,6 +44,11 @@ from .params import FACES, PhysicsParams
 Progress = Callable[[float, str], None]
 
 _RESIDUAL_TOL = 1e-6  # converged when |out-of-balance force| < this * mu * height^2
+#: How far two solves of the same design may differ, relative: both stop anywhere inside the
+#: residual tolerance, and where inside depends on the rounding of every sum on the way (the
+#: BLAS build, its kernel for this processor, its threads). A study promises its figures to
+#: this, not to the bit, on any worker (docs/design-studies.md).
+REPRODUCIBLE_RTOL = _RESIDUAL_TOL
 _KRYLOV_RTOL = 1e-4   # relative residual of each Newton correction (inexact Newton) ...
 _KRYLOV_TARGET = 0.02  # ... or this fraction of the tolerance, whichever is larger: well
 #                        below it, so a load step converges in one correction (a second

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from tactile_sensor.physics import cli
 from tactile_sensor.physics.batch import BatchError
+from tactile_sensor.physics.fem import REPRODUCIBLE_RTOL
 from tactile_sensor.physics.loopback_cluster import loopback_cluster as start_loopback_cluster
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.pareto import pareto_mask
@@ -255,8 +256,11 @@ def test_a_study_on_a_loopback_cluster_equals_a_local_run(loopback_cluster, tmp_
     assert [r.values for r in remote] == [r.values for r in local]
     for a, b in zip(remote, local, strict=True):
         assert a.ok and b.ok, (a.error, b.error)
+        # A worker's solve stops elsewhere inside the solver's tolerance than this process's
+        # when its rounding differs (seen: 6e-8 relative in linearity_pct_fs beside a busy
+        # core); a wrong design or parameter on the worker moves the metrics by far more.
         for column, value in b.metrics.items():
-            assert math.isclose(a.metrics[column], value, rel_tol=1e-9), column
+            assert math.isclose(a.metrics[column], value, rel_tol=REPRODUCIBLE_RTOL), column
     workers = {r.worker for r in remote}
     assert len(workers) == 2 and all(w.startswith("tcp://127.0.0.1:") for w in workers)
 
