@@ -63,6 +63,10 @@ if [ -z "${ROS_DISTRO:-}" ]; then
   # path only. wheels_overlay/COLCON_IGNORE keeps it out of every crawl of the source tree,
   # a robot's 'colcon build' of src/ included; naming the folder here builds it.
   BASE_PATHS+=("$ROOT/wheels_overlay/control_msgs")
+  # The venv is the underlay's prefix (ament index, CMake configs) but no colcon workspace:
+  # colcon's ament prefix-path extension would look for its local_setup files, warn that
+  # there are none, and chain nothing. Without it the setup files are the same, and quiet.
+  export COLCON_EXTENSION_BLOCKLIST="${COLCON_EXTENSION_BLOCKLIST:+$COLCON_EXTENSION_BLOCKLIST:}colcon_core.prefix_path.ament"
 fi
 
 # colcon runs make with -jN -lN (N cores) unless MAKEFLAGS sets the jobs. The load limit
