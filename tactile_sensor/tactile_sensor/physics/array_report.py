@@ -16,7 +16,7 @@ steps), and on the grid's held-out points, whose shear directions lie between th
 paths' and reach larger shear. Fitted on the wrench set alone, the torque read 12.7 mN m rms
 of Tx on a tiny grid where the FEM said far less: the tilt's output pattern is the shear's,
 and the wrench set holds only the smallest shear level.
-``observed`` is what ``design_metrics.wrench_metrics`` resolves at ``observe_noise_v``, the
+``observed`` is what ``observability.wrench_metrics`` resolves at ``observe_noise_v``, the
 module noise left at the driver's torque bandwidth.
 """
 
@@ -35,8 +35,8 @@ from tactile_sensor.sensing.array_calibration import (
 )
 
 from .array_grid import ArrayGrid
-from .design_metrics import wrench_metrics
 from .errors import PhysicsError
+from .observability import wrench_metrics
 from .output_noise import noise_at_bandwidth
 from .params import PhysicsParams
 from .wrench import WrenchSet

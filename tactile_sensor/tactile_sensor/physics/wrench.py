@@ -12,7 +12,7 @@ as vectors, torques as pseudo-vectors, modules read their image's output): the s
 tilt along y come from those along x when x = y is a symmetry, and the least-squares
 sensitivity matrix sees each load both ways and no quadratic effect (a twist shortens the
 skin whichever way it turns) leaks into a linear column. Its metrics:
-``design_metrics.wrench_metrics``.
+``physics/observability.py``.
 """
 
 from __future__ import annotations
@@ -27,11 +27,12 @@ from typing import Any
 import numpy as np
 
 from .array_grid import LoadPath, face_image, image_tangent, solve_paths, symmetries
-from .design_metrics import WRENCH_AXES
 from .errors import PhysicsError
 from .params import PhysicsParams
 
 WRENCH_FORMAT = "tactile_sensor/wrench_set"
+#: Components in matrix order: forces [N] (Fz pressing positive), torques [N m] (right hand).
+WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
 
 
 @dataclass(frozen=True, eq=False)
