@@ -26,9 +26,9 @@ sys.path.insert(0, str(SOURCE))
 
 from results import Figure, write_results  # noqa: E402
 
-from tactile_sensor.physics.loopback_cluster import loopback_cluster  # noqa: E402
-from tactile_sensor.physics.study import DesignRow, run_study  # noqa: E402
-from tactile_sensor.physics.study_spec import StudySpecError, load_spec  # noqa: E402
+from tactile_sensor.studies.cluster import loopback_cluster  # noqa: E402
+from tactile_sensor.studies.run import DesignRow, run_study  # noqa: E402
+from tactile_sensor.studies.spec import StudySpecError, load_spec  # noqa: E402
 
 DEFAULT_SPEC = SOURCE / "config" / "studies" / "window_placement.yaml"
 

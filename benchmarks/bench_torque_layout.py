@@ -3,7 +3,7 @@
 Solves the wrench paths of ``physics/wrench.py`` (press, shear, tilt about x and y, twist
 about z; symmetric loads from the layout's symmetries) for each layout and prints the
 sensitivity matrix S6 with each column scaled to its full-scale load [V], the full scales,
-and ``design_metrics.wrench_metrics``: the singular values [V], the resolved directions and
+and ``observability.wrench_metrics``: the singular values [V], the resolved directions and
 each component's signal beyond the forces, against 3 x ``--noise``.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_torque_layout.py [--offset 0.0055]
@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
 from results import Figure, write_results
 
-from tactile_sensor.physics.design_metrics import full_scale, wrench_matrix, wrench_metrics
+from tactile_sensor.physics.observability import full_scale, wrench_matrix, wrench_metrics
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.wrench import compute_wrench_set
 

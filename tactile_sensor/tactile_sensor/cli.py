@@ -12,7 +12,7 @@ import sys
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
     # name: (module, help)
     "mock": ("tactile_sensor.sim.cli", "run a mock device on a pseudo-terminal (adc, xm430)"),
-    "model": ("tactile_sensor.physics.cli", "finite-element prediction of the module (sweep)"),
+    "model": ("tactile_sensor.studies.cli", "finite-element prediction of the module (sweep)"),
     "analyze": ("tactile_sensor.analysis.cli", "characterise a rosbag2 recording"),
     "bringup": ("tactile_sensor.nodes.bringup", "run the bench or gripper configuration"),
     "bag": ("tactile_sensor.recording.cli", "recover a bag a killed recorder left (recover)"),

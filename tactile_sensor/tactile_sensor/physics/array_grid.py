@@ -326,10 +326,9 @@ def compute_grid(params: PhysicsParams, progress: Progress | None = None,
 
 
 def grid_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:
-    from .prediction import default_cache_dir
+    from .prediction import cache_file
 
-    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    return folder / f"array-grid-{params.grid_digest()}.json"
+    return cache_file(cache_dir, f"array-grid-{params.grid_digest()}.json")
 
 
 def cached_grid(params: PhysicsParams, cache_dir: Path | None = None) -> ArrayGrid | None:
@@ -351,12 +350,10 @@ def store_grid(params: PhysicsParams, grid: ArrayGrid, cache_dir: Path | None = 
 def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
                          progress: Progress | None = None, workers: int = 1) -> ArrayGrid:
     """The cached grid for ``params`` (keyed by every parameter that shapes it)."""
-    grid = cached_grid(params, cache_dir)
-    if grid is not None:
-        return grid
-    if progress is not None:
-        progress(0.0, "computing the array calibration grid (cache miss: "
-                 f"{grid_cache_path(params, cache_dir).name})")
-    grid = compute_grid(params, progress, workers)
-    store_grid(params, grid, cache_dir)
-    return grid
+    from .prediction import load_or_compute
+
+    return load_or_compute(
+        lambda: cached_grid(params, cache_dir), lambda: compute_grid(params, progress, workers),
+        lambda grid: store_grid(params, grid, cache_dir), progress,
+        "computing the array calibration grid (cache miss: "
+        f"{grid_cache_path(params, cache_dir).name})")

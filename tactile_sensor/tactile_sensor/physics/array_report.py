@@ -16,7 +16,7 @@ steps), and on the grid's held-out points, whose shear directions lie between th
 paths' and reach larger shear. Fitted on the wrench set alone, the torque read 12.7 mN m rms
 of Tx on a tiny grid where the FEM said far less: the tilt's output pattern is the shear's,
 and the wrench set holds only the smallest shear level.
-``observed`` is what ``design_metrics.wrench_metrics`` resolves at ``observe_noise_v``, the
+``observed`` is what ``observability.wrench_metrics`` resolves at ``observe_noise_v``, the
 module noise left at the driver's torque bandwidth.
 """
 
@@ -35,8 +35,8 @@ from tactile_sensor.sensing.array_calibration import (
 )
 
 from .array_grid import ArrayGrid
-from .design_metrics import wrench_metrics
 from .errors import PhysicsError
+from .observability import wrench_metrics
 from .output_noise import noise_at_bandwidth
 from .params import PhysicsParams
 from .wrench import WrenchSet
@@ -226,6 +226,49 @@ def _errors(estimate: np.ndarray, truth: np.ndarray) -> tuple[list[float], list[
             (truth.max(axis=0) - truth.min(axis=0)).tolist())
 
 
+def _wrench_points(grid: ArrayGrid, data: WrenchSet
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The six-column fit's points, the grid's then the wrench paths': outputs, wrench (NaN
+    where a point has no known torque), every point's force (for the force's slow part:
+    tilt, twist) and which points are held out."""
+    n_grid, n_wrench = grid.force_n.size, data.path.size
+    outputs = np.concatenate([grid.output_matrix(), data.output_matrix()])
+    wrench = np.full((n_grid + n_wrench, 6), np.nan)
+    wrench[:n_grid, :3] = grid.force_matrix()
+    wrench[n_grid:, 3:] = data.wrench[:, 3:]
+    if grid.torque_nm is not None:
+        wrench[:n_grid, 3:] = grid.torque_nm
+    slow = np.concatenate([grid.force_matrix(), data.wrench[:, :3]])
+    held = np.concatenate([grid.held_out(), wrench_held_out(data)])
+    return outputs, wrench, slow, held
+
+
+def _force_held_out(trial: ArrayCalibration, grid: ArrayGrid, report: dict[str, Any]
+                    ) -> dict[str, Any]:
+    """The force lines of the six-column fit (grid and wrench points), not fit_grid's own."""
+    grid_held = grid.held_out()
+    forces_held = trial.forces(grid.output_matrix()[grid_held])
+    f_rmse, f_worst, _ = _errors(forces_held, grid.force_matrix()[grid_held])
+    f_span = np.asarray(list(report["force_range_n"].values()))
+    return {
+        "held_out_rmse_n": dict(zip(AXIS_NAMES, f_rmse, strict=True)),
+        "held_out_max_error_n": dict(zip(AXIS_NAMES, f_worst, strict=True)),
+        "held_out_rmse_percent_of_range": dict(zip(AXIS_NAMES, (100 * np.asarray(f_rmse) / np.where(
+            f_span > 0, f_span, np.nan)).tolist(), strict=True)),
+        "estimate_held_out": forces_held.tolist(),
+    }
+
+
+def _torque_noise(full: ArrayCalibration, data: WrenchSet, noise_v: float) -> np.ndarray:
+    """Each torque's estimate error [N m] over 64 noisy copies of the wrench points (module
+    noise ``noise_v``), about the noise-free estimate."""
+    rng = np.random.default_rng(2)
+    outputs = data.output_matrix()
+    noisy = outputs[None] + rng.normal(0.0, noise_v, (64, *outputs.shape))
+    return full.wrenches(noisy.reshape(-1, outputs.shape[1]))[:, 3:] - np.tile(
+        full.wrenches(outputs)[:, 3:], (64, 1))
+
+
 def fit_wrench(grid: ArrayGrid, data: WrenchSet, degree: int,
                noise_v: float = WRENCH_FIT_NOISE_V,
                observe_noise_v: float = OBSERVE_NOISE_V, torque_degree: int = TORQUE_DEGREE,
@@ -244,38 +287,22 @@ def fit_wrench(grid: ArrayGrid, data: WrenchSet, degree: int,
     torque_noise_v = TORQUE_FIT_NOISE_V if torque_noise_v is None else torque_noise_v
     forces_only = [c for c in observed if not c.startswith("t")]
     _, report = fit_grid(grid, degree, noise_v, forces_only)
-    n_grid, n_wrench = grid.force_n.size, data.path.size
-    outputs = np.concatenate([grid.output_matrix(), data.output_matrix()])
-    wrench = np.full((n_grid + n_wrench, 6), np.nan)
-    wrench[:n_grid, :3] = grid.force_matrix()
-    wrench[n_grid:, 3:] = data.wrench[:, 3:]
-    if grid.torque_nm is not None:
-        wrench[:n_grid, 3:] = grid.torque_nm
-    # every point's force, the wrench paths' too, for the force's slow part (tilt, twist)
-    slow = np.concatenate([grid.force_matrix(), data.wrench[:, :3]])
-    held = np.concatenate([grid.held_out(), wrench_held_out(data)])
+    n_wrench = data.path.size
+    outputs, wrench, slow, held = _wrench_points(grid, data)
     source = f"fem-array:{grid.digest}+wrench:{data.digest}"
     trial = ArrayCalibration.fit(grid.faces, outputs[~held], wrench[~held], degree, source,
                                  noise_v, torque_degree, observed, torque_noise_v,
                                  slow[~held])
-    test = held[n_grid:]
+    test = held[grid.force_n.size:]
     estimate = trial.wrenches(data.output_matrix()[test])
     rmse, worst, _ = _errors(estimate[:, 3:], data.wrench[test, 3:])
-    # the force lines describe this fit (grid and wrench points), not fit_grid's own
-    grid_held = grid.held_out()
-    forces_held = trial.forces(grid.output_matrix()[grid_held])
-    f_rmse, f_worst, _ = _errors(forces_held, grid.force_matrix()[grid_held])
-    f_span = np.asarray(list(report["force_range_n"].values()))
     report.update({
-        "held_out_rmse_n": dict(zip(AXIS_NAMES, f_rmse, strict=True)),
-        "held_out_max_error_n": dict(zip(AXIS_NAMES, f_worst, strict=True)),
-        "held_out_rmse_percent_of_range": dict(zip(AXIS_NAMES, (100 * np.asarray(f_rmse) / np.where(
-            f_span > 0, f_span, np.nan)).tolist(), strict=True)),
-        "estimate_held_out": forces_held.tolist(),
+        **_force_held_out(trial, grid, report),
         "wrench_held_out_force_rmse_n": dict(zip(AXIS_NAMES, _errors(
             estimate[:, :3], data.wrench[test, :3])[0], strict=True)),
     })
     span = (data.wrench[:, 3:].max(axis=0) - data.wrench[:, 3:].min(axis=0)).tolist()
+    grid_held = grid.held_out()
     on_grid = trial.wrenches(grid.output_matrix()[grid_held])[:, 3:] - (
         grid.torque_nm[grid_held] if grid.torque_nm is not None else 0.0)
     full = ArrayCalibration.fit(grid.faces, outputs, wrench, degree, source, noise_v,
@@ -285,11 +312,7 @@ def fit_wrench(grid: ArrayGrid, data: WrenchSet, degree: int,
     report["noise_rmse_n"] = {"sigma_v": PROBE_NOISE_V, **dict(zip(
         AXIS_NAMES, noise_response(full, grid.output_matrix(), grid.force_matrix()).tolist(),
         strict=True))}
-    rng = np.random.default_rng(2)
-    noisy = data.output_matrix()[None] + rng.normal(0.0, observe_noise_v,
-                                                    (64, n_wrench, len(grid.faces)))
-    noise = full.wrenches(noisy.reshape(-1, len(grid.faces)))[:, 3:] - np.tile(
-        full.wrenches(data.output_matrix())[:, 3:], (64, 1))
+    noise = _torque_noise(full, data, observe_noise_v)
 
     def per(values: Any) -> dict[str, float]:
         return dict(zip(TORQUE_NAMES, [float(v) for v in values], strict=True))

@@ -9,6 +9,10 @@ solve's own progress reaches the caller.
 Results come back as they finish (:func:`run` is a generator), so a caller can cache each one
 at once: Ctrl-C then keeps everything finished, and a rerun resumes. A task's exception is
 returned with its result, not raised, so one failed solve never ends a batch.
+
+It belongs to the model, not to the design studies above it: the model's own calibration
+grid and wrench paths (``physics/array_grid.py``) solve their load paths through it, and the
+model never imports ``studies/``.
 """
 
 from __future__ import annotations

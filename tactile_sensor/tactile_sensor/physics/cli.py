@@ -1,7 +1,7 @@
 """``tactile-sensor model sweep``: the FEM prediction of the module from the command line;
 ``tactile-sensor model array-calibration``: the grid of load paths that calibrates modules on
 several faces for (Fx, Fy, Fz), its fit and the fit's error on held-out points;
-``tactile-sensor model study``: a design study over a space of parameters, run on Dask.
+``tactile-sensor model study`` (``studies/cli.py``) adds a design study to these commands.
 
 Parameters come from the defaults, then ``--config`` (flat YAML or ROS ``ros__parameters``
 form, e.g. ``config/physics.yaml``), then ``--set NAME=VALUE``, then ``--boundary`` and
@@ -19,7 +19,8 @@ import ctypes
 import json
 import sys
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -28,6 +29,7 @@ import numpy as np
 from .errors import PhysicsError
 from .params import BOUNDARIES, PhysicsParams
 from .prediction import PredictionCurve, compute_curve, load_or_compute_curve
+from .yaml_file import read_yaml
 
 PROG = "tactile-sensor model"
 
@@ -43,17 +45,31 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(f"{message}; see '{self.prog} --help'.")
 
 
-def parser() -> argparse.ArgumentParser:
+@dataclass(frozen=True)
+class Command:
+    """A subcommand: its name, help line, description, options and what it runs (the exit
+    code)."""
+
+    name: str
+    help: str
+    description: str
+    options: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
+
+
+def parser(commands: Sequence[Command] | None = None) -> argparse.ArgumentParser:
+    """The command line of ``commands`` (default every ``tactile-sensor model`` command)."""
     top = _Parser(prog=PROG, description="Finite-element prediction of the tactile-sensing "
                   "module (skin force, side bulge, photoreflector output).")
     sub = top.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    p = sub.add_parser(
-        "sweep", help="press the skin from 0 to max_indentation and predict force and output",
-        description="Press the skin block from 0 to max_indentation (and, with max_shear_x/y, "
-                    "move it sideways) with the FEM model, apply the photoreflector optics "
-                    "and report force, bulge and module output (the paper's Fig. 7(a)/(b)). "
-                    "Results are cached per parameter digest.")
+    for command in MODEL_COMMANDS if commands is None else commands:
+        command.options(sub.add_parser(command.name, help=command.help,
+                                       description=command.description))
+    return top
+
+
+def _sweep_options(p: argparse.ArgumentParser) -> None:
     _model_options(p)
     p.add_argument("--boundary", choices=BOUNDARIES,
                    help="'bonded' (paper: base fixed, probe bonded, module present) or "
@@ -67,14 +83,9 @@ def parser() -> argparse.ArgumentParser:
                         "seconds, params) as JSON")
     p.add_argument("--plot", type=Path, metavar="PATH",
                    help="write a PNG: force and output change against indentation")
-    a = sub.add_parser(
-        "array-calibration", help="FEM grid of shear load paths and the modules' (Fx, Fy, Fz) "
-                                  "calibration fitted to it",
-        description="Solve the array calibration grid (indentation x shear direction x shear "
-                    "magnitude, parameters array_*), fit a polynomial from the modules' "
-                    "outputs to (Fx, Fy, Fz), and report its error on grid points held out "
-                    "of the fit. Four modules (front, back, left, right) unless 'modules' is "
-                    "set. The grid is cached per parameter digest.")
+
+
+def _array_calibration_options(a: argparse.ArgumentParser) -> None:
     _model_options(a)
     a.add_argument("--degree", type=int, default=3, metavar="N",
                    help="polynomial degree of the calibration (default 3)")
@@ -97,39 +108,6 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--plot", type=Path, metavar="PATH",
                    help="write a PNG: calibrated vs FEM force per axis on held-out points, "
                         "module outputs against the shear direction")
-    st = sub.add_parser(
-        "study", help="a design and placement study: the FEM over a design space, on Dask",
-        description="Solve every design of SPEC (YAML: parameters to vary as lists or "
-                    "ranges {from, to, count}, a grid or a seeded Sobol/Halton sample, fixed "
-                    "parameters, metrics; see config/studies/) as Dask tasks, measure each "
-                    "(sensitivity [V/N], full-scale force [N], non-linearity [%% FS], "
-                    "dynamic range [dB]; with several modules the sensitivity matrix over "
-                    "Fx, Fy, Fz, its singular values, condition number and cross-talk) and "
-                    "write results.csv, summary.json (Pareto designs), pareto.png, "
-                    "metrics.png and report.md to --out. Each design is cached: a rerun "
-                    "or a widened study solves only new designs; Ctrl-C keeps the finished "
-                    "ones.")
-    st.add_argument("spec", type=Path, metavar="SPEC", help="the study's YAML file")
-    st.add_argument("--out", type=Path, required=True, metavar="DIR",
-                    help="folder for the results (created if missing)")
-    st.add_argument("--scheduler", metavar="ADDRESS",
-                    help="address of a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
-                         "(start one with 'dask scheduler' and 'dask worker'); default: a "
-                         "local cluster of --workers processes")
-    st.add_argument("--workers", type=int, metavar="N",
-                    help="local worker processes, one design each at a time (default: the "
-                         "cores, here " + str(_cores()) + "); 1 solves in this process")
-    st.add_argument("--cache-dir", type=Path, metavar="DIR",
-                    help="cache folder (default $XDG_CACHE_HOME/tactile_sensor, shared with "
-                         "'model sweep' and 'model array-calibration')")
-    st.add_argument("--quiet", action="store_true", help="no progress on stderr")
-    return top
-
-
-def _cores() -> int:
-    from .batch import default_workers
-
-    return default_workers()
 
 
 def _model_options(p: argparse.ArgumentParser) -> None:
@@ -161,23 +139,7 @@ def _physics_names(section: Mapping[str, Any]) -> dict[str, Any]:
 
 def config_values(path: Path) -> dict[str, Any]:
     """Physics values from a YAML file in flat or ROS params form (not yet validated)."""
-    import yaml
-
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise UsageError(f"cannot read the config file {path} ({err.strerror}); pass an "
-                         "existing YAML file.") from None
-    except UnicodeDecodeError:
-        raise UsageError(f"the config file {path} is not UTF-8 text; pass a YAML "
-                         "file.") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise UsageError(f"the config file {path} is not valid YAML{where}; fix its "
-                         "syntax.") from None
+    data = read_yaml(path, "the config file", UsageError)
     if data is None:
         return {}
     if not isinstance(data, dict):
@@ -248,7 +210,7 @@ def _check_output(path: Path | None, option: str) -> None:
 # -- output ----------------------------------------------------------------------------------
 
 
-class _Progress:
+class StderrProgress:
     """Percent and message of a cold sweep on stderr; also tells a cache miss from a hit."""
 
     def __init__(self, enabled: bool) -> None:
@@ -329,7 +291,7 @@ def sweep(args: argparse.Namespace) -> int:
     params = build_params(args)
     _check_output(args.json, "--json")
     _check_output(args.plot, "--plot")
-    progress = _Progress(not args.quiet)
+    progress = StderrProgress(not args.quiet)
     if params.max_indentation <= 0:
         raise UsageError("a sweep runs along the indentation, so it needs max_indentation "
                          "> 0; give one.")
@@ -368,7 +330,7 @@ def array_calibration(args: argparse.Namespace) -> int:
         raise UsageError("--degree and --workers must be at least 1.")
     if args.torque_noise is not None and not (args.wrench and 0 < args.torque_noise <= 1):
         raise UsageError("--torque-noise needs --wrench and a noise in (0, 1] V.")
-    progress = _Progress(not args.quiet)
+    progress = StderrProgress(not args.quiet)
     if args.no_cache:
         grid = compute_grid(params, progress, args.workers)
         cache = "off (--no-cache)"
@@ -419,61 +381,29 @@ def _wrench_set(params: Any, args: argparse.Namespace, progress: Any) -> Any:
     return load_or_compute_wrench_set(params, args.cache_dir, progress, args.workers)
 
 
-def study(args: argparse.Namespace) -> int:
-    from .study import run_study
-    from .study_report import write_results
-    from .study_spec import StudySpecError, load_spec
-
-    try:
-        spec = load_spec(args.spec)
-    except StudySpecError as err:
-        raise UsageError(str(err)) from None
-    if args.workers is not None and args.workers < 1:
-        raise UsageError("--workers must be at least 1.")
-    if args.scheduler is not None and args.workers is not None:
-        raise UsageError("--workers sizes the local cluster and --scheduler names your own; "
-                         "give one of them.")
-    if args.out.exists() and not args.out.is_dir():
-        raise UsageError(f"--out {args.out} is a file; pass a folder.")
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise UsageError(f"cannot create --out {args.out} ({err.strerror}); pass a writable "
-                         "folder.") from None
-    started = time.perf_counter()
-    progress = _Progress(not args.quiet)
-    try:
-        rows = run_study(spec, scheduler=args.scheduler, workers=args.workers,
-                         cache_dir=args.cache_dir, progress=progress)
-    except KeyboardInterrupt:
-        raise KeyboardInterrupt("the finished designs are cached; rerun the same command "
-                                "to resume") from None
-    seconds = time.perf_counter() - started
-    try:
-        paths = write_results(rows, spec, args.out, seconds)
-    except OSError as err:
-        raise PhysicsError(f"cannot write the results to {args.out} "
-                           f"({err.strerror or err}); pass a writable folder.") from None
-    from .study_report import fmt_metric, pareto_rows
-
-    solved = sum(r.ok for r in rows)
-    lines = [f"study           {spec.name}",
-             f"designs         {len(rows)} ({solved} solved, {len(rows) - solved} failed), "
-             f"{seconds:.1f} s"]
-    if rows[0].ok:
-        lines.append("paper's design  " + ", ".join(
-            f"{c} {fmt_metric(c, rows[0].metrics[c])}" for c in spec.objectives))
-    front = pareto_rows(rows, spec)
-    lines.append(f"pareto          {len(front)} designs: "
-                 + ", ".join(r.design for r in front))
-    lines += [f"{p.name:<15} {p}" for p in paths.values()]
-    print("\n".join(lines))
-    return 0
-
-
 def _plain(params: PhysicsParams) -> dict[str, Any]:
     return {k: list(v) if isinstance(v, tuple) else v for k, v in params.to_dict().items()}
 
+
+#: The model's own commands; ``studies/cli.py`` adds the design study to them.
+MODEL_COMMANDS = (
+    Command("sweep",
+            help="press the skin from 0 to max_indentation and predict force and output",
+            description="Press the skin block from 0 to max_indentation (and, with "
+                        "max_shear_x/y, move it sideways) with the FEM model, apply the "
+                        "photoreflector optics and report force, bulge and module output (the "
+                        "paper's Fig. 7(a)/(b)). Results are cached per parameter digest.",
+            options=_sweep_options, run=sweep),
+    Command("array-calibration",
+            help="FEM grid of shear load paths and the modules' (Fx, Fy, Fz) calibration "
+                 "fitted to it",
+            description="Solve the array calibration grid (indentation x shear direction x "
+                        "shear magnitude, parameters array_*), fit a polynomial from the "
+                        "modules' outputs to (Fx, Fy, Fz), and report its error on grid "
+                        "points held out of the fit. Four modules (front, back, left, right) "
+                        "unless 'modules' is set. The grid is cached per parameter digest.",
+            options=_array_calibration_options, run=array_calibration),
+)
 
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3    # glibc's mallopt parameters
 
@@ -497,10 +427,12 @@ def keep_freed_memory() -> bool:
         bool(mallopt(_M_MMAP_THRESHOLD, 32 << 20))
 
 
-def main(argv: list[str] | None = None) -> int:
+def main(argv: list[str] | None = None, commands: Sequence[Command] | None = None) -> int:
+    """Run one of ``commands`` (default the model's own); the exit code of the docstring."""
+    commands = MODEL_COMMANDS if commands is None else commands
     started = time.perf_counter()
     try:
-        args = parser().parse_args(sys.argv[1:] if argv is None else argv)
+        args = parser(commands).parse_args(sys.argv[1:] if argv is None else argv)
     except UsageError as err:
         print(f"{PROG}: {err}", file=sys.stderr)
         return 2
@@ -508,8 +440,7 @@ def main(argv: list[str] | None = None) -> int:
         return exc.code if isinstance(exc.code, int) else 0
     keep_freed_memory()
     try:
-        code = {"sweep": sweep, "array-calibration": array_calibration,
-                "study": study}[args.command](args)
+        code = {c.name: c.run for c in commands}[args.command](args)
     except UsageError as err:
         print(f"{PROG} {args.command}: {err}", file=sys.stderr)
         return 2

@@ -16,7 +16,7 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -29,6 +29,7 @@ if TYPE_CHECKING:
     from .fem import SweepResult
 
 Progress = Callable[[float, str], None]
+T = TypeVar("T")
 ARRAYS = ("indentation_m", "force_n", "bulge_m", "distance_m", "voltage_v", "output_v")
 #: Per load step too, added with shear load paths; a file without them has them all zero.
 SHEAR_ARRAYS = ("shear_x_m", "shear_y_m", "force_x_n", "force_y_n")
@@ -236,6 +237,26 @@ def default_cache_dir() -> Path:
     return Path(base) / "tactile_sensor"
 
 
+def cache_file(cache_dir: Path | None, name: str) -> Path:
+    """``name`` in ``cache_dir``, or in the folder the model node, the CLI and the studies
+    share by default."""
+    return (Path(cache_dir) if cache_dir is not None else default_cache_dir()) / name
+
+
+def load_or_compute(cached: Callable[[], T | None], compute: Callable[[], T],
+                    store: Callable[[T], None], progress: Progress | None, miss: str) -> T:
+    """The cached value, or (announcing ``miss`` to ``progress``) computed and stored: the one
+    way a curve, a grid and a wrench set are kept, so each is solved once per digest."""
+    value = cached()
+    if value is not None:
+        return value
+    if progress is not None:
+        progress(0.0, miss)
+    value = compute()
+    store(value)
+    return value
+
+
 def read_cache(path: Path, parse: Callable[[Any], Any]) -> Any:
     """``parse`` of the JSON at ``path``, or None when it is missing or damaged (even
     non-UTF-8): a damaged cache entry is recomputed and replaced."""
@@ -274,8 +295,7 @@ def compute_curve(params: PhysicsParams, progress: Progress | None = None) -> Pr
 
 
 def cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:
-    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    return folder / f"prediction-{params.digest()}.json"
+    return cache_file(cache_dir, f"prediction-{params.digest()}.json")
 
 
 def cached_curve(params: PhysicsParams, cache_dir: Path | None = None
@@ -292,27 +312,13 @@ def cached_curve(params: PhysicsParams, cache_dir: Path | None = None
 def store_curve(params: PhysicsParams, curve: PredictionCurve,
                 cache_dir: Path | None = None) -> None:
     """Cache ``curve`` atomically (a crashed run never leaves half a file); best effort."""
-    path = cache_path(params, cache_dir)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".prediction-", suffix=".tmp")
-        with os.fdopen(fd, "w") as handle:
-            json.dump(curve.to_dict(), handle)
-        os.replace(tmp, path)
-    except OSError:
-        with contextlib.suppress(OSError, UnboundLocalError):
-            os.unlink(tmp)
+    write_cache(cache_path(params, cache_dir), curve.to_dict())
 
 
 def load_or_compute_curve(params: PhysicsParams, cache_dir: Path | None = None,
                           progress: Progress | None = None) -> PredictionCurve:
     """The cached curve for ``params``, computing and caching it on a miss."""
-    curve = cached_curve(params, cache_dir)
-    if curve is not None:
-        return curve
-    if progress is not None:
-        progress(0.0, "computing the FEM sweep (cache miss: "
-                 f"{cache_path(params, cache_dir).name})")
-    curve = compute_curve(params, progress)
-    store_curve(params, curve, cache_dir)
-    return curve
+    return load_or_compute(
+        lambda: cached_curve(params, cache_dir), lambda: compute_curve(params, progress),
+        lambda curve: store_curve(params, curve, cache_dir), progress,
+        f"computing the FEM sweep (cache miss: {cache_path(params, cache_dir).name})")

@@ -12,7 +12,7 @@ as vectors, torques as pseudo-vectors, modules read their image's output): the s
 tilt along y come from those along x when x = y is a symmetry, and the least-squares
 sensitivity matrix sees each load both ways and no quadratic effect (a twist shortens the
 skin whichever way it turns) leaks into a linear column. Its metrics:
-``design_metrics.wrench_metrics``.
+``physics/observability.py``.
 """
 
 from __future__ import annotations
@@ -27,11 +27,12 @@ from typing import Any
 import numpy as np
 
 from .array_grid import LoadPath, face_image, image_tangent, solve_paths, symmetries
-from .design_metrics import WRENCH_AXES
 from .errors import PhysicsError
 from .params import PhysicsParams
 
 WRENCH_FORMAT = "tactile_sensor/wrench_set"
+#: Components in matrix order: forces [N] (Fz pressing positive), torques [N m] (right hand).
+WRENCH_AXES = ("fx", "fy", "fz", "tx", "ty", "tz")
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,10 +152,9 @@ def compute_wrench_set(params: PhysicsParams, progress: Any = None, workers: int
 
 
 def wrench_cache_path(params: PhysicsParams, cache_dir: Path | None = None) -> Path:
-    from .prediction import default_cache_dir
+    from .prediction import cache_file
 
-    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
-    return folder / f"wrench-{wrench_digest(params)}.json"
+    return cache_file(cache_dir, f"wrench-{wrench_digest(params)}.json")
 
 
 def cached_wrench_set(params: PhysicsParams, cache_dir: Path | None = None
@@ -176,14 +176,13 @@ def store_wrench_set(params: PhysicsParams, data: WrenchSet,
 def load_or_compute_wrench_set(params: PhysicsParams, cache_dir: Path | None = None,
                                progress: Any = None, workers: int = 1) -> WrenchSet:
     """The cached wrench set for ``params``, or solved now and cached."""
-    data = cached_wrench_set(params, cache_dir)
-    if data is None:
-        if progress is not None:
-            progress(0.0, "solving the wrench paths (cache miss: "
-                     f"{wrench_cache_path(params, cache_dir).name})")
-        data = compute_wrench_set(params, progress, workers)
-        store_wrench_set(params, data, cache_dir)
-    return data
+    from .prediction import load_or_compute
+
+    return load_or_compute(
+        lambda: cached_wrench_set(params, cache_dir),
+        lambda: compute_wrench_set(params, progress, workers),
+        lambda data: store_wrench_set(params, data, cache_dir), progress,
+        f"solving the wrench paths (cache miss: {wrench_cache_path(params, cache_dir).name})")
 
 
 def off_centre(params: PhysicsParams) -> bool:

@@ -19,7 +19,7 @@ offset [m] along the face (along +x on front/back, +y on left/right). Force conv
 probe's force on the skin along +x, +y and -z (pressing positive), torque [N m] the probe's
 on the skin about +x, +y, +z, as the FEM reports them; faces as in physics (front +y, back
 -y, left -x, right +x). ``observed`` lists the components the layout can tell apart
-(``physics.design_metrics.wrench_observability``); the others evaluate to NaN. Beyond the
+(``physics.observability.wrench_metrics``); the others evaluate to NaN. Beyond the
 fitted outputs the polynomial extrapolates; ``in_range`` tells the caller.
 
 File (JSON), version 2: ``{"format": "tactile_sensor/array_calibration", "version": 2,

@@ -11,16 +11,15 @@ import pytest
 
 from tactile_sensor.physics.array_grid import face_image, symmetries
 from tactile_sensor.physics.cli import main
-from tactile_sensor.physics.design_metrics import (
+from tactile_sensor.physics.errors import PhysicsError
+from tactile_sensor.physics.fem import SkinModel, SweepResult, rotation_matrix
+from tactile_sensor.physics.observability import (
     OBSERVE_SNR,
-    WRENCH_AXES,
     distinct_output,
     full_scale,
     wrench_matrix,
     wrench_metrics,
 )
-from tactile_sensor.physics.errors import PhysicsError
-from tactile_sensor.physics.fem import SkinModel, SweepResult, rotation_matrix
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import (
     ROTATION_ARRAYS,
@@ -30,10 +29,16 @@ from tactile_sensor.physics.prediction import (
     curve_from_sweep,
     store_curve,
 )
-from tactile_sensor.physics.study import DesignRow, run_study
-from tactile_sensor.physics.study_report import wrench_finding, wrench_lines, write_results
-from tactile_sensor.physics.study_spec import parse_spec
-from tactile_sensor.physics.wrench import WrenchSet, compute_wrench_set, map_wrench, wrench_paths
+from tactile_sensor.physics.wrench import (
+    WRENCH_AXES,
+    WrenchSet,
+    compute_wrench_set,
+    map_wrench,
+    wrench_paths,
+)
+from tactile_sensor.studies.report import wrench_finding, wrench_lines, write_results
+from tactile_sensor.studies.run import DesignRow, run_study
+from tactile_sensor.studies.spec import parse_spec
 
 FOUR = "front,back,left,right"
 SMALL = dict(mesh_nx=3, mesh_ny=3, mesh_nz=8, steps=2, max_indentation=0.002, modules=FOUR)

@@ -7,17 +7,18 @@ import math
 import numpy as np
 import pytest
 
-from tactile_sensor.physics.design_metrics import WRENCH_AXES, component_noise
 from tactile_sensor.physics.errors import PhysicsError
+from tactile_sensor.physics.observability import component_noise
 from tactile_sensor.physics.output_noise import (
     SAMPLE_NOISE_V,
     butterworth_enbw_hz,
     noise_at_bandwidth,
 )
-from tactile_sensor.physics.study import run_study
-from tactile_sensor.physics.study_spec import BOARDS, parse_spec
+from tactile_sensor.physics.wrench import WRENCH_AXES
 from tactile_sensor.sensing.filters import Butterworth
 from tactile_sensor.sim.adc_device import white_noise_for_dynamic_range
+from tactile_sensor.studies.run import run_study
+from tactile_sensor.studies.spec import BOARDS, parse_spec
 
 EIGHT = ",".join(f"{f}@{s * 0.0055}" for f in ("front", "back", "left", "right")
                  for s in (-1, 1))
@@ -91,7 +92,7 @@ def test_a_layout_with_more_modules_than_channels_is_refused_before_solving(tmp_
         sent.extend(a[0] for a in args)
         return iter(())
 
-    monkeypatch.setattr("tactile_sensor.physics.study.run", run)
+    monkeypatch.setattr("tactile_sensor.studies.run.run", run)
     spec = parse_spec({"vary": {"modules": [EIGHT, "front,back,left,right"],
                                 "board": ["uno", "uno"]}, "design": "zip",
                        "metrics": ["wrench_observability"]})

@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from .batch import BatchError
+from tactile_sensor.physics.batch import BatchError
 
 #: The folder holding the package, which workers must be able to import.
 SOURCE = Path(__file__).resolve().parents[2]

@@ -11,9 +11,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.text import Text
 
-from tactile_sensor.physics.study import DesignRow
-from tactile_sensor.physics.study_report import write_metrics_plot, write_pareto_plot
-from tactile_sensor.physics.study_spec import load_spec
+from tactile_sensor.studies.report import write_metrics_plot, write_pareto_plot
+from tactile_sensor.studies.run import DesignRow
+from tactile_sensor.studies.spec import load_spec
 
 matplotlib.use("Agg")
 

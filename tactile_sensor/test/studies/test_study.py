@@ -13,15 +13,15 @@ import yaml
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactile_sensor.physics import cli
 from tactile_sensor.physics.batch import BatchError
 from tactile_sensor.physics.fem import REPRODUCIBLE_RTOL
-from tactile_sensor.physics.loopback_cluster import loopback_cluster as start_loopback_cluster
 from tactile_sensor.physics.params import PhysicsParams
-from tactile_sensor.physics.pareto import pareto_mask
-from tactile_sensor.physics.study import run_study
-from tactile_sensor.physics.study_report import write_results
-from tactile_sensor.physics.study_spec import (
+from tactile_sensor.studies import cli
+from tactile_sensor.studies.cluster import loopback_cluster as start_loopback_cluster
+from tactile_sensor.studies.pareto import pareto_mask
+from tactile_sensor.studies.report import write_results
+from tactile_sensor.studies.run import run_study
+from tactile_sensor.studies.spec import (
     StudySpecError,
     board_refusal,
     load_spec,
@@ -284,7 +284,7 @@ def test_a_cluster_process_that_exits_is_one_sentence(tmp_path, monkeypatch):
     with a sentence naming what was awaited and the fix, not a hang."""
     import types
 
-    from tactile_sensor.physics import loopback_cluster as module
+    from tactile_sensor.studies import cluster as module
 
     monkeypatch.setattr(module, "sys", types.SimpleNamespace(executable="/bin/false"))
     with pytest.raises(BatchError, match=r"exited while waiting for the scheduler file.*make "

@@ -36,10 +36,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .design_metrics import WRENCH_COLUMNS
-from .errors import PhysicsError
-from .output_noise import SAMPLE_NOISE_V, SAMPLE_RATE_HZ, noise_at_bandwidth
-from .params import FACES, PhysicsParams
+from tactile_sensor.physics.errors import PhysicsError
+from tactile_sensor.physics.output_noise import SAMPLE_NOISE_V, SAMPLE_RATE_HZ, noise_at_bandwidth
+from tactile_sensor.physics.params import FACES, PhysicsParams
+from tactile_sensor.physics.yaml_file import read_yaml
+
+from .metrics import WRENCH_COLUMNS
 
 #: Metric name in a spec -> the table columns it adds (units in the names).
 SINGLE_METRICS = {"sensitivity": "sensitivity_v_per_n", "full_scale": "full_scale_n",
@@ -180,24 +182,8 @@ def _typed(values: dict[str, Any]) -> dict[str, Any]:
 
 def load_spec(path: Path) -> StudySpec:
     """Read and parse a SPEC file (one sentence on any problem)."""
-    import yaml
-
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise StudySpecError(f"cannot read the study spec {path} ({err.strerror}); pass an "
-                             "existing YAML file, e.g. config/studies/window_placement.yaml."
-                             ) from None
-    except UnicodeDecodeError:
-        raise StudySpecError(f"the study spec {path} is not UTF-8 text; pass a YAML "
-                             "file.") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise StudySpecError(f"the study spec {path} is not valid YAML{where}; fix its "
-                             "syntax.") from None
+    data = read_yaml(path, "the study spec", StudySpecError,
+                     ", e.g. config/studies/window_placement.yaml")
     return parse_spec(data, name=path.stem)
 
 

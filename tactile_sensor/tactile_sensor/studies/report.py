@@ -16,11 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from .design_metrics import NOISE_BANDWIDTHS_HZ, OBSERVE_SNR, WRENCH_AXES
-from .params import PhysicsParams
+from tactile_sensor.physics.observability import NOISE_BANDWIDTHS_HZ, OBSERVE_SNR
+from tactile_sensor.physics.params import PhysicsParams
+from tactile_sensor.physics.wrench import WRENCH_AXES
+
 from .pareto import pareto_mask
-from .study import REFERENCE, DesignRow, metric_value
-from .study_spec import WRENCH_METRIC, StudySpec
+from .run import REFERENCE, DesignRow, metric_value
+from .spec import WRENCH_METRIC, StudySpec
 
 TORQUE_NOTE = ("The sensitivity matrix covers Fx, Fy, Fz only; torque (twist about z, tilt "
                "about x and y) is the metric wrench_observability, which solves the wrench "
