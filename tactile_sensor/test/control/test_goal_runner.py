@@ -52,8 +52,14 @@ class KinematicServo:
         self.fail_reads: Exception | None = None
         self.fail_commands: list[Exception] = []
         self.commands: list[float] = []
+        self.reads = 0
+
+    def now(self) -> float:
+        """Servo time [s]: TICK_S per read, however late the reads come on a busy machine."""
+        return self.reads * TICK_S
 
     def read_state(self) -> ServoState:
+        self.reads += 1
         if self.fail_reads is not None:
             raise self.fail_reads
         if self.torque and not self.bits:
@@ -93,16 +99,18 @@ class Rig:
 
     def __init__(self, rod_m: float = 0.030, stiffness: float = 2500.0,
                  settle_time_s: float = 0.5, force_delay_s: float = 0.0,
-                 full_scale_n: float = math.inf) -> None:
+                 full_scale_n: float = math.inf, servo_time: bool = False) -> None:
         self.client = KinematicServo()
-        self.servo = ServoLink(self.client, CONFIG, period_s=TICK_S, retries=0)
+        # servo_time: the runner's deadlines in the time the servo moves in, not wall time
+        clock = self.client.now if servo_time else time.monotonic
+        self.servo = ServoLink(self.client, CONFIG, period_s=TICK_S, retries=0, clock=clock)
         self.forces, self.slot = TactileForce(), GoalSlot()
         self.hardware_errors: list[frozenset[str]] = []
         self.errors: list[str] = []
         self.runner = GoalRunner(self.servo, self.forces, self.slot,
                                  RunnerTiming(TICK_S, TICK_S, settle_time_s),
                                  on_hardware_error=self.hardware_errors.append,
-                                 log_error=self.errors.append)
+                                 log_error=self.errors.append, clock=clock)
         self.rod_m, self.stiffness = rod_m, stiffness
         #: The sensor reads the true force up to this and saturates there [N].
         self.full_scale_n = full_scale_n
@@ -397,13 +405,18 @@ def test_a_reboot_ends_the_running_goal_and_one_started_during_it():
 def saturated_grasp(rig: Rig, target_n: float = 5.0, timeout_s: float = 10.0):
     """A grasp accepted before the driver stated its range: the sensor saturates at
     ``rig.full_scale_n`` below the target, the range arrives while the fingers close, and
-    the grasp runs on, pressing ever harder while it reads the full scale."""
+    the grasp runs on, pressing ever harder while it reads the full scale. The rig runs on
+    servo time: the fingers reach the full scale about 0.63 s after the goal starts (11 mm at
+    20 mm/s, from the first command on), before a 0.8 s timeout, however slowly a busy
+    machine reads the servo."""
     thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(
         force_n=target_n, speed=0.02, timeout=timeout_s)))
     while not rig.feedback:
+        assert thread.is_alive(), out
         rig.servo.await_sample(1.0)
     rig.forces.full_scale_n = rig.full_scale_n
     while not (rig.forces.latest and rig.forces.latest[0] >= rig.full_scale_n):
+        assert thread.is_alive(), f"the grasp ended before the full scale: {out}"
         rig.servo.await_sample(1.0)
     return thread, out
 
@@ -419,20 +432,20 @@ def test_a_grasp_that_times_out_at_the_full_scale_backs_off_to_its_target():
     """A grasp timed out at the sensor's full scale once held 27.9 N on the mock, four
     times what the sensor reads. It now opens until the reading is below the full scale
     and at most the target, then holds: the true force is as low."""
-    with Rig(full_scale_n=3.0) as rig:
-        thread, out = saturated_grasp(rig, timeout_s=0.6)
+    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+        thread, out = saturated_grasp(rig, timeout_s=0.8)
         thread.join()
         held = held_force(rig)
     end = out["end"]
     assert end.status is GoalStatus.ABORTED
-    assert end.message == ("timeout: no result within 0.6 s; backed off from 3.00 N to "
+    assert end.message == ("timeout: no result within 0.8 s; backed off from 3.00 N to "
                            f"{end.result['force']:.2f} N")
     assert end.result["force"] < 3.0 and held < 3.0 <= 5.0
     assert end.result["opening"] == pytest.approx(GEOMETRY.opening_m(rig.client.position))
 
 
 def test_a_cancel_above_the_target_backs_off_and_holds():
-    with Rig(full_scale_n=3.0) as rig:
+    with Rig(full_scale_n=3.0, servo_time=True) as rig:
         thread, out = saturated_grasp(rig)
         rig.runner.stop("goal")  # the cancel callback's stop ...
         rig.cancel.set()  # ... then the goal's loop sees the cancel
@@ -447,7 +460,7 @@ def test_a_cancel_above_the_target_backs_off_and_holds():
 
 def test_a_hardware_error_above_the_target_commands_nothing_more():
     """Torque is off: the fingers rest where the error left them (docs/gripper.md)."""
-    with Rig(full_scale_n=3.0) as rig:
+    with Rig(full_scale_n=3.0, servo_time=True) as rig:
         thread, out = saturated_grasp(rig)
         sent = len(rig.client.commands)
         rig.client.bits = frozenset({"overload"})
@@ -466,7 +479,7 @@ def test_an_abort_below_the_target_stays_where_it_stopped():
 
 def backing_off(rig: Rig):
     """A grasp timed out at the full scale, past the back-off's first opening command."""
-    thread, out = saturated_grasp(rig, timeout_s=0.6)
+    thread, out = saturated_grasp(rig, timeout_s=0.8)
     closest = GEOMETRY.opening_m(rig.client.position)
     while thread.is_alive() and not any(GEOMETRY.opening_m(c) > closest + 1e-4
                                         for c in rig.client.commands[-3:]):
@@ -476,7 +489,7 @@ def backing_off(rig: Rig):
 
 
 def test_a_back_off_without_fresh_force_holds_and_says_so():
-    with Rig(full_scale_n=3.0) as rig:
+    with Rig(full_scale_n=3.0, servo_time=True) as rig:
         thread, out = backing_off(rig)
         rig.sensing.clear()
         thread.join()
@@ -485,7 +498,7 @@ def test_a_back_off_without_fresh_force_holds_and_says_so():
 
 
 def test_a_back_off_stops_when_the_servo_fails():
-    with Rig(full_scale_n=3.0) as rig:
+    with Rig(full_scale_n=3.0, servo_time=True) as rig:
         thread, out = backing_off(rig)
         rig.client.fail_reads = CommunicationTimeout("no status packet")
         thread.join()
@@ -493,7 +506,7 @@ def test_a_back_off_stops_when_the_servo_fails():
 
 
 def test_a_back_off_yields_to_a_newer_goal():
-    with Rig(full_scale_n=3.0) as rig:
+    with Rig(full_scale_n=3.0, servo_time=True) as rig:
         thread, out = backing_off(rig)
         rig.slot.take_over("newer goal")
         thread.join()
@@ -501,8 +514,8 @@ def test_a_back_off_yields_to_a_newer_goal():
 
 
 def test_a_back_off_whose_first_command_fails_stops_there():
-    with Rig(full_scale_n=3.0) as rig:
-        thread, out = saturated_grasp(rig, timeout_s=0.6)
+    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+        thread, out = saturated_grasp(rig, timeout_s=0.8)
         # every command after the closing's fails: the timeout's stop, then the back-off's
         rig.client.fail_commands = [PortLost("unplugged")] * 1000
         thread.join()
