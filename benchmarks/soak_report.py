@@ -1,0 +1,73 @@
+"""What a soak prints and what it publishes: the summary for a reader, and the figures
+for the benchmark page."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from results import Figure
+from soak_processes import SAMPLE_PERIOD_S, SELF, say
+from soak_run import FaultResult, fault_line
+
+
+def print_report(r: dict[str, Any]) -> None:
+    d, loss = r["device"], r["loss"]
+    say(f"\nsoak {r['minutes']:g} min at {r['adc_rate_hz']:g} Hz (bring-up "
+        f"{r['bring_up_s']:.1f} s)")
+    say(f"bench ADC: {d['frames_generated']:,} frames generated, {d['frames_unplugged']:,} "
+        f"while unplugged ({d['unplugs']} pulls), {loss['sent']:,} sent plugged in, "
+        f"{d['bytes_lost']:,} bytes lost to a full host buffer")
+    b = r["bench_driver"]
+    say(f"bench driver: {int(b['frames']):,} frames received, {b['frames_dropped']} missing "
+        f"in the sequence, {b['frames_overflowed']} overflowed, {b['reconnections']} "
+        f"connections; {loss['published']:,} readings published")
+    say(f"readings lost: {loss['lost_total']:,} = {loss['lost_in_windows']:,} in the "
+        f"unplugged windows + {loss['lost_outside']:,} outside")
+    g = r["gripper_driver"]
+    if g:
+        say(f"gripper driver: {int(g.get('frames', 0)):,} frames, "
+            f"{g.get('frames_dropped')} missing, {g.get('frames_overflowed')} overflowed, "
+            f"{int(g.get('readings_published', 0)):,} readings published (250 Hz)")
+    say(f"recorder: {r['recorded']:,} readings in {len(r['bag_files'])} file(s) "
+        f"({', '.join(r['bag_files'])}) of {loss['published']:,} published")
+    say("faults (at: since the benchmark started; detection and recovery: from the "
+        "injection, for a split from when it was due):")
+    for f in r["faults"]:
+        say(f"  {f['at_s']:6.1f} s {f['kind']:<16} " + fault_line(FaultResult(**f)))
+    say(f"processes (RSS growth: Theil-Sen slope of samples every {SAMPLE_PERIOD_S:g} s "
+        f"from {r['rss_warmup_s']:.0f} s after each process's first one; this process "
+        "keeps every report, so it is listed but not judged):")
+    say(f"  {'process':<34} {'RSS MB start':>12} {'end':>7} {'MB/h':>8} {'fds':>9} {'fd/h':>7}")
+    for p in r["processes"]:
+        say(f"  {p['process']:<34} {p['rss_start_mb']:12.1f} {p['rss_end_mb']:7.1f} "
+            f"{p['rss_growth_mb_per_h']:+8.2f} {p['fds_start']:>4}->{p['fds_end']:<4} "
+            f"{p['fd_growth_per_h']:+7.1f}")
+    gr = r["grasps"]
+    say(f"grasps: {gr['succeeded']} of {gr['attempted']} succeeded ({gr['outcomes']})")
+    say(f"exit codes: {r['exit_codes']}")
+    for goal in r["goals"]:
+        say(f"{'PASS' if goal['passed'] else 'FAIL'}  {goal['name']}: {goal['detail']}")
+
+
+def report_figures(r: dict[str, Any]) -> list[Figure]:
+    """The summary's figures for benchmarks/results: losses, each fault kind's slowest
+    detection and recovery, the worst RSS growth, grasps and every goal."""
+    loss = r["loss"]
+    figures = [Figure("readings lost outside the unplugged windows", loss["lost_outside"]),
+               Figure("readings lost in the unplugged windows", loss["lost_in_windows"]),
+               Figure("readings recorded", r["recorded"], f"of {loss['published']} published")]
+    for kind in sorted({f["kind"] for f in r["faults"]}):
+        of_kind = [f for f in r["faults"] if f["kind"] == kind]
+        for key, label in (("detected_after_s", "detection"), ("recovered_after_s", "recovery")):
+            values = [f[key] for f in of_kind if f[key] is not None]
+            figures.append(Figure(f"{kind}: slowest {label} of {len(of_kind)}",
+                                  max(values) if len(values) == len(of_kind) else None, "s"))
+    judged = [p["rss_growth_mb_per_h"] for p in r["processes"] if SELF not in p["process"]
+              and math.isfinite(p["rss_growth_mb_per_h"])]
+    figures.append(Figure("worst RSS growth", max(judged) if judged else None, "MB/h"))
+    grasps = r["grasps"]
+    figures.append(Figure("grasps succeeded", grasps["succeeded"], f"of {grasps['attempted']}"))
+    figures += [Figure(g["name"], "PASS" if g["passed"] else "FAIL", "", g["detail"], g["passed"])
+                for g in r["goals"]]
+    return figures
