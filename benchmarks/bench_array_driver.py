@@ -14,13 +14,13 @@ each driver process over the window; lost frames = the drivers' own diagnostics 
 0:front@-0.0055,...,7:right@0.0055``, an eight-channel ADC) with a six-column calibration
 (torque with its own 10 Hz low-pass and the force's slow part) in place of the four-module
 array: the six-axis wrench's goal is at most 1.3 x the single module's CPU. Its figures go to
-``benchmarks/results/bench_wrench_driver.json``.
+``build/benchmarks/results/bench_wrench_driver.json``.
 
 ``--compare REV`` runs the same pair with the driver of commit REV (its sources unpacked by
 ``git archive``; this checkout's interfaces and mock ADCs) and with this checkout's, one
 pair after the other for ``--rounds`` rounds whose order alternates, and prints the CPU
 of each before and after (the hot-path goal: the array driver at most 0.4 x REV's). The
-figures go to ``benchmarks/results/bench_array_driver.json``.
+figures go to ``build/benchmarks/results/bench_array_driver.json``.
 
     python benchmarks/bench_array_driver.py [--seconds 30] [--compare REV] [--rounds 2]
         [--layout array|wrench]

@@ -29,7 +29,7 @@ latency includes. It also reports the loop's own CPU per frame (wake-up, read, p
 this checkout's interfaces and mock ADC) and this checkout's, one after the other, for
 ``--rounds`` rounds whose order alternates, and prints a before/after table: on a shared
 machine only figures measured in one run compare. The figures go to
-``benchmarks/results/bench_driver.json``.
+``build/benchmarks/results/bench_driver.json``.
 
     python benchmarks/bench_driver.py [--seconds 20] [--model static|rate|play|both|all]
                                       [--compare REV] [--rounds 2]

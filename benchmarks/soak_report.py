@@ -51,7 +51,7 @@ def print_report(r: dict[str, Any]) -> None:
 
 
 def report_figures(r: dict[str, Any]) -> list[Figure]:
-    """The summary's figures for benchmarks/results: losses, each fault kind's slowest
+    """The summary's figures for the results file: losses, each fault kind's slowest
     detection and recovery, the worst RSS growth, grasps and every goal."""
     loss = r["loss"]
     figures = [Figure("readings lost outside the unplugged windows", loss["lost_outside"]),
