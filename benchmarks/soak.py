@@ -40,21 +40,46 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 SOURCE = Path(__file__).resolve().parents[1] / "tactile_sensor"
 sys.path.insert(0, str(SOURCE))
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the soak's modules, also when imported
 
-from results import RESULTS, write_results  # noqa: E402
+from results import RESULTS, Figure, write_results  # noqa: E402
 from soak_accounting import fault_schedule  # noqa: E402
 from soak_monitor import TEARDOWN_S  # noqa: E402
-from soak_processes import say  # noqa: E402
-from soak_report import print_report, report_figures  # noqa: E402
+from soak_processes import SELF, say  # noqa: E402
+from soak_report import print_report  # noqa: E402
 from soak_run import ADC_RATE_HZ, Soak  # noqa: E402
+
+
+def report_figures(r: dict[str, Any]) -> list[Figure]:
+    """The summary's figures for the results file: losses, each fault kind's slowest
+    detection and recovery, the worst RSS growth, grasps and every goal."""
+    loss = r["loss"]
+    figures = [Figure("readings lost outside the unplugged windows", loss["lost_outside"]),
+               Figure("readings lost in the unplugged windows", loss["lost_in_windows"]),
+               Figure("readings recorded", r["recorded"], f"of {loss['published']} published")]
+    for kind in sorted({f["kind"] for f in r["faults"]}):
+        of_kind = [f for f in r["faults"] if f["kind"] == kind]
+        for key, label in (("detected_after_s", "detection"), ("recovered_after_s", "recovery")):
+            values = [f[key] for f in of_kind if f[key] is not None]
+            figures.append(Figure(f"{kind}: slowest {label} of {len(of_kind)}",
+                                  max(values) if len(values) == len(of_kind) else None, "s"))
+    judged = [p["rss_growth_mb_per_h"] for p in r["processes"] if SELF not in p["process"]
+              and math.isfinite(p["rss_growth_mb_per_h"])]
+    figures.append(Figure("worst RSS growth", max(judged) if judged else None, "MB/h"))
+    grasps = r["grasps"]
+    figures.append(Figure("grasps succeeded", grasps["succeeded"], f"of {grasps['attempted']}"))
+    figures += [Figure(g["name"], "PASS" if g["passed"] else "FAIL", "", g["detail"], g["passed"])
+                for g in r["goals"]]
+    return figures
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,13 +1,11 @@
-"""What a soak prints and what it publishes: the summary for a reader, and the figures
-for the benchmark page."""
+"""What a soak prints at its end: the summary for a reader, every count, fault and process
+with the goals' verdicts."""
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
-from results import Figure
-from soak_processes import SAMPLE_PERIOD_S, SELF, say
+from soak_processes import SAMPLE_PERIOD_S, say
 from soak_run import FaultResult, fault_line
 
 
@@ -48,26 +46,3 @@ def print_report(r: dict[str, Any]) -> None:
     say(f"exit codes: {r['exit_codes']}")
     for goal in r["goals"]:
         say(f"{'PASS' if goal['passed'] else 'FAIL'}  {goal['name']}: {goal['detail']}")
-
-
-def report_figures(r: dict[str, Any]) -> list[Figure]:
-    """The summary's figures for the results file: losses, each fault kind's slowest
-    detection and recovery, the worst RSS growth, grasps and every goal."""
-    loss = r["loss"]
-    figures = [Figure("readings lost outside the unplugged windows", loss["lost_outside"]),
-               Figure("readings lost in the unplugged windows", loss["lost_in_windows"]),
-               Figure("readings recorded", r["recorded"], f"of {loss['published']} published")]
-    for kind in sorted({f["kind"] for f in r["faults"]}):
-        of_kind = [f for f in r["faults"] if f["kind"] == kind]
-        for key, label in (("detected_after_s", "detection"), ("recovered_after_s", "recovery")):
-            values = [f[key] for f in of_kind if f[key] is not None]
-            figures.append(Figure(f"{kind}: slowest {label} of {len(of_kind)}",
-                                  max(values) if len(values) == len(of_kind) else None, "s"))
-    judged = [p["rss_growth_mb_per_h"] for p in r["processes"] if SELF not in p["process"]
-              and math.isfinite(p["rss_growth_mb_per_h"])]
-    figures.append(Figure("worst RSS growth", max(judged) if judged else None, "MB/h"))
-    grasps = r["grasps"]
-    figures.append(Figure("grasps succeeded", grasps["succeeded"], f"of {grasps['attempted']}"))
-    figures += [Figure(g["name"], "PASS" if g["passed"] else "FAIL", "", g["detail"], g["passed"])
-                for g in r["goals"]]
-    return figures
