@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate demo-wrench bench bench-report clean
+.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate demo-wrench bench bench-publish bench-report clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -44,11 +44,13 @@ demo-rate: setup  ## fit force across speeds on 'speeds', check it on unseen spe
 demo-wrench: setup  ## press, shear, tilt and twist on the 8-module layout; print the six errors
 	@bash scripts/demo.sh wrench
 
-bench: setup  ## every benchmark in benchmarks/: prints its figures, writes benchmarks/results/
+bench: setup  ## every benchmark in benchmarks/: prints its figures, writes build/benchmarks/results/
 	@. scripts/env.sh && for b in benchmarks/bench_*.py; do echo "== $$b"; python "$$b" || exit 1; done
-	@python3 benchmarks/report.py
 
-bench-report:  ## render docs/benchmarks.md from benchmarks/results/*.json
+bench-publish:  ## at a clean checkout: copy build/benchmarks/results/ to benchmarks/results/, render the page
+	@python3 benchmarks/publish.py
+
+bench-report:  ## render docs/benchmarks.md from the published benchmarks/results/*.json
 	@python3 benchmarks/report.py
 
 clean:  ## remove the build products of DISTRO (keeps its venv)

@@ -14,13 +14,13 @@ each driver process over the window; lost frames = the drivers' own diagnostics 
 0:front@-0.0055,...,7:right@0.0055``, an eight-channel ADC) with a six-column calibration
 (torque with its own 10 Hz low-pass and the force's slow part) in place of the four-module
 array: the six-axis wrench's goal is at most 1.3 x the single module's CPU. Its figures go to
-``benchmarks/results/bench_wrench_driver.json``.
+``build/benchmarks/results/bench_wrench_driver.json``.
 
 ``--compare REV`` runs the same pair with the driver of commit REV (its sources unpacked by
 ``git archive``; this checkout's interfaces and mock ADCs) and with this checkout's, one
 pair after the other for ``--rounds`` rounds whose order alternates, and prints the CPU
 of each before and after (the hot-path goal: the array driver at most 0.4 x REV's). The
-figures go to ``benchmarks/results/bench_array_driver.json``.
+figures go to ``build/benchmarks/results/bench_array_driver.json``.
 
     python benchmarks/bench_array_driver.py [--seconds 30] [--compare REV] [--rounds 2]
         [--layout array|wrench]
@@ -33,7 +33,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -46,9 +45,12 @@ from pathlib import Path
 import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from node_processes import interrupt, isolate_ros
 from rclpy.executors import SingleThreadedExecutor
 from results import Figure, write_results
 from side_by_side import (
+    MOCK,
+    WARM_UP_S,
     CompareError,
     Variant,
     cpu_seconds,
@@ -63,8 +65,6 @@ from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor_interfaces.msg import TactileReading
 
 ROOT = Path(__file__).resolve().parents[1]
-WARM_UP_S = 120  # for the first 2,000 readings: a loaded 2-core machine took over 60 s
-MOCK = Variant("mock", ROOT / "tactile_sensor")  # every driver reads this checkout's mock
 FACES = ("front", "back", "left", "right")
 EIGHT = tuple(f"{face}@{c}" for face in FACES for c in ("-0.0055", "0.0055"))
 LOST_KEYS = ("frames_dropped", "frames_overflowed")
@@ -149,8 +149,7 @@ def main() -> int:
     if args.compare and args.layout == "wrench":
         parser.error("--compare needs --layout array: older drivers have no six-column "
                      "calibration")
-    os.environ.setdefault("ROS_DOMAIN_ID", "216")
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    isolate_ros(216)
     tmp = Path(tempfile.mkdtemp(prefix="bench_array_driver_"))
     write_inputs(tmp)
     runs: dict[str, list[PairRun]] = {}
@@ -291,15 +290,7 @@ def measure(args: argparse.Namespace, tmp: Path, version: Variant) -> PairRun | 
             spin.stop()
             node.destroy_node()
     finally:
-        for procs in runs.values():
-            for proc in procs:
-                proc.send_signal(signal.SIGINT)
-        for procs in runs.values():
-            for proc in procs:
-                try:
-                    proc.wait(5)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
+        interrupt(*(proc for procs in runs.values() for proc in procs), timeout_s=5)
     return PairRun(
         t1 - t0, {name: cpu1[name] - cpu0[name] for name in runs},
         {name: end_counts[name] - start_counts[name] for name in runs},

@@ -13,14 +13,17 @@ Run with ``scripts/env.sh`` sourced. ROS domain: $ROS_DOMAIN_ID (default 217).
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
-import tempfile
-import time
-from pathlib import Path
+from typing import Any
 
+from node_processes import isolate_ros
+from recorded_run import (
+    add_keep_argument,
+    add_protocol_argument,
+    bring_up_and_analyse,
+    goals_line,
+    share_of_range,
+)
 from results import Figure, write_results
 
 GOALS_PCT = {"x": 10.0, "y": 10.0, "z": 5.0}
@@ -28,45 +31,28 @@ GOALS_PCT = {"x": 10.0, "y": 10.0, "z": 5.0}
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--protocol", default="shear",
-                        help="array protocol with overrides, e.g. shear:shear_directions=4")
-    parser.add_argument("--keep", type=Path, default=None,
-                        help="folder to keep the bag and the analysis in (default: temporary)")
+    add_protocol_argument(parser, "shear", "shear:shear_directions=4", "array")
+    add_keep_argument(parser)
     args = parser.parse_args()
-    os.environ.setdefault("ROS_DOMAIN_ID", "217")
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    work = args.keep or Path(tempfile.mkdtemp(prefix="bench_array_shear_"))
-    work.mkdir(parents=True, exist_ok=True)
-    bag, out = work / "bag", work / "analysis"
-    t0 = time.monotonic()
-    run = subprocess.run(["tactile-sensor", "bringup", "array", "--protocol", args.protocol,
-                          "--record", str(bag), "--port", f"adc_port={work / 'adc'}"])
-    if run.returncode != 0:
-        print(f"bringup failed with status {run.returncode}", file=sys.stderr)
+    isolate_ros(217)
+    run = bring_up_and_analyse("array", args.protocol, args.keep)
+    if run is None:
         return 1
-    t1 = time.monotonic()
-    analysis = subprocess.run(["tactile-sensor", "analyze", str(bag), "--out", str(out),
-                               "--quiet"])
-    if analysis.returncode != 0:
-        print(f"analysis failed with status {analysis.returncode}", file=sys.stderr)
-        return 1
-    t2 = time.monotonic()
-    mt = json.loads((out / "metrics.json").read_text())
+    mt = run.metrics
     array = mt["array"]
-    print(f"array shear run ({args.protocol}): bringup {t1 - t0:.0f} s, analysis "
-          f"{t2 - t1:.1f} s, {array['samples']} samples at {array['sample_rate_hz']:.0f} Hz, "
-          f"load average {os.getloadavg()[0]:.1f}")
-    met = True
-    figures = [Figure("bringup", t1 - t0, "s"), Figure("analysis", t2 - t1, "s")]
-    for axis in "xyz":
-        rmse, span = mt["force_rmse_n"][axis], mt["force_range_n"][axis]
-        pct = 100 * rmse / span if span else float("nan")
-        ok = pct <= GOALS_PCT[axis]
-        met &= ok
-        print(f"  F{axis}: rmse {rmse:.3f} N over a {span:.2f} N range = {pct:.2f} % "
-              f"(goal <= {GOALS_PCT[axis]:g} %: {'met' if ok else 'NOT met'})")
-        figures.append(Figure(f"F{axis} rmse", pct, "% of range", f"<= {GOALS_PCT[axis]:g} %",
-                              ok))
+    figures = run.timing_figures(f", {array['samples']} samples at "
+                                 f"{array['sample_rate_hz']:.0f} Hz")
+    figures += [share_of_range(f"F{axis}", mt["force_rmse_n"][axis], mt["force_range_n"][axis],
+                               "N", GOALS_PCT[axis]) for axis in "xyz"]
+    figures += shear_figures(array)
+    goals_line(figures, run.out)
+    write_results("array_shear", figures, notes=run.notes(f", {array['samples']} samples"))
+    return 0
+
+
+def shear_figures(array: dict[str, Any]) -> list[Figure]:
+    """The shear direction's error, printed with the sensitivity matrix beside it."""
+    figures = []
     shear = array.get("shear_direction")
     if shear:
         print(f"  shear direction where |F_lateral| >= {shear['threshold_n']:.2f} N: median "
@@ -80,12 +66,7 @@ def main() -> int:
         for face, row in zip(sens["faces"], sens["values_v_per_n"], strict=True):
             print(f"    {face:6s} " + "  ".join("    n/a" if v is None else f"{v:+.4f}"
                                            for v in row))
-    print(f"  figures and report: {out}")
-    print("goals " + ("met" if met else "NOT met"))
-    write_results("array_shear", figures, notes=f"Protocol {args.protocol} on mock hardware "
-                  f"through `tactile-sensor bringup array`, {array['samples']} samples; load "
-                  f"average {os.getloadavg()[0]:.1f} at the end.")
-    return 0
+    return figures
 
 
 if __name__ == "__main__":

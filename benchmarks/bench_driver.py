@@ -29,7 +29,7 @@ latency includes. It also reports the loop's own CPU per frame (wake-up, read, p
 this checkout's interfaces and mock ADC) and this checkout's, one after the other, for
 ``--rounds`` rounds whose order alternates, and prints a before/after table: on a shared
 machine only figures measured in one run compare. The figures go to
-``benchmarks/results/bench_driver.json``.
+``build/benchmarks/results/bench_driver.json``.
 
     python benchmarks/bench_driver.py [--seconds 20] [--model static|rate|play|both|all]
                                       [--compare REV] [--rounds 2]
@@ -55,9 +55,12 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
+from node_processes import interrupt, isolate_ros
 from rclpy.executors import SingleThreadedExecutor
 from results import Figure, write_results
 from side_by_side import (
+    MOCK,
+    WARM_UP_S,
     CompareError,
     Variant,
     cpu_seconds,
@@ -71,8 +74,6 @@ from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor_interfaces.msg import TactileReading
 
 ROOT = Path(__file__).resolve().parents[1]
-WARM_UP_S = 120  # for the first 2,000 readings: a loaded 2-core machine took over 60 s
-MOCK = Variant("mock", ROOT / "tactile_sensor")  # every driver reads this checkout's mock
 CPU_RATIO_GOAL = 0.37  # at most 0.37 x b36bc06's CPU, static calibration
 P99_GOAL_MS = 1.0  # sample -> subscriber (DDS), static calibration
 RATE_OVERHEAD_GOAL = 10.0  # rate-aware (with play) at most +10 % CPU over static
@@ -141,8 +142,7 @@ def main() -> int:
     rounds = args.rounds if args.rounds is not None else (2 if args.compare else 1)
     if rounds < 1:
         parser.error(f"--rounds must be at least 1, got {rounds}")
-    os.environ.setdefault("ROS_DOMAIN_ID", str(150 + os.getpid() % 50))
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    isolate_ros(150 + os.getpid() % 50)
     models = {"both": ("static", "rate"), "all": ("static", "rate", "play")}.get(
         args.model, (args.model,))
     try:
@@ -324,13 +324,7 @@ def measure(args: argparse.Namespace, model: str, variant: Variant) -> Run | Non
             spin.stop()
             node.destroy_node()
     finally:
-        for proc in (mock, driver):
-            proc.send_signal(signal.SIGINT)
-        for proc in (mock, driver):
-            try:
-                proc.wait(5)
-            except subprocess.TimeoutExpired:
-                proc.kill()
+        interrupt(mock, driver, timeout_s=5)
     return Run(cpu1 - cpu0, t1 - t0, both, (load0, load_average()))
 
 

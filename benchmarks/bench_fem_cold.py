@@ -10,7 +10,8 @@ cache lives in ``$XDG_CACHE_HOME/tactile_sensor``), so no run reuses another's s
 alternating the two so that the load of a shared machine hits both alike, and prints each
 one's median wall and CPU time (user + sys of the child), the ratio new / REV, and the
 largest difference between the two curves. Absolute times do not carry between machines;
-the ratio side by side does. Figures go to ``benchmarks/results/fem_cold.json``.
+the ratio side by side does. Figures go to
+``build/benchmarks/results/fem_cold.json``.
 
     python benchmarks/bench_fem_cold.py --compare b36bc06 --repeat 5
     python -X importtime ... (``--importtime`` prints the slowest imports of one cold run)

@@ -41,6 +41,7 @@ import threading
 import time
 from pathlib import Path
 
+from node_processes import interrupt
 from results import Figure, write_results
 
 from tactile_sensor.nodes.background_spin import BackgroundSpin
@@ -230,11 +231,7 @@ def client_main(args: argparse.Namespace) -> int:
                                ActionClient, MultiThreadedExecutor, JointState, Grasp,
                                Release)
         finally:
-            node.send_signal(signal.SIGINT)
-            try:
-                node.wait(10)
-            except subprocess.TimeoutExpired:
-                node.kill()
+            interrupt(node, timeout_s=10)
             if emulator.poll() is None:
                 emulator.terminate()
                 emulator.wait(10)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -16,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
+from node_processes import interrupt, isolate_ros
 from results import Figure, write_results
 
 from tactile_sensor.nodes.ros_session import ros_session
@@ -37,8 +37,7 @@ def main() -> int:
     load_or_compute_curve(PhysicsParams())
     load_ms = (time.perf_counter() - start) * 1e3
     print(f"cached curve load: {load_ms:.1f} ms (goal < 100 ms)")
-    os.environ.setdefault("ROS_DOMAIN_ID", str(200 + os.getpid() % 30))
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    isolate_ros(200 + os.getpid() % 30)
     source = ROOT / "tactile_sensor"
     env = dict(os.environ, PYTHONPATH=f"{source}:{os.environ.get('PYTHONPATH', '')}")
     model = subprocess.Popen(
@@ -69,11 +68,7 @@ def main() -> int:
                 times.append(time.perf_counter() - start)
             node.destroy_node()
     finally:
-        model.send_signal(signal.SIGINT)
-        try:
-            model.wait(5)
-        except subprocess.TimeoutExpired:
-            model.kill()
+        interrupt(model, timeout_s=5)
     t = np.array(times) * 1e3
     print(f"~/predict, 1000 indentations, {len(t)} calls: median {np.median(t):.2f} ms, "
           f"p99 {np.percentile(t, 99):.2f} ms (goal p99 < 20 ms)")

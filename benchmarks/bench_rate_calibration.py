@@ -33,13 +33,11 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from rate_goal import CUTOFF_TEXT, GOAL_TEXT, MODEL_ERROR_TEXT, goal_line, within_goal
 from results import Figure, write_results
 
 from tactile_sensor.analysis.characterise import Characterisation, Options, analyse_bag
 from tactile_sensor.analysis.rate_evaluation import (
-    GOAL_RATIO,
-    GOAL_SHARE_FS,
-    MODEL_CUTOFF_HZ,
     PhaseError,
     phase_errors,
     phase_table,
@@ -99,10 +97,8 @@ def print_table(rows: list[PhaseError], full_scale_n: float,
                 ) -> tuple[bool, bool]:
     """The per-speed, per-phase table; (every row meets the goal per sample, on the model
     error). ``exact``: the exact model's rows on the same recording (its floors)."""
-    limit = GOAL_SHARE_FS * full_scale_n
-    print(f"full scale {full_scale_n:.3f} N; goal per row: rate-aware <= {GOAL_RATIO:g} x "
-          f"static and <= {100 * GOAL_SHARE_FS:g} % FS = {limit:.3f} N")
-    print(f"model error: RMSE of the error low-passed at {MODEL_CUTOFF_HZ:g} Hz (2nd-order "
+    print(goal_line(full_scale_n))
+    print(f"model error: RMSE of the error {CUTOFF_TEXT} (2nd-order "
           "Butterworth, forwards and backwards); 'noise' is the RMS the low-pass removed from "
           "the rate-aware estimate (the white-noise floor of the per-sample RMSE)")
     if exact is not None:
@@ -126,7 +122,7 @@ def print_table(rows: list[PhaseError], full_scale_n: float,
         floors = ""
         for table in exact or ():
             e = table[k].rate_model_rmse_n
-            ok = e <= min(GOAL_RATIO * r.static_model_rmse_n, limit)
+            ok = within_goal(e, r.static_model_rmse_n, full_scale_n)
             floors += f" {e:>5.3f} {verdict(ok):>4}"
         print(f"{r.speed_mm_s:>6.3g} {r.phase:<9} | {r.static_rmse_n:>7.3f} {r.rate_rmse_n:>7.3f} "
               f"{r.rate_rmse_n / r.static_rmse_n:>7.2f} {verdict(sample_ok):>5} | "
@@ -243,7 +239,7 @@ def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit
     print(f"goal per-sample RMSE: {verdict(sample_ok)}; goal on the model error: "
           f"{verdict(model_ok)}")
     full_scale_n = float(check.metrics["full_scale_n"])
-    goal = f"<= {GOAL_RATIO:g} x static and <= {100 * GOAL_SHARE_FS:g} % FS"
+    goal = GOAL_TEXT
     figures = [Figure("fit (incl. reading)", fit_s, "s"), Figure("rate terms fitted", fit.terms)]
     for r in rows:
         row = f"{r.speed_mm_s:g} mm/s {r.phase}"
@@ -254,8 +250,7 @@ def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit
                 Figure("every row, model error", verdict(model_ok), "", goal, model_ok)]
     write_results("rate_calibration", figures, notes=f"Fitted on {fit_run.recording.path.name}"
                   f", scored on {check.recording.path.name} against a static curve fitted on "
-                  f"its own ramps; full scale {full_scale_n:.3f} N; model error low-passed at "
-                  f"{MODEL_CUTOFF_HZ:g} Hz.")
+                  f"its own ramps; full scale {full_scale_n:.3f} N; {MODEL_ERROR_TEXT}.")
     return 0
 
 

@@ -36,14 +36,20 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
+from rate_goal import (
+    GOAL_TEXT,
+    MODEL_ERROR_TEXT,
+    RATIO_TEXT,
+    SHARE_TEXT,
+    goal_line,
+    limit_n,
+    ratio_bound_n,
+)
 from results import Figure, write_results
 
 from tactile_sensor.analysis.calibration_fit import Calibration, fit_calibration
 from tactile_sensor.analysis.errors import RateFitError
 from tactile_sensor.analysis.rate_evaluation import (
-    GOAL_RATIO,
-    GOAL_SHARE_FS,
-    MODEL_CUTOFF_HZ,
     PhaseError,
     phase_errors,
     phase_table,
@@ -119,11 +125,11 @@ def plot(path: Path, names: list[str], exact: list[np.ndarray],
             ax.scatter(np.full(a.shape[0], x[k] + dx), a[:, k, 0], s=8, color=colour, alpha=0.5,
                        label=label if k == 0 else None)
     static = np.median(np.stack(exact)[:, :, 1], axis=0)
-    ax.scatter(x, GOAL_RATIO * static, marker="_", s=400, color="k",
-               label=f"{GOAL_RATIO:g} x static (median)")
-    ax.axhline(limit_n, color="tab:red", ls="--", label=f"{100 * GOAL_SHARE_FS:g} % FS")
+    ax.scatter(x, ratio_bound_n(static), marker="_", s=400, color="k",
+               label=f"{RATIO_TEXT} (median)")
+    ax.axhline(limit_n, color="tab:red", ls="--", label=SHARE_TEXT)
     ax.set_xticks(x, names, rotation=30, ha="right", rotation_mode="anchor")
-    ax.set_ylabel(f"model error [N] (low-passed at {MODEL_CUTOFF_HZ:g} Hz)")
+    ax.set_ylabel(f"{MODEL_ERROR_TEXT} [N]")
     ax.set_title("Rate check on the mock's noise: exact and fitted models against the goal")
     ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # covers no row
     fig.tight_layout()
@@ -131,7 +137,8 @@ def plot(path: Path, names: list[str], exact: list[np.ndarray],
     plt.close(fig)
 
 
-def main() -> int:
+def arguments() -> argparse.Namespace:
+    """The command line, checked (a filter's parameters the driver would refuse end here)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=64, help="noise seeds of the exact model")
     ap.add_argument("--fit", type=int, default=4,
@@ -148,6 +155,11 @@ def main() -> int:
         make_filter(args.filter, 1000.0, args.filter_params)
     except SensingError as exc:
         ap.error(str(exc))
+    return args
+
+
+def main() -> int:
+    args = arguments()
     values = yaml.safe_load((config_dir() / "physics.yaml").read_text())["/**"]["ros__parameters"]
     physics = physics_from_values(values)
     skin = TabulatedSkin.from_prediction_curve(load_or_compute_curve(physics))
@@ -197,9 +209,8 @@ def main() -> int:
         elif (seed + 1) % 16 == 0:
             print(f"exact model: {seed + 1}/{args.seeds} runs "
                   f"({time.perf_counter() - start:.0f} s)", flush=True)
-    limit = GOAL_SHARE_FS * float(np.median(full_scale))
-    print(f"\nfull scale {np.median(full_scale):.3f} N: goal per row rate-aware <= "
-          f"{GOAL_RATIO:g} x static and <= {limit:.3f} N (model error, {MODEL_CUTOFF_HZ:g} Hz)")
+    limit = limit_n(float(np.median(full_scale)))
+    print("\n" + goal_line(float(np.median(full_scale))))
     figures = summary("exact model (noise and filter only)", names, exact)
     figures += summary("exact model, play state from the output (the driver's tracker)", names,
                        output_only)
@@ -215,8 +226,7 @@ def main() -> int:
     print(f"figure: {path}")
     write_results("rate_floor", figures, notes=f"{args.seeds} noise seeds of rate_check "
                   f"offline, {len(fitted)} fitted; filter {args.filter}; goal per row: "
-                  f"rate-aware model error <= {GOAL_RATIO:g} x static and <= "
-                  f"{100 * GOAL_SHARE_FS:g} % of full scale ({limit:.3f} N).")
+                  f"rate-aware model error {GOAL_TEXT} ({limit:.3f} N).")
     return 0
 
 

@@ -61,7 +61,6 @@ def bench_node(folder: Path) -> list[Figure]:
     from rclpy.duration import Duration
     from rclpy.node import Node
     from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from rosbags.highlevel import AnyReader
 
     env = dict(os.environ)
     env.setdefault("ROS_DOMAIN_ID", "97")
@@ -113,6 +112,14 @@ def bench_node(folder: Path) -> list[Figure]:
             os.killpg(recorder.pid, signal.SIGKILL)
             recorder.wait(10)
         log.close()
+    return node_figures(bag_path, sent)
+
+
+def node_figures(bag_path: Path, sent: dict[int, tuple[int, float]]) -> list[Figure]:
+    """What the bag holds of each phase (messages sent, rate achieved) against what was
+    sent: the loss per rate and the highest rate recorded without loss."""
+    from rosbags.highlevel import AnyReader
+
     got: dict[int, int] = dict.fromkeys(sent, 0)
     received: dict[int, list[int]] = {phase: [] for phase in sent}
     with AnyReader([bag_path]) as reader:

@@ -38,6 +38,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from node_processes import isolate_ros
+from recorded_run import add_protocol_argument
 from results import Figure, write_results
 
 SOURCE = Path(__file__).resolve().parents[1] / "tactile_sensor"
@@ -157,15 +159,13 @@ def monitor(runner: Any, stop: threading.Event, period_s: float) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--protocol", default="compression",
-                        help="bench protocol as for bringup, e.g. repeatability:cycles=3")
+    add_protocol_argument(parser, "compression", "repeatability:cycles=3", "bench")
     parser.add_argument("--burners", type=int, default=1,
                         help="busy-loop processes started alongside (default 1)")
     parser.add_argument("--monitor", type=float, default=2.0,
                         help="print the stages' backlog every this many seconds (0 = never)")
     args = parser.parse_args()
-    os.environ.setdefault("ROS_DOMAIN_ID", "177")
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    isolate_ros(177)
     tmp = Path(tempfile.mkdtemp(prefix="bench_recording_loss_"))
     bag = tmp / "bag"
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"])

@@ -17,15 +17,18 @@ Run with ``scripts/env.sh`` sourced. ROS domain: $ROS_DOMAIN_ID (default 218).
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
-import tempfile
-import time
 from pathlib import Path
 
 import yaml
+from node_processes import isolate_ros
+from recorded_run import (
+    add_keep_argument,
+    add_protocol_argument,
+    bring_up_and_analyse,
+    goals_line,
+    share_of_range,
+)
 from results import Figure, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -52,71 +55,33 @@ def torque_cutoff_hz(extra: Path | None) -> float:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--protocol", default="wrench",
-                        help="wrench protocol with overrides, e.g. wrench:twist=0.1")
+    add_protocol_argument(parser, "wrench", "wrench:twist=0.1", "wrench")
     parser.add_argument("--config", type=Path, default=None,
                         help="extra ROS parameter file for the run (e.g. another "
                              "torque_cutoff_hz)")
-    parser.add_argument("--keep", type=Path, default=None,
-                        help="folder to keep the bag and the analysis in (default: temporary)")
+    add_keep_argument(parser)
     args = parser.parse_args()
-    os.environ.setdefault("ROS_DOMAIN_ID", "218")
-    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    work = args.keep or Path(tempfile.mkdtemp(prefix="bench_wrench_"))
-    work.mkdir(parents=True, exist_ok=True)
-    bag, out = work / "bag", work / "analysis"
-    command = ["tactile-sensor", "bringup", "wrench", "--protocol", args.protocol,
-               "--record", str(bag), "--port", f"adc_port={work / 'adc'}"]
-    if args.config is not None:
-        command += ["--config", str(args.config)]
-    t0 = time.monotonic()
-    run = subprocess.run(command)
-    if run.returncode != 0:
-        print(f"bringup failed with status {run.returncode}", file=sys.stderr)
+    isolate_ros(218)
+    extra = [] if args.config is None else ["--config", str(args.config)]
+    run = bring_up_and_analyse("wrench", args.protocol, args.keep, extra)
+    if run is None:
         return 1
-    t1 = time.monotonic()
-    analysis = subprocess.run(["tactile-sensor", "analyze", str(bag), "--out", str(out),
-                               "--quiet"])
-    if analysis.returncode != 0:
-        print(f"analysis failed with status {analysis.returncode}", file=sys.stderr)
-        return 1
-    t2 = time.monotonic()
-    mt = json.loads((out / "metrics.json").read_text())
-    print(f"wrench run ({args.protocol}): bringup {t1 - t0:.0f} s, analysis {t2 - t1:.1f} s, "
-          f"load average {os.getloadavg()[0]:.1f}")
-    figures = [Figure("bringup", round(t1 - t0, 1), "s"),
-               Figure("analysis", round(t2 - t1, 1), "s")]
-    met = True
+    mt = run.metrics
+    figures = run.timing_figures()
     goals = [("force", "n", "N", axis, FORCE_GOALS_PCT[axis]) for axis in "xyz"]
     goals += [("torque", "nm", "N m", axis, TORQUE_GOAL_PCT) for axis in "xyz"]
     for kind, key, unit, axis, goal in goals:
-        rmse = (mt.get(f"{kind}_rmse_{key}") or {}).get(axis)
-        span = (mt.get(f"{kind}_range_{key}") or {}).get(axis)
-        name = f"{kind[0].upper()}{axis}"
-        if rmse is None or not span:
-            met = False
-            print(f"  {name}: not estimated (goal <= {goal:g} % of range: NOT met)")
-            figures.append(Figure(f"{name} rmse", None, "% of range", f"<= {goal:g} %",
-                                  False))
-            continue
-        pct = 100 * rmse / span
-        ok = pct <= goal
-        met &= ok
-        print(f"  {name}: rmse {rmse:.4g} {unit} over a {span:.4g} {unit} range = "
-              f"{pct:.2f} % (goal <= {goal:g} %: {'met' if ok else 'NOT met'})")
-        figures.append(Figure(f"{name} rmse", round(pct, 3), "% of range", f"<= {goal:g} %",
-                              ok))
+        figures.append(share_of_range(f"{kind[0].upper()}{axis}",
+                                      (mt.get(f"{kind}_rmse_{key}") or {}).get(axis),
+                                      (mt.get(f"{kind}_range_{key}") or {}).get(axis),
+                                      unit, goal))
     cutoff = torque_cutoff_hz(args.config)
     ok = cutoff >= BANDWIDTH_GOAL_HZ
-    met &= ok
     print(f"  torque bandwidth (driver torque_cutoff_hz): {cutoff:g} Hz (goal >= "
           f"{BANDWIDTH_GOAL_HZ:g} Hz: {'met' if ok else 'NOT met'})")
     figures.append(Figure("torque bandwidth", cutoff, "Hz", f">= {BANDWIDTH_GOAL_HZ:g}", ok))
-    print(f"  figures and report: {out}")
-    print("goals " + ("met" if met else "NOT met"))
-    write_results("bench_wrench", figures, notes=f"Protocol {args.protocol} on mock hardware "
-                  f"through `tactile-sensor bringup wrench`; load average "
-                  f"{os.getloadavg()[0]:.1f} at the end.")
+    goals_line(figures, run.out)
+    write_results("bench_wrench", figures, notes=run.notes())
     return 0
 
 

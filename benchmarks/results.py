@@ -1,5 +1,7 @@
-"""Where benchmarks keep what they measure: one JSON file per benchmark in
-``benchmarks/results/``, committed, so that the next change compares with this one and
+"""Where benchmarks keep what they measure: one JSON file per benchmark, written to
+``build/benchmarks/results/`` (ignored by git, so a run never changes the checkout it
+measures). ``make bench-publish`` copies the results of a clean commit into the committed
+``benchmarks/results/``, so that the next change compares with this one and
 ``make bench-report`` renders every figure with the command, commit, machine and date.
 
 A figure is a name, a value, its unit and, where one exists, the goal it is judged
@@ -22,7 +24,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "benchmarks" / "results"
+#: Where a run writes: outside the tracked tree.
+RESULTS = ROOT / "build" / "benchmarks" / "results"
+#: The committed figures the page shows; only ``make bench-publish`` writes here.
+PUBLISHED = ROOT / "benchmarks" / "results"
+DIRTY = "-dirty"
 
 
 @dataclass(frozen=True)
@@ -90,7 +96,13 @@ def commit() -> str:
         return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True,
                               text=True, check=False).stdout.strip()
     rev = git("rev-parse", "--short", "HEAD") or "unknown"
-    return f"{rev}-dirty" if git("status", "--porcelain", "--untracked-files=no") else rev
+    return f"{rev}{DIRTY}" if git("status", "--porcelain", "--untracked-files=no") else rev
+
+
+def measured_clean(record: dict[str, object]) -> bool:
+    """Whether a result was measured at a commit (not at uncommitted changes that nobody
+    can check out again)."""
+    return not str(record["commit"]).endswith(DIRTY)
 
 
 #: The commit a benchmark started on (this module is imported as it starts): a run of
@@ -100,8 +112,8 @@ STARTED_ON = commit()
 
 def write_results(name: str, figures: list[Figure], *, notes: str = "",
                   argv: list[str] | None = None, directory: Path | None = None) -> Path:
-    """Write ``benchmarks/results/<name>.json`` (replacing the last run's), say where, and
-    return it."""
+    """Write ``<name>.json`` to ``directory`` (default ``build/benchmarks/results/``,
+    replacing the last run's), say where, and return it."""
     argv = sys.argv if argv is None else argv
     script = Path(argv[0])
     with contextlib.suppress(ValueError):

@@ -21,7 +21,8 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from results import ROOT, commit
+
 PACKAGE = "tactile_sensor/tactile_sensor"  # the Python package inside the colcon package
 
 
@@ -44,15 +45,15 @@ class Variant:
         return env
 
 
+#: Every driver of a side-by-side run reads this checkout's mock hardware.
+MOCK = Variant("mock", ROOT / "tactile_sensor")
+#: How long a node may take to its first 2,000 readings: a loaded 2-core machine took over
+#: 60 s.
+WARM_UP_S = 120
+
+
 def _git(*args: str) -> subprocess.CompletedProcess[bytes]:
     return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, check=False)
-
-
-def this_commit() -> str:
-    """This checkout's short hash, ``-dirty`` when tracked files have changes."""
-    rev = _git("rev-parse", "--short", "HEAD").stdout.decode().strip() or "unknown"
-    dirty = _git("status", "--porcelain", "--untracked-files=no").stdout.strip()
-    return f"{rev}-dirty" if dirty else rev
 
 
 def resolve(rev: str) -> str:
@@ -67,7 +68,7 @@ def resolve(rev: str) -> str:
 @contextlib.contextmanager
 def variants(compare: str | None) -> Iterator[list[Variant]]:
     """[this checkout] or, with ``compare``, [that commit, this checkout]."""
-    this = Variant(f"this ({this_commit()})", ROOT / "tactile_sensor")
+    this = Variant(f"this ({commit()})", ROOT / "tactile_sensor")
     if compare is None:
         yield [this]
         return

@@ -3,13 +3,19 @@
 from __future__ import annotations
 
 import math
+import sys
 from itertools import pairwise
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactile_sensor.analysis.soak import (
+# The soak's modules sit beside it in benchmarks/ and import each other by file name, as
+# `python benchmarks/soak.py` does.
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))
+
+from soak_accounting import (
     FAULT_KINDS,
     LossAccount,
     LossSnapshot,

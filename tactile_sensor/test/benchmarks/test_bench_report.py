@@ -19,6 +19,13 @@ Figure, ResultsError = results.Figure, results.ResultsError
 read_results, write_results = results.read_results, results.write_results
 
 
+@pytest.fixture(autouse=True)
+def measured_at_a_commit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The figures these tests write count as measured at a clean commit, as in CI, also
+    while the checkout has uncommitted changes."""
+    monkeypatch.setattr(results, "STARTED_ON", "0123abc")
+
+
 def write_two(folder: Path) -> None:
     write_results("fem", [Figure("default sweep", 1.234567, "s", "<= 2 s", True),
                           Figure("force at 3 mm", 7.1, "N"),
