@@ -36,7 +36,7 @@ NAN = float("nan")
 
 
 class SampleLike(Protocol):
-    """What the chain needs of ``hardware.adc_reader.Sample``."""
+    """What the chain needs of ``hardware.adc_samples.Sample``."""
 
     @property
     def device_time_us(self) -> int: ...
@@ -49,7 +49,7 @@ class SampleLike(Protocol):
 
 
 class BatchLike(Protocol):
-    """What the chain needs of ``hardware.adc_reader.SampleBatch``: consecutive samples as
+    """What the chain needs of ``hardware.adc_samples.SampleBatch``: consecutive samples as
     columns."""
 
     @property
