@@ -38,7 +38,8 @@ sys.path.insert(0, str(SOURCE))
 from results import Figure, write_results  # noqa: E402
 
 from tactile_sensor.hardware.adc_frame import FrameParser, encode_frame  # noqa: E402
-from tactile_sensor.hardware.adc_reader import AdcStreamReader, Sample  # noqa: E402
+from tactile_sensor.hardware.adc_reader import AdcStreamReader  # noqa: E402
+from tactile_sensor.hardware.adc_samples import Sample  # noqa: E402
 from tactile_sensor.sensing.calibration import Calibration  # noqa: E402
 from tactile_sensor.sensing.chain import ChainConfig, SignalChain  # noqa: E402
 from tactile_sensor.sensing.filters import DEFAULT_FILTER, FILTERS  # noqa: E402

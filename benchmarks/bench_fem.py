@@ -18,7 +18,7 @@ is printed. A busy machine slows OpenBLAS' threads badly (the residual's GEMMs a
 solves); ``OPENBLAS_NUM_THREADS=1`` shows the single-thread figure.
 
 ``--refresh-study`` sweeps the default mesh again for each ageing threshold of the GMRES
-preconditioner (``fem._KRYLOV_REFRESH``: more GMRES iterations before a refactorisation) and
+preconditioner (``fem.sweep._KRYLOV_REFRESH``: more GMRES iterations before a refactorisation) and
 prints its time (best of two), factorisations and GMRES iterations: where the trade between
 the two costs has its minimum, which bounds what the cold sweep can gain from that trade.
 
@@ -41,9 +41,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
 from results import Figure, write_results
 
-from tactile_sensor.physics import fem
 from tactile_sensor.physics.errors import ConvergenceError
 from tactile_sensor.physics.fem import SkinModel, SweepResult, richardson
+from tactile_sensor.physics.fem import sweep as solver
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import compute_curve, curve_from_sweep
 
@@ -89,10 +89,10 @@ def raw_with_stats(params: PhysicsParams, label: str, verbose: bool = False
 def refresh_study(base: PhysicsParams, thresholds: list[int]) -> list[Figure]:
     """The default-mesh sweep at each preconditioner-ageing threshold (best of two)."""
     figures = []
-    kept = fem._KRYLOV_REFRESH
+    kept = solver._KRYLOV_REFRESH
     try:
         for threshold in thresholds:
-            fem._KRYLOV_REFRESH = threshold
+            solver._KRYLOV_REFRESH = threshold
             runs = [raw_with_stats(base, f"default mesh, refresh after {threshold} GMRES "
                                          "iterations") for _ in range(2)]
             res, stats = min(runs, key=lambda r: r[0].seconds)
@@ -101,7 +101,7 @@ def refresh_study(base: PhysicsParams, thresholds: list[int]) -> list[Figure]:
                                stats["factorisations"], ""),
                         Figure(f"refresh {threshold}: GMRES iterations", stats["krylov"], "")]
     finally:
-        fem._KRYLOV_REFRESH = kept
+        solver._KRYLOV_REFRESH = kept
     return figures
 
 

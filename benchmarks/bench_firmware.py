@@ -31,7 +31,8 @@ sys.path.insert(0, str(ROOT / "tactile_sensor"))
 from results import Figure, write_results  # noqa: E402
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo  # noqa: E402
-from tactile_sensor.hardware.adc_reader import AdcStreamReader, Sample  # noqa: E402
+from tactile_sensor.hardware.adc_reader import AdcStreamReader  # noqa: E402
+from tactile_sensor.hardware.adc_samples import Sample  # noqa: E402
 from tactile_sensor.sensing.adc_settings import resolve_adc  # noqa: E402
 from tactile_sensor.sensing.conversion import AdcConversion  # noqa: E402
 from tactile_sensor.sim.firmware_host import PICO, UNO, Board, HostFirmware, build  # noqa: E402

@@ -56,9 +56,7 @@ class GoalSlot:
         self.abort_reason = PREEMPTED
 
     def take_over(self, token: object) -> None:
-        with self._lock:
-            self._active = token
-            self.abort_reason = PREEMPTED
+        self._hand_over(token, PREEMPTED)
 
     def superseded(self, token: object) -> bool:
         with self._lock:
@@ -66,8 +64,13 @@ class GoalSlot:
 
     def abort_active(self, reason: str) -> None:
         """End whatever runs (deactivation, reboot) with ``reason``."""
+        self._hand_over(None, reason)
+
+    def _hand_over(self, token: object | None, reason: str) -> None:
+        """The fingers to ``token`` (None: to nobody); the goal that had them ends with
+        ``reason``."""
         with self._lock:
-            self._active = None
+            self._active = token
             self.abort_reason = reason
 
     def release(self, token: object) -> None:
@@ -156,87 +159,77 @@ class GoalRunner:
     def run(self, link: GoalLink, accept: Callable[[], ActiveGoal]) -> Finish:
         """Take the fingers over, accept the goal (``accept`` raises ControlError when it
         is invalid) and run it to its end."""
-        servo, token = self.servo, link.token
-        self.slot.take_over(token)
+        self.slot.take_over(link.token)
+        if self.servo.state is None:
+            return self._finish(None, None, False, NOT_ACTIVE)
         goal: ActiveGoal | None = None
-
-        def finish(step: Step | None, status: GoalStatus | bool, message: str,
-                   tail: str = "") -> Finish:
-            """``tail`` ends the message with the result's force: ``{force}`` in it is
-            formatted with the very value the result's field carries."""
-            if isinstance(status, bool):
-                status = GoalStatus.SUCCEEDED if status else GoalStatus.ABORTED
-            if goal is None:
-                return Finish(status, message, None)
-            if step is None:  # never started: report where the fingers are
-                state = servo.state
-                opening = (servo.config.geometry.opening_m(state.position_rad)
-                           if state is not None else math.nan)
-                step = Step(Phase.IDLE, None, None, message, opening)
-            snap = self.snapshot(step)
-            message += tail.format(force=snap.force_n)
-            return Finish(status, message, goal.result(snap, message))
-
-        def canceled(step: Step) -> Finish:
-            assert goal is not None
-            step = goal.cancel(self._wall(), servo.state)
-            if servo.stop_written is not token:  # the cancel callback's stop failed
-                self._stop_logged(token)
-            step, tail = self._safe_end(link, goal, step)
-            return finish(step, GoalStatus.CANCELED, CANCELED, tail)
-
-        if servo.state is None:
-            return finish(None, False, NOT_ACTIVE)
         try:
             goal = accept()
-            if servo.hardware_error:
-                raise ServoHardwareError(", ".join(sorted(servo.hardware_error)),
-                                         servo.hardware_error)
-            servo.ensure_torque()
-            step = goal.start(self._wall(), servo.state)
-            servo.send(step.command, token)
+            step = self._start(link, goal)
         except ControlError as exc:
-            return finish(None, False, f"{Outcome.INVALID_GOAL}: {exc}")
+            return self._finish(goal, None, False, f"{Outcome.INVALID_GOAL}: {exc}")
         except ServoHardwareError as exc:
-            return finish(None, False, f"{Outcome.HARDWARE_ERROR}: "
-                          + ", ".join(sorted(exc.bits)))
+            return self._finish(goal, None, False, f"{Outcome.HARDWARE_ERROR}: "
+                                + ", ".join(sorted(exc.bits)))
         except DynamixelError as exc:
-            return finish(None, False, f"{Outcome.SERVO_UNREACHABLE}: {exc}")
+            return self._finish(goal, None, False, f"{Outcome.SERVO_UNREACHABLE}: {exc}")
+        driven = self._drive(link, goal, step)
+        if isinstance(driven, Finish):
+            return driven
+        return self._conclude(link, goal, driven)
 
-        def feedback(step: Step) -> None:
-            assert goal is not None
-            link.publish_feedback(goal.feedback(self.snapshot(step)))
+    def _start(self, link: GoalLink, goal: ActiveGoal) -> Step:
+        """The goal's first command sent, on a servo without a latched hardware error."""
+        servo = self.servo
+        if servo.hardware_error:
+            raise ServoHardwareError(", ".join(sorted(servo.hardware_error)),
+                                     servo.hardware_error)
+        servo.ensure_torque()
+        step = goal.start(self._wall(), servo.state)
+        servo.send(step.command, link.token)
+        return step
 
+    def _drive(self, link: GoalLink, goal: ActiveGoal, step: Step) -> Step | Finish:
+        """Tick the goal at the control rate until its step is finished (that step), or
+        until a cancel, a newer goal or the servo ends it (the Finish)."""
+        servo, token = self.servo, link.token
         period = self.timing.control_period_s
         last_feedback = 0.0
         while not step.finished:
             if link.cancel_requested():
-                return canceled(step)
+                return self._canceled(link, goal)
             if self.slot.superseded(token):
                 # no stop command: the newer goal (or the reboot) owns the servo now
-                return finish(goal.cancel(self._wall(), servo.state), False,
-                              self.slot.abort_reason)
+                return self._finish(goal, goal.cancel(self._wall(), servo.state), False,
+                                    self.slot.abort_reason)
             servo.await_sample(2 * period)
             if servo.comm_error:
-                return finish(step, False,
-                              f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}")
+                return self._finish(goal, step, False,
+                                    f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}")
             force = self.forces.latest
             step = goal.tick(self._wall(), force[0] if force else None,
                              force[1] if force else None, servo.state)
             if (error := servo.send_safely(step.command, token)) is not None:
-                return finish(step, False, f"{Outcome.SERVO_UNREACHABLE}: {error}")
+                return self._finish(goal, step, False, f"{Outcome.SERVO_UNREACHABLE}: {error}")
             now = self._clock()
             if now - last_feedback >= self.timing.feedback_period_s:
-                feedback(step)
+                self._feedback(link, goal, step)
                 last_feedback = now
+        return step
+
+    def _conclude(self, link: GoalLink, goal: ActiveGoal, step: Step) -> Finish:
+        """After the goal's last tick: settle the force it holds, if it holds one, and back
+        off a force above its target if it failed."""
+        servo, token = self.servo, link.token
         tail = ""
         settler = goal.settler(step)
         if settler is not None:
-            aborted, settled = self._settle(link, settler, step, feedback)
+            aborted, settled = self._settle(link, settler, step,
+                                            lambda s: self._feedback(link, goal, s))
             if aborted is not None:
-                return finish(step, False, aborted)
+                return self._finish(goal, step, False, aborted)
             if link.cancel_requested() and not self.slot.superseded(token):
-                return canceled(step)
+                return self._canceled(link, goal)
             step = self._at_rest(link, step)
             # a hold that ran out of settle_time says so: its force may be off the target
             tail = (", settled at {force:.2f} N" if settled else
@@ -249,8 +242,35 @@ class GoalRunner:
             step, backed_off = self._safe_end(link, goal, step)
             tail += backed_off
         self.slot.release(token)
-        return finish(step, failure is None, failure or f"{step.outcome}: {step.message}",
-                      tail)
+        return self._finish(goal, step, failure is None,
+                            failure or f"{step.outcome}: {step.message}", tail)
+
+    def _finish(self, goal: ActiveGoal | None, step: Step | None, status: GoalStatus | bool,
+                message: str, tail: str = "") -> Finish:
+        """``tail`` ends the message with the result's force: ``{force}`` in it is
+        formatted with the very value the result's field carries."""
+        if isinstance(status, bool):
+            status = GoalStatus.SUCCEEDED if status else GoalStatus.ABORTED
+        if goal is None:
+            return Finish(status, message, None)
+        if step is None:  # never started: report where the fingers are
+            state = self.servo.state
+            opening = (self.servo.config.geometry.opening_m(state.position_rad)
+                       if state is not None else math.nan)
+            step = Step(Phase.IDLE, None, None, message, opening)
+        snap = self.snapshot(step)
+        message += tail.format(force=snap.force_n)
+        return Finish(status, message, goal.result(snap, message))
+
+    def _canceled(self, link: GoalLink, goal: ActiveGoal) -> Finish:
+        step = goal.cancel(self._wall(), self.servo.state)
+        if self.servo.stop_written is not link.token:  # the cancel callback's stop failed
+            self._stop_logged(link.token)
+        step, tail = self._safe_end(link, goal, step)
+        return self._finish(goal, step, GoalStatus.CANCELED, CANCELED, tail)
+
+    def _feedback(self, link: GoalLink, goal: ActiveGoal, step: Step) -> None:
+        link.publish_feedback(goal.feedback(self.snapshot(step)))
 
     def _safe_end(self, link: GoalLink, goal: ActiveGoal, step: Step) -> tuple[Step, str]:
         """Back off a force above the goal's target after it ended without success (no

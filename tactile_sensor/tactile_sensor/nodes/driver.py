@@ -25,11 +25,8 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo
-from tactile_sensor.hardware.adc_reader import (
-    AdcStreamReader,
-    ConnectionState,
-    SampleBatch,
-)
+from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
+from tactile_sensor.hardware.adc_samples import SampleBatch
 from tactile_sensor.hardware.errors import HardwareError
 from tactile_sensor.nodes import array_calibration_msg, calibration_curve_msg
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array

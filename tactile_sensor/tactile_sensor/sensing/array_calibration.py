@@ -194,6 +194,18 @@ def _compile_wrench(mix: np.ndarray, terms: np.ndarray, coefficients: np.ndarray
     return namespace["wrench"]
 
 
+def _check_labels(faces: tuple[str, ...], where: str) -> None:
+    """Distinct module labels, at least one."""
+    try:
+        keys = [_key(*parse_label(f)) for f in faces]
+    except ValueError:
+        keys = []
+    if not faces or len(set(keys)) != len(faces):
+        raise CalibrationError(f"{where}: 'faces' must be distinct module labels (a face "
+                               f"out of {', '.join(FACES)}, optionally FACE@OFFSET in "
+                               f"m); got {list(faces)}.")
+
+
 class ArrayCalibration:
     """An immutable, validated outputs -> wrench polynomial (forces always, torques when
     ``torque_coefficients`` are given and ``observed`` names them)."""
@@ -206,14 +218,32 @@ class ArrayCalibration:
                  slow_coefficients: Sequence[Sequence[float]] | None = None) -> None:
         where = source or "the array calibration"
         self.faces = tuple(str(f) for f in faces)
-        try:
-            keys = [_key(*parse_label(f)) for f in self.faces]
-        except ValueError:
-            keys = []
-        if not self.faces or len(set(keys)) != len(self.faces):
-            raise CalibrationError(f"{where}: 'faces' must be distinct module labels (a face "
-                                   f"out of {', '.join(FACES)}, optionally FACE@OFFSET in "
-                                   f"m); got {list(self.faces)}.")
+        _check_labels(self.faces, where)
+        scale = self._store_numbers(where, feature_matrix, terms, coefficients, output_scale_v,
+                                    output_max_v, torque_coefficients, slow_coefficients)
+        self.observed = self._observed_components(where, observed)
+        self._check_values(where, scale)
+        self.output_scale_v = scale
+        self.source = str(source)
+        self._seen = np.array([c in self.observed for c in COMPONENTS])
+        self._wrench_one = _compile_wrench(
+            self.feature_matrix / scale, self.terms,
+            np.concatenate([self.coefficients + self.slow_coefficients,
+                            self.torque_coefficients]), self._seen)
+        self._parts_one = _compile_wrench(
+            self.feature_matrix / scale, self.terms,
+            np.concatenate([self.coefficients, self.torque_coefficients,
+                            self.slow_coefficients]), np.concatenate([self._seen,
+                                                                      self._seen[:3]]))
+        self._limits = tuple(float(v) * 1.05 for v in self.output_max_v)
+
+    def _store_numbers(self, where: str, feature_matrix: Sequence[Sequence[float]],
+                       terms: Sequence[Sequence[int]], coefficients: Sequence[Sequence[float]],
+                       output_scale_v: float, output_max_v: Sequence[float],
+                       torque_coefficients: Sequence[Sequence[float]] | None,
+                       slow_coefficients: Sequence[Sequence[float]] | None) -> float:
+        """The file's numbers as arrays, with one coefficient per term for each component
+        given; returns the output scale (checked with the rest by ``_check_values``)."""
         try:
             self.feature_matrix = np.asarray(feature_matrix, dtype=float)
             self.terms = np.asarray(terms, dtype=int).reshape(-1, len(self.faces))
@@ -248,6 +278,11 @@ class ArrayCalibration:
             np.zeros_like(self.coefficients)
         self.slow_coefficients = np.stack(slow_rows) if slow_rows is not None else \
             np.zeros_like(self.coefficients)
+        return scale
+
+    def _observed_components(self, where: str, observed: Sequence[str] | None
+                             ) -> tuple[str, ...]:
+        """The components read (torques only with torque columns), in ``COMPONENTS`` order."""
         wanted = FORCES_ONLY if observed is None else tuple(str(c) for c in observed)
         if not wanted or len(set(wanted)) != len(wanted) or any(
                 c not in COMPONENTS for c in wanted) or (not self.has_torque and any(
@@ -255,7 +290,10 @@ class ArrayCalibration:
             raise CalibrationError(f"{where}: 'observed' must be distinct components out of "
                                    f"{', '.join(COMPONENTS)} (torques only with torque "
                                    f"columns); got {list(wanted)}.")
-        self.observed = tuple(c for c in COMPONENTS if c in wanted)
+        return tuple(c for c in COMPONENTS if c in wanted)
+
+    def _check_values(self, where: str, scale: float) -> None:
+        """Shapes that match the faces, exponents >= 0 and every number finite."""
         if self.feature_matrix.shape != (len(self.faces),) * 2 or not np.all(
                 np.isfinite(self.feature_matrix)):
             raise CalibrationError(f"{where}: 'feature_matrix' must be square with one row "
@@ -269,19 +307,6 @@ class ArrayCalibration:
                 np.isfinite(self.output_max_v)):
             raise CalibrationError(f"{where}: exponents must be >= 0, the output scale > 0 "
                                    "and every number finite; refit it.")
-        self.output_scale_v = scale
-        self.source = str(source)
-        self._seen = np.array([c in self.observed for c in COMPONENTS])
-        self._wrench_one = _compile_wrench(
-            self.feature_matrix / scale, self.terms,
-            np.concatenate([self.coefficients + self.slow_coefficients,
-                            self.torque_coefficients]), self._seen)
-        self._parts_one = _compile_wrench(
-            self.feature_matrix / scale, self.terms,
-            np.concatenate([self.coefficients, self.torque_coefficients,
-                            self.slow_coefficients]), np.concatenate([self._seen,
-                                                                      self._seen[:3]]))
-        self._limits = tuple(float(v) * 1.05 for v in self.output_max_v)
 
     @property
     def full_scale_force_n(self) -> float:
@@ -434,57 +459,26 @@ class ArrayCalibration:
         """
         outputs = np.asarray(outputs, dtype=float)
         wrench = np.asarray(wrench, dtype=float)
-        if degree < 1 or torque_degree < 1:
-            raise CalibrationError(f"The polynomial degree must be >= 1, got {degree} (torque "
-                                   f"{torque_degree}).")
+        _check_degrees(degree, torque_degree)
         torque_degree = min(torque_degree, degree)
         torque_noise_v = noise_v if torque_noise_v is None else torque_noise_v
-        for value in (noise_v, torque_noise_v):
-            if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-                raise CalibrationError(f"The fit's output noise must be in [0, 1] V, got "
-                                       f"{value!r}.")
-        if outputs.ndim != 2 or outputs.shape[1] != len(faces) or wrench.ndim != 2 or \
-                wrench.shape not in ((outputs.shape[0], 3), (outputs.shape[0], 6)) or \
-                not np.all(np.isfinite(outputs)):
-            raise CalibrationError("Fitting needs finite (points, modules) outputs and "
-                                   "(points, 3) forces or (points, 6) wrenches for the "
-                                   "same points.")
+        _check_fit_data(faces, outputs, wrench, (noise_v, torque_noise_v))
         six = wrench.shape[1] == 6
-        has_data = [bool(np.isfinite(wrench[:, k]).any()) for k in range(wrench.shape[1])]
-        wanted = tuple(observed) if observed is not None else tuple(
-            c for k, c in enumerate(COMPONENTS[:wrench.shape[1]]) if k < 3 or has_data[k])
-        lacking = [c for c in wanted if c not in COMPONENTS or COMPONENTS.index(c) >=
-                   wrench.shape[1] or not has_data[COMPONENTS.index(c)]]
-        if lacking:
-            raise CalibrationError(f"Cannot fit {', '.join(lacking)}: the fit data has no "
-                                   "finite values of it; give its column or leave it out "
-                                   "of observed.")
+        wanted = _fitted_components(wrench, observed)
         terms = polynomial_terms(len(faces), degree)
-        counts = np.isfinite(wrench).sum(axis=0)
         scale = float(np.abs(outputs).max()) or 1.0
         matrix, parity = symmetric_features(faces)
-        closed = np.array(mirror_axes(faces), int)
         probe = cls(faces, matrix, terms, np.zeros((3, len(terms))), scale,
                     outputs.max(axis=0), source)
-        bases = {}
-        for sigma in {noise_v, torque_noise_v}:
-            if sigma > 0:
-                rng = np.random.default_rng(0)
-                jitter = rng.normal(0.0, sigma, (NOISE_COPIES, *outputs.shape))
-                bases[sigma] = (probe._basis(np.concatenate([outputs, *(outputs + jitter)])),
-                                np.tile(wrench, (NOISE_COPIES + 1, 1)))
-            else:
-                bases[sigma] = (probe._basis(outputs), wrench)
-        exponents = np.array(terms)
-        odd = exponents @ np.array(parity) % 2                    # (terms, 2): x, y parity
-        total = exponents.sum(axis=1)
+        bases = {sigma: _noisy_basis(probe, outputs, wrench, sigma)
+                 for sigma in {noise_v, torque_noise_v}}
+        allowed = _AllowedTerms(terms, parity, mirror_axes(faces), torque_degree)
         coef = np.zeros((6, len(terms)))
+        counts = np.isfinite(wrench).sum(axis=0)
         for k, name in enumerate(COMPONENTS):
             if name not in wanted:
                 continue
-            keep = np.all(odd * closed == np.array(COMPONENT_PARITY[name]) * closed, axis=1)
-            if k >= 3:
-                keep &= total <= torque_degree
+            keep = allowed.of(name, torque=k >= 3)
             basis, values = bases[noise_v if k < 3 else torque_noise_v]
             rows = np.isfinite(values[:, k])
             if counts[k] < keep.sum():
@@ -498,21 +492,8 @@ class ArrayCalibration:
                                                 rcond=None)[0]
         slow = None
         if slow_forces is not None and six:
-            slow_forces = np.asarray(slow_forces, dtype=float)
-            if slow_forces.shape != (outputs.shape[0], 3):
-                raise CalibrationError("The slow forces need one (Fx, Fy, Fz) row per point.")
-            left = slow_forces - probe._basis(outputs) @ coef[:3].T
-            basis, _ = bases[torque_noise_v]
-            copies = basis.shape[0] // outputs.shape[0]
-            values = np.tile(left, (copies, 1))
-            slow = np.zeros((3, len(terms)))
-            for k, name in enumerate(COMPONENTS[:3]):
-                rows = np.isfinite(values[:, k])
-                keep = np.all(odd * closed == np.array(COMPONENT_PARITY[name]) * closed,
-                              axis=1) & (total <= torque_degree)
-                if name in wanted and keep.any() and rows.sum() >= keep.sum():
-                    slow[k, keep] = np.linalg.lstsq(basis[rows][:, keep], values[rows, k],
-                                                    rcond=None)[0]
+            left = _checked_slow(slow_forces, outputs) - probe._basis(outputs) @ coef[:3].T
+            slow = _fit_slow(left, bases[torque_noise_v][0], allowed, wanted)
         return cls(faces, matrix, terms, coef[:3], scale, outputs.max(axis=0), source,
                    coef[3:] if six else None, wanted, slow)
 
@@ -593,3 +574,94 @@ class ArrayCalibration:
     def __repr__(self) -> str:
         return (f"ArrayCalibration({', '.join(self.faces)}, degree {self.degree}, "
                 f"source={self.source!r})")
+
+
+def _check_degrees(degree: int, torque_degree: int) -> None:
+    if degree < 1 or torque_degree < 1:
+        raise CalibrationError(f"The polynomial degree must be >= 1, got {degree} (torque "
+                               f"{torque_degree}).")
+
+
+def _check_fit_data(faces: Sequence[str], outputs: np.ndarray, wrench: np.ndarray,
+                    noises_v: tuple[float, float]) -> None:
+    for value in noises_v:
+        if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+            raise CalibrationError(f"The fit's output noise must be in [0, 1] V, got "
+                                   f"{value!r}.")
+    if outputs.ndim != 2 or outputs.shape[1] != len(faces) or wrench.ndim != 2 or \
+            wrench.shape not in ((outputs.shape[0], 3), (outputs.shape[0], 6)) or \
+            not np.all(np.isfinite(outputs)):
+        raise CalibrationError("Fitting needs finite (points, modules) outputs and "
+                               "(points, 3) forces or (points, 6) wrenches for the "
+                               "same points.")
+
+
+def _fitted_components(wrench: np.ndarray, observed: Sequence[str] | None
+                       ) -> tuple[str, ...]:
+    """``observed``, or the forces and the torques that have data; each must have data."""
+    has_data = [bool(np.isfinite(wrench[:, k]).any()) for k in range(wrench.shape[1])]
+    wanted = tuple(observed) if observed is not None else tuple(
+        c for k, c in enumerate(COMPONENTS[:wrench.shape[1]]) if k < 3 or has_data[k])
+    lacking = [c for c in wanted if c not in COMPONENTS or COMPONENTS.index(c) >=
+               wrench.shape[1] or not has_data[COMPONENTS.index(c)]]
+    if lacking:
+        raise CalibrationError(f"Cannot fit {', '.join(lacking)}: the fit data has no "
+                               "finite values of it; give its column or leave it out "
+                               "of observed.")
+    return wanted
+
+
+def _noisy_basis(probe: ArrayCalibration, outputs: np.ndarray, wrench: np.ndarray,
+                 sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """(basis, wrench) of the points, with ``NOISE_COPIES`` noisy copies of each when
+    ``sigma`` > 0 (fixed seed: ``ArrayCalibration.fit``)."""
+    if sigma <= 0:
+        return probe._basis(outputs), wrench
+    rng = np.random.default_rng(0)
+    jitter = rng.normal(0.0, sigma, (NOISE_COPIES, *outputs.shape))
+    return (probe._basis(np.concatenate([outputs, *(outputs + jitter)])),
+            np.tile(wrench, (NOISE_COPIES + 1, 1)))
+
+
+class _AllowedTerms:
+    """Which monomials each component may use: those of its own mirror parity under the
+    mirrors the layout has, and for a torque (or the force's slow part) only up to the
+    torque degree."""
+
+    def __init__(self, terms: list[tuple[int, ...]], parity: list[tuple[int, int]],
+                 closed: tuple[bool, bool], torque_degree: int) -> None:
+        exponents = np.array(terms)
+        self._odd = exponents @ np.array(parity) % 2              # (terms, 2): x, y parity
+        self._total = exponents.sum(axis=1)
+        self._closed = np.array(closed, int)
+        self._torque_degree = torque_degree
+
+    def of(self, name: str, torque: bool) -> np.ndarray:
+        closed = self._closed
+        keep = np.all(self._odd * closed == np.array(COMPONENT_PARITY[name]) * closed, axis=1)
+        if torque:
+            keep &= self._total <= self._torque_degree
+        return keep
+
+
+def _checked_slow(slow_forces: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+    slow_forces = np.asarray(slow_forces, dtype=float)
+    if slow_forces.shape != (outputs.shape[0], 3):
+        raise CalibrationError("The slow forces need one (Fx, Fy, Fz) row per point.")
+    return slow_forces
+
+
+def _fit_slow(left: np.ndarray, basis: np.ndarray, allowed: _AllowedTerms,
+              wanted: tuple[str, ...]) -> np.ndarray:
+    """The force's slow part, fitted to what the force polynomial left of each point's
+    force (``left``) on the torques' basis: their degree, their noise copies."""
+    copies = basis.shape[0] // left.shape[0]
+    values = np.tile(left, (copies, 1))
+    slow = np.zeros((3, basis.shape[1]))
+    for k, name in enumerate(COMPONENTS[:3]):
+        rows = np.isfinite(values[:, k])
+        keep = allowed.of(name, torque=True)
+        if name in wanted and keep.any() and rows.sum() >= keep.sum():
+            slow[k, keep] = np.linalg.lstsq(basis[rows][:, keep], values[rows, k],
+                                            rcond=None)[0]
+    return slow

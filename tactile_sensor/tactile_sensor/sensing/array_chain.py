@@ -27,9 +27,8 @@ from typing import NamedTuple
 
 from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration, parse_label
 from tactile_sensor.sensing.chain import (
-    BatchLike,
     ChainConfig,
-    SampleLike,
+    SampleSteps,
     SignalChain,
     _Parts,
     changed_parts,
@@ -134,7 +133,7 @@ class ArrayTareResult(NamedTuple):
         return f"baselines {each} (largest spread {self.spread_v * 1e3:.1f} mV)"
 
 
-class ArrayChain:
+class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
     """Stateful per-sample processing for several modules; the surface of ``SignalChain``."""
 
     def __init__(self, config: ChainConfig, modules: Sequence[Module],
@@ -300,32 +299,10 @@ class ArrayChain:
 
     # -- per sample ------------------------------------------------------------------------
 
-    def process(self, sample: SampleLike) -> ArrayReading:
-        """Run one sample through every module; ``SensingError`` if it lacks a channel."""
-        counts, scale = sample.counts, self._volts_per_count
-        try:
-            volts = tuple([counts[c] * scale for c in self.channels])
-        except IndexError:
-            raise self._missing_channel(len(counts)) from None
-        with self._lock:
-            reading = self._step(volts, sample.device_time_us, sample.host_time_ns)
-        self.last = reading
-        return reading
-
-    def process_batch(self, batch: BatchLike) -> list[ArrayReading]:
-        """Run a batch of consecutive samples through every module, one lock for all."""
-        scale, channels = self._volts_per_count, self.channels
-        try:
-            volts = [tuple([counts[c] * scale for c in channels]) for counts in batch.counts]
-        except IndexError:
-            raise self._missing_channel(min(map(len, batch.counts))) from None
-        step = self._step
-        with self._lock:
-            readings = [step(v, t_us, host_ns) for v, t_us, host_ns
-                        in zip(volts, batch.device_time_us, batch.host_time_ns, strict=True)]
-        if readings:
-            self.last = readings[-1]
-        return readings
+    def _volts(self, counts: tuple[int, ...]) -> tuple[float, ...]:
+        """Every module's volts, in ``modules`` order."""
+        scale = self._volts_per_count
+        return tuple([counts[c] * scale for c in self.channels])
 
     def _missing_channel(self, channels: int) -> SensingError:
         return SensingError(

@@ -20,9 +20,10 @@ from __future__ import annotations
 import contextlib
 import math
 import threading
+from abc import ABC, abstractmethod
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any, NamedTuple, Protocol
+from typing import Any, Generic, NamedTuple, Protocol, TypeVar
 
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.contact import ContactDetector
@@ -36,7 +37,7 @@ NAN = float("nan")
 
 
 class SampleLike(Protocol):
-    """What the chain needs of ``hardware.adc_reader.Sample``."""
+    """What the chain needs of ``hardware.adc_samples.Sample``."""
 
     @property
     def device_time_us(self) -> int: ...
@@ -49,7 +50,7 @@ class SampleLike(Protocol):
 
 
 class BatchLike(Protocol):
-    """What the chain needs of ``hardware.adc_reader.SampleBatch``: consecutive samples as
+    """What the chain needs of ``hardware.adc_samples.SampleBatch``: consecutive samples as
     columns."""
 
     @property
@@ -60,6 +61,58 @@ class BatchLike(Protocol):
 
     @property
     def counts(self) -> Sequence[tuple[int, ...]]: ...
+
+
+V = TypeVar("V")
+R = TypeVar("R")
+
+
+class SampleSteps(ABC, Generic[V, R]):
+    """A chain's per-sample step, fed a sample or a batch: each sample's volts, then the
+    step under the chain's lock, taken once for a whole batch (what one read of the port
+    held); the last reading is kept for those who poll."""
+
+    _lock: threading.Lock
+    last: R | None
+
+    @abstractmethod
+    def _volts(self, counts: tuple[int, ...]) -> V:
+        """What the step takes of a sample's codes (IndexError: a channel is missing)."""
+
+    @abstractmethod
+    def _step(self, volts: V, t_us: int, host_ns: int) -> R:
+        """One sample through the chain (call with the lock held)."""
+
+    @abstractmethod
+    def _missing_channel(self, channels: int) -> SensingError: ...
+
+    def process(self, sample: SampleLike) -> R:
+        """Run one sample through the chain; ``SensingError`` if it lacks a channel the
+        chain reads."""
+        try:
+            volts = self._volts(sample.counts)
+        except IndexError:
+            raise self._missing_channel(len(sample.counts)) from None
+        with self._lock:
+            reading = self._step(volts, sample.device_time_us, sample.host_time_ns)
+        self.last = reading
+        return reading
+
+    def process_batch(self, batch: BatchLike) -> list[R]:
+        """Run a batch of consecutive samples through the chain, one lock for all of them
+        (the reader hands over what one read of the port held)."""
+        volts_of = self._volts
+        try:
+            volts = [volts_of(counts) for counts in batch.counts]
+        except IndexError:
+            raise self._missing_channel(min(map(len, batch.counts))) from None
+        step = self._step
+        with self._lock:
+            readings = [step(v, t_us, host_ns) for v, t_us, host_ns
+                        in zip(volts, batch.device_time_us, batch.host_time_ns, strict=True)]
+        if readings:
+            self.last = readings[-1]
+        return readings
 
 
 class Reading(NamedTuple):
@@ -142,7 +195,7 @@ class _Parts:
                                        config.contact_debounce_s)
 
 
-class SignalChain:
+class SignalChain(SampleSteps[float, Reading]):
     """Stateful per-sample processing for one sensor channel."""
 
     def __init__(self, config: ChainConfig | None = None,
@@ -265,33 +318,8 @@ class SignalChain:
 
     # -- per sample ------------------------------------------------------------------------
 
-    def process(self, sample: SampleLike) -> Reading:
-        """Run one sample through the chain; ``SensingError`` if it lacks our channel."""
-        try:
-            code = sample.counts[self.config.channel]
-        except IndexError:
-            raise self._missing_channel(len(sample.counts)) from None
-        with self._lock:
-            reading = self._step(code * self._volts_per_count, sample.device_time_us,
-                                 sample.host_time_ns)
-        self.last = reading
-        return reading
-
-    def process_batch(self, batch: BatchLike) -> list[Reading]:
-        """Run a batch of consecutive samples through the chain, one lock for all of them
-        (the reader hands over what one read of the port held)."""
-        channel = self.config.channel
-        try:
-            codes = [counts[channel] for counts in batch.counts]
-        except IndexError:
-            raise self._missing_channel(min(map(len, batch.counts))) from None
-        scale, step = self._volts_per_count, self._step
-        with self._lock:
-            readings = [step(code * scale, t_us, host_ns) for code, t_us, host_ns
-                        in zip(codes, batch.device_time_us, batch.host_time_ns, strict=True)]
-        if readings:
-            self.last = readings[-1]
-        return readings
+    def _volts(self, counts: tuple[int, ...]) -> float:
+        return counts[self.config.channel] * self._volts_per_count
 
     def _missing_channel(self, channels: int) -> SensingError:
         return SensingError(

@@ -11,13 +11,8 @@ import numpy as np
 import pytest
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo, crc16, encode_frame, encode_info
-from tactile_sensor.hardware.adc_reader import (
-    AdcStreamReader,
-    ConnectionState,
-    Sample,
-    _InfoChange,
-    _InfoGate,
-)
+from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
+from tactile_sensor.hardware.adc_samples import Sample, _InfoChange, _InfoGate
 from tactile_sensor.hardware.errors import SerialPortError
 from tactile_sensor.sim.adc_device import QUIET, MockAdcDevice
 from tactile_sensor.sim.pty_link import PtyLink

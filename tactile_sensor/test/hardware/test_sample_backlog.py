@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tactile_sensor.hardware.adc_reader import Sample, SampleBacklog, SampleBatch
+from tactile_sensor.hardware.adc_samples import Sample, SampleBacklog, SampleBatch
 from tactile_sensor.hardware.errors import SerialPortError
 
 

@@ -10,7 +10,12 @@ from hypothesis import strategies as st
 
 from tactile_sensor.physics import fem
 from tactile_sensor.physics.errors import ConvergenceError, PhysicsError
-from tactile_sensor.physics.fem import SkinModel, _GradientOperator
+from tactile_sensor.physics.fem import SkinModel
+from tactile_sensor.physics.fem import sweep as solver
+from tactile_sensor.physics.fem.gradient import _GradientOperator
+from tactile_sensor.physics.fem.mesh import _axis
+from tactile_sensor.physics.fem.mooney_rivlin import _mooney_rivlin_piola, _mooney_rivlin_tangent
+from tactile_sensor.physics.fem.sweep import _RESIDUAL_TOL, _extrapolate
 from tactile_sensor.physics.params import PhysicsParams
 
 COARSE = dict(mesh_nx=3, mesh_ny=3, mesh_nz=4)
@@ -59,7 +64,7 @@ def test_bonded_force_and_bulge_rise_with_indentation():
 
 @given(st.integers(8, 80), st.floats(1.0, 8.0), st.floats(0.1, 0.9))
 def test_graded_axis_keeps_breakpoints_and_grows_away_from_the_refined_point(n, grading, at):
-    axis = fem._axis([0.0, at, 1.0], n, (at,), grading, 0.3)
+    axis = _axis([0.0, at, 1.0], n, (at,), grading, 0.3)
     h = np.diff(axis)
     assert np.all(h > 0)
     assert axis[0] == 0.0 and axis[-1] == 1.0 and at in axis
@@ -72,8 +77,8 @@ def test_graded_axis_keeps_breakpoints_and_grows_away_from_the_refined_point(n, 
 
 def test_doubling_the_count_halves_every_element():
     """The mesh study's 'twice as fine': the same size function, every element halved."""
-    coarse = fem._axis([0.0, 0.3, 1.0], 20, (0.3,), 6.0, 0.3)
-    fine = fem._axis([0.0, 0.3, 1.0], 40, (0.3,), 6.0, 0.3)
+    coarse = _axis([0.0, 0.3, 1.0], 20, (0.3,), 6.0, 0.3)
+    fine = _axis([0.0, 0.3, 1.0], 40, (0.3,), 6.0, 0.3)
     mid = 0.5 * (fine[1:] + fine[:-1])
     coarse_size = np.diff(coarse)[np.searchsorted(coarse, mid) - 1]
     np.testing.assert_allclose(np.diff(fine) / coarse_size, 0.5, rtol=0.2)
@@ -127,7 +132,7 @@ def test_failed_load_step_is_cut_and_the_result_keeps_the_requested_steps(monkey
     assert res.force_n[-1] == pytest.approx(closed_form_force(p, res.indentation_m[-1:])[0],
                                             rel=0.01)
     assert len(messages) == 1 and "step cut" in messages[0]
-    monkeypatch.setattr(fem, "_MAX_CUTS", 0)
+    monkeypatch.setattr(solver, "_MAX_CUTS", 0)
     with pytest.raises(ConvergenceError, match="load steps"):
         SkinModel(p).sweep()
 
@@ -175,12 +180,12 @@ def test_inexact_newton_agrees_with_refactorising_every_iteration(monkeypatch):
     p = PhysicsParams(mesh_nx=4, mesh_ny=3, mesh_nz=16, steps=5, max_indentation=0.002)
     reused = SkinModel(p)
     res = reused.sweep()
-    monkeypatch.setattr(fem, "_KRYLOV_REFRESH", -1)   # every correction ages the tangent out
+    monkeypatch.setattr(solver, "_KRYLOV_REFRESH", -1)   # every correction ages the tangent out
     fresh = SkinModel(p)
     ref = fresh.sweep()
     assert fresh.stats["factorisations"] > reused.stats["factorisations"]
     # both are converged to the solver's out-of-balance tolerance, not further
-    tol_n = fem._RESIDUAL_TOL * p.shear_modulus * p.height**2
+    tol_n = _RESIDUAL_TOL * p.shear_modulus * p.height**2
     np.testing.assert_allclose(res.force_n[1:], ref.force_n[1:], rtol=0, atol=2 * tol_n)
     np.testing.assert_allclose(res.bulge_m[1:], ref.bulge_m[1:], rtol=1e-4)
 
@@ -192,7 +197,7 @@ def test_predictor_reproduces_a_quadratic_load_path(coef, step, ahead):
     ds = [0.0, step, 2 * step]
     history = [(d, np.array([a + b * d + c * d * d])) for d in ds]
     d = 2 * step + ahead * step
-    assert fem._extrapolate(history, d)[0] == pytest.approx(a + b * d + c * d * d, abs=1e-9)
+    assert _extrapolate(history, d)[0] == pytest.approx(a + b * d + c * d * d, abs=1e-9)
 
 
 def test_a_krylov_step_that_would_invert_elements_falls_back_to_a_newton_step(monkeypatch):
@@ -264,14 +269,14 @@ def test_closed_form_tangent_equals_the_complex_step_of_the_stress(seed, spread,
     """The closed-form dP/dF must be the derivative of the very stress the residual uses."""
     F = _random_deformations(seed, 16, spread)
     n = F.shape[2]
-    P_ref, _ = fem._mooney_rivlin_piola(F, c10, c01, np.full(n, pres))
-    P, A = fem._mooney_rivlin_tangent(F, c10, c01, np.full(n, pres))
+    P_ref, _ = _mooney_rivlin_piola(F, c10, c01, np.full(n, pres))
+    P, A = _mooney_rivlin_tangent(F, c10, c01, np.full(n, pres))
     scale = np.abs(P_ref).max() + abs(c10) + c01 + abs(pres)
     np.testing.assert_allclose(P, P_ref, rtol=0, atol=1e-12 * scale)
     Fc = np.repeat(F[:, :, None].astype(complex), 9, axis=2)
     for m in range(9):
         Fc[m // 3, m % 3, m] += 1e-30j
-    Pc, _ = fem._mooney_rivlin_piola(Fc, c10, c01, np.full((9, n), pres))
+    Pc, _ = _mooney_rivlin_piola(Fc, c10, c01, np.full((9, n), pres))
     A_ref = (Pc.imag / 1e-30).reshape(3, 3, 3, 3, n)
     np.testing.assert_allclose(A, A_ref, rtol=0, atol=1e-10 * (np.abs(A_ref).max() + scale))
 
@@ -281,14 +286,14 @@ def test_closed_form_tangent_matches_a_central_difference_of_the_stress():
     F = _random_deformations(7, 40, 0.3)
     n = F.shape[2]
     pres = np.linspace(-2e4, 2e4, n)
-    _, A = fem._mooney_rivlin_tangent(F, -33.35, 12180.0, pres)
+    _, A = _mooney_rivlin_tangent(F, -33.35, 12180.0, pres)
     h = 1e-6
     for k in range(3):
         for L in range(3):
             dF = np.zeros_like(F)
             dF[k, L] = h
-            Pp, _ = fem._mooney_rivlin_piola(F + dF, -33.35, 12180.0, pres)
-            Pm, _ = fem._mooney_rivlin_piola(F - dF, -33.35, 12180.0, pres)
+            Pp, _ = _mooney_rivlin_piola(F + dF, -33.35, 12180.0, pres)
+            Pm, _ = _mooney_rivlin_piola(F - dF, -33.35, 12180.0, pres)
             fd = (Pp - Pm) / (2 * h)
             np.testing.assert_allclose(A[:, :, k, L], fd, rtol=0,
                                        atol=1e-6 * np.abs(fd).max())

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tactile_sensor.physics import fem
+from tactile_sensor.physics.fem.sweep import _RESIDUAL_TOL
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import PredictionCurve, compute_curve
 
@@ -38,7 +38,7 @@ def tolerances(params: PhysicsParams) -> tuple[float, float]:
     The bulge is a displacement: 1e-4 of it is far above where two converged solves differ
     (~1e-8 measured) and far below the mesh's error (~1 %).
     """
-    tol_n = fem._RESIDUAL_TOL * params.shear_modulus * params.height**2
+    tol_n = _RESIDUAL_TOL * params.shear_modulus * params.height**2
     return 4.0 * 2 * tol_n, 1e-4
 
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactile_sensor.physics import fem
 from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.fem import SkinModel
+from tactile_sensor.physics.fem.sweep import _RESIDUAL_TOL
 from tactile_sensor.physics.params import PhysicsParams
 
 FOUR = "front,back,left,right"
@@ -44,7 +44,7 @@ def test_quarter_half_and_full_models_agree_on_pure_indentation():
     results = {full: SkinModel(p, full).sweep()
                for full in ((False, False), (True, False), (False, True), (True, True))}
     quarter = results[(False, False)]
-    tol_n = fem._RESIDUAL_TOL * p.shear_modulus * p.height**2
+    tol_n = _RESIDUAL_TOL * p.shear_modulus * p.height**2
     for full, res in results.items():
         np.testing.assert_allclose(res.force_n, quarter.force_n, rtol=0, atol=4 * tol_n)
         for face in p.module_faces:

@@ -192,7 +192,7 @@ def test_frictionless_sweep_matches_closed_form_uniaxial_compression(tmp_path):
 def test_coarse_bonded_sweep_bulges_at_the_window(tmp_path):
     """The paper's configuration (base fixed, probe bonded, module band with a window).
 
-    Depends on physics/fem.py converging on a coarse mesh that resolves the window."""
+    Depends on physics/fem/ converging on a coarse mesh that resolves the window."""
     curve = load_or_compute_curve(PhysicsParams(**BONDED_COARSE), tmp_path)
     assert np.all(np.diff(curve.force_n) > 0)
     assert np.all(np.diff(curve.bulge_m) > 0)

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactile_sensor.hardware.adc_reader import Sample, SampleBatch
+from tactile_sensor.hardware.adc_samples import Sample, SampleBatch
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor.sensing.array_chain import ArrayChain, Module, parse_modules
 from tactile_sensor.sensing.chain import ChainConfig

@@ -6,7 +6,7 @@ import threading
 import numpy as np
 import pytest
 
-from tactile_sensor.hardware.adc_reader import Sample, SampleBatch
+from tactile_sensor.hardware.adc_samples import Sample, SampleBatch
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import ChainConfig, SignalChain
 from tactile_sensor.sensing.conversion import AdcConversion

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactile_sensor.hardware.adc_reader import Sample
+from tactile_sensor.hardware.adc_samples import Sample
 from tactile_sensor.physics.viscoelastic import RateDependentForce
 from tactile_sensor.sensing.array_chain import build_chain
 from tactile_sensor.sensing.calibration import Calibration

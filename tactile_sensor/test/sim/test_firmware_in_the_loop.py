@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo, Frame, FrameParser
-from tactile_sensor.hardware.adc_reader import AdcStreamReader, Sample
+from tactile_sensor.hardware.adc_reader import AdcStreamReader
+from tactile_sensor.hardware.adc_samples import Sample
 from tactile_sensor.sensing.adc_settings import Source, resolve_adc
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import ChainConfig, SignalChain
