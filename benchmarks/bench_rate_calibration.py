@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 from results import Figure, write_results
 
 from tactile_sensor.analysis.characterise import Characterisation, Options, analyse_bag
-from tactile_sensor.analysis.rate_evaluation import (
+from tactile_sensor.analysis.rate.evaluation import (
     GOAL_RATIO,
     GOAL_SHARE_FS,
     MODEL_CUTOFF_HZ,
@@ -44,9 +44,9 @@ from tactile_sensor.analysis.rate_evaluation import (
     phase_errors,
     phase_table,
 )
-from tactile_sensor.analysis.rate_fit import RateFit, fit_rate_calibration, tracker_band_v
-from tactile_sensor.analysis.rate_floor import exact_force, stage_play_lag, tracker_play_lag
-from tactile_sensor.analysis.rate_record import RateRecord, record_from_segmentation
+from tactile_sensor.analysis.rate.fit import RateFit, fit_rate_calibration, tracker_band_v
+from tactile_sensor.analysis.rate.floor import exact_force, stage_play_lag, tracker_play_lag
+from tactile_sensor.analysis.rate.record import RateRecord, record_from_segmentation
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.sim.skin_response import TabulatedSkin
 

@@ -40,7 +40,7 @@ from results import Figure, write_results
 
 from tactile_sensor.analysis.calibration_fit import Calibration, fit_calibration
 from tactile_sensor.analysis.errors import RateFitError
-from tactile_sensor.analysis.rate_evaluation import (
+from tactile_sensor.analysis.rate.evaluation import (
     GOAL_RATIO,
     GOAL_SHARE_FS,
     MODEL_CUTOFF_HZ,
@@ -48,10 +48,10 @@ from tactile_sensor.analysis.rate_evaluation import (
     phase_errors,
     phase_table,
 )
-from tactile_sensor.analysis.rate_fit import fit_rate_calibration
-from tactile_sensor.analysis.rate_floor import OfflineRun, bench_world, simulate_run
-from tactile_sensor.analysis.rate_history import static_force
-from tactile_sensor.analysis.rate_record import LOADING, UNLOADING
+from tactile_sensor.analysis.rate.fit import fit_rate_calibration
+from tactile_sensor.analysis.rate.floor import OfflineRun, bench_world, simulate_run
+from tactile_sensor.analysis.rate.history import static_force
+from tactile_sensor.analysis.rate.record import LOADING, UNLOADING
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.nodes.physics_parameters import physics_from_values
 from tactile_sensor.physics.prediction import load_or_compute_curve

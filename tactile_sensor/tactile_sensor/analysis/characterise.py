@@ -8,17 +8,17 @@ from typing import Any
 
 import numpy as np
 
-from . import array as arr
 from . import metrics as m
 from .alignment import Aligned, align
-from .array_fit import ArrayFit, fit_array_recording
+from .array import analysis as arr
+from .array.fit import ArrayFit, fit_array_recording
 from .bag_reader import Notify, Progress, Recording, TopicSpec, read_recording
 from .calibration_fit import Calibration, fit_calibration
 from .errors import RateFitError, SegmentError, TopicError
 from .prediction import Prediction
-from .rate_evaluation import phase_table, table_dict
-from .rate_fit import FitProgress, RateFit, fit_rate_calibration
-from .rate_record import record_from_segmentation
+from .rate.evaluation import phase_table, table_dict
+from .rate.fit import FitProgress, RateFit, fit_rate_calibration
+from .rate.record import record_from_segmentation
 from .segmentation import GAP_SHARE, Segmentation, segment
 
 SCHEMA = "tactile_sensor/analysis-metrics"

@@ -17,7 +17,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from .array import AXES, ArrayAnalysis
+from .array.analysis import AXES, ArrayAnalysis
 from .characterise import Characterisation
 from .metrics import ramp_indices
 

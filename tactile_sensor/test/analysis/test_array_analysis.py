@@ -20,9 +20,9 @@ from hypothesis import strategies as st
 from rosbags.rosbag2 import Writer
 from rosbags.typesys import get_types_from_msg
 
-from tactile_sensor.analysis import array as arr
 from tactile_sensor.analysis import characterise as ch
 from tactile_sensor.analysis import cli
+from tactile_sensor.analysis.array import analysis as arr
 from tactile_sensor.analysis.bag_reader import Recording, Series
 from tactile_sensor.analysis.report import array_lines
 from tactile_sensor.analysis.synthetic import (

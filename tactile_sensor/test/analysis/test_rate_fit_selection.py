@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from tactile_sensor.analysis.rate_fit import (
+from tactile_sensor.analysis.rate.fit import (
     SEGMENT_CUTOFF_HZ,
     TermCount,
     _count_order,
@@ -21,7 +21,7 @@ from tactile_sensor.analysis.rate_fit import (
     _run_starts,
     fit_rate_calibration,
 )
-from tactile_sensor.analysis.rate_history import zero_phase_low_pass
+from tactile_sensor.analysis.rate.history import zero_phase_low_pass
 from tactile_sensor.analysis.synthetic import rate_press_record
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.rate_calibration import RateCalibration, RateTerm

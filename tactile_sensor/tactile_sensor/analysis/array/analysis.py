@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from .bag_reader import Recording, Series
-from .errors import SegmentError, TopicError
+from ..bag_reader import Recording, Series
+from ..errors import SegmentError, TopicError
 
 AXES = ("x", "y", "z")
 # an axis is excited (its column of the sensitivity matrix and of the cross-talk can be

@@ -18,7 +18,7 @@ Why this way:
   limit a `speeds` record without holds fitted a third term, 0.15 @ 28 ms.)
 - Number of terms (and play) by held-out error: leave one speed out, fit on the rest, and
   score the held-out speed as the goal scores a recording: the error low-passed at
-  ``rate_evaluation.MODEL_CUTOFF_HZ`` (the output's white noise, the same for every
+  ``evaluation.MODEL_CUTOFF_HZ`` (the output's white noise, the same for every
   choice, would hide the differences), RMS per phase, the worst phase counting
   (``TermCount.worst_phase_n``). Held-out speeds only rule counts out: the fold that holds
   the fastest speed out cannot fit a term only that speed resolves, so a fast term scores
@@ -97,16 +97,16 @@ from tactile_sensor.sensing.rate_calibration import (
     RateTerm,
 )
 
-from .calibration_fit import fit_calibration
-from .errors import RateFitError
-from .rate_evaluation import MODEL_CUTOFF_HZ
-from .rate_history import (
+from ..calibration_fit import fit_calibration
+from ..errors import RateFitError
+from .evaluation import MODEL_CUTOFF_HZ
+from .history import (
     UNIFORM_RTOL,
     rate_force_history,
     static_force,
     zero_phase_low_pass,
 )
-from .rate_record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
+from .record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
 
 MIN_TAU_PERIODS = 5
 SELECT_TOLERANCE = 0.10  # counts held out within 10 % of the best are not ruled out
