@@ -44,8 +44,9 @@ from tactile_sensor.analysis.rate.evaluation import (
     phase_errors,
     phase_table,
 )
-from tactile_sensor.analysis.rate.fit import RateFit, fit_rate_calibration, tracker_band_v
+from tactile_sensor.analysis.rate.fit import RateFit, fit_rate_calibration
 from tactile_sensor.analysis.rate.floor import exact_force, stage_play_lag, tracker_play_lag
+from tactile_sensor.analysis.rate.grid import tracker_band_v
 from tactile_sensor.analysis.rate.record import RateRecord, record_from_segmentation
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.sim.skin_response import TabulatedSkin

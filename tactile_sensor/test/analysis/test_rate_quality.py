@@ -21,12 +21,10 @@ from tactile_sensor.analysis.rate.evaluation import (
     phase_table,
     table_dict,
 )
-from tactile_sensor.analysis.rate.fit import (
-    REVERSAL_SHARE,
-    _speed_weights,
-    _without_reversals,
-    fit_rate_calibration,
-)
+from tactile_sensor.analysis.rate.fit import fit_rate_calibration
+from tactile_sensor.analysis.rate.grid import REVERSAL_SHARE
+from tactile_sensor.analysis.rate.grid import speed_weights as _speed_weights
+from tactile_sensor.analysis.rate.grid import without_reversals as _without_reversals
 from tactile_sensor.analysis.rate.history import rate_force_history, zero_phase_low_pass
 from tactile_sensor.analysis.rate.record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
 from tactile_sensor.analysis.synthetic import TRUE_PRONY_G as TRUE_G

@@ -33,7 +33,7 @@ from ..alignment import Aligned
 from ..errors import SegmentError
 from ..metrics import baseline, peak_values
 from ..segmentation import segment
-from .fit import TRACKER_SMOOTHING_HZ, tracker_band_v
+from .grid import TRACKER_SMOOTHING_HZ, tracker_band_v
 from .history import loading_history
 from .record import RateRecord, record_from_segmentation
 
