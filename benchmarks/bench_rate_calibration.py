@@ -11,9 +11,9 @@ static curve fitted on rate_check's own 3 mm/s ramps (in-sample, so the static s
 favoured). Goal, per speed and phase: rate-aware RMSE <= half the static one and <= 1.5 %
 of full scale. Printed against two measures: the per-sample RMSE (with the output's white
 noise, the same for both estimators) and the model error (the error low-passed at
-``rate_evaluation.MODEL_CUTOFF_HZ``, zero phase); PASS/FAIL for each. Beside them, the
+``analysis.rate.evaluation.MODEL_CUTOFF_HZ``, zero phase); PASS/FAIL for each. Beside them, the
 floors on the same recording: the simulation's exact model, with the play's state from the
-stage and from the driver's tracker (``analysis/rate_floor.py``; ``bench_rate_floor.py``
+stage and from the driver's tracker (``analysis/rate/floor.py``; ``bench_rate_floor.py``
 gives their spread over noise seeds). Uses ROS domain $ROS_DOMAIN_ID (default 171),
 discovery on this machine only.
 """
@@ -37,14 +37,15 @@ from rate_goal import CUTOFF_TEXT, GOAL_TEXT, MODEL_ERROR_TEXT, goal_line, withi
 from results import Figure, write_results
 
 from tactile_sensor.analysis.characterise import Characterisation, Options, analyse_bag
-from tactile_sensor.analysis.rate_evaluation import (
+from tactile_sensor.analysis.rate.evaluation import (
     PhaseError,
     phase_errors,
     phase_table,
 )
-from tactile_sensor.analysis.rate_fit import RateFit, fit_rate_calibration, tracker_band_v
-from tactile_sensor.analysis.rate_floor import exact_force, stage_play_lag, tracker_play_lag
-from tactile_sensor.analysis.rate_record import RateRecord, record_from_segmentation
+from tactile_sensor.analysis.rate.fit import RateFit, fit_rate_calibration
+from tactile_sensor.analysis.rate.floor import exact_force, stage_play_lag, tracker_play_lag
+from tactile_sensor.analysis.rate.grid import tracker_band_v
+from tactile_sensor.analysis.rate.record import RateRecord, record_from_segmentation
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.sim.skin_response import TabulatedSkin
 
@@ -106,7 +107,7 @@ def print_table(rows: list[PhaseError], full_scale_n: float,
               "recording's output, with the play's state from the stage ('stage': what the "
               "noise and the driver's filter leave) or from the driver's direction tracker "
               "('output': what an estimator reading the output alone is left with); model "
-              "error and goal (analysis/rate_floor.py)")
+              "error and goal (analysis/rate/floor.py)")
     extra = " | exact: stage     output" if exact else ""
     head = (f"{'speed':>6} {'phase':<9} | {'per-sample RMSE [N]':^30} | "
             f"{'model error [N]':^30} | {'noise':>5}" + extra)

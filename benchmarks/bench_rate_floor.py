@@ -6,7 +6,7 @@ Usage (in the sourced workspace, ``DISTRO=jazzy . scripts/env.sh``):
         [--filter-params '{"window": 40}'] [--plot FILE]
 
 Runs the ``rate_check`` protocol offline through the mock's own pieces
-(``analysis/rate_floor.py``: the FEM skin, the physics' Prony terms and output play, the
+(``analysis/rate/floor.py``: the FEM skin, the physics' Prony terms and output play, the
 ADC's 39 mV white noise, drift and 12-bit quantisation, the driver's filter and tare), once
 per noise seed, and scores it as ``bench_rate_calibration.py`` scores a recording: model
 error (low-passed at ``MODEL_CUTOFF_HZ``) per speed and phase, against a static curve fitted
@@ -49,15 +49,15 @@ from results import Figure, write_results
 
 from tactile_sensor.analysis.calibration_fit import Calibration, fit_calibration
 from tactile_sensor.analysis.errors import RateFitError
-from tactile_sensor.analysis.rate_evaluation import (
+from tactile_sensor.analysis.rate.evaluation import (
     PhaseError,
     phase_errors,
     phase_table,
 )
-from tactile_sensor.analysis.rate_fit import fit_rate_calibration
-from tactile_sensor.analysis.rate_floor import OfflineRun, bench_world, simulate_run
-from tactile_sensor.analysis.rate_history import static_force
-from tactile_sensor.analysis.rate_record import LOADING, UNLOADING
+from tactile_sensor.analysis.rate.fit import fit_rate_calibration
+from tactile_sensor.analysis.rate.floor import OfflineRun, bench_world, simulate_run
+from tactile_sensor.analysis.rate.history import static_force
+from tactile_sensor.analysis.rate.record import LOADING, UNLOADING
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.nodes.physics_parameters import physics_from_values
 from tactile_sensor.physics.prediction import load_or_compute_curve

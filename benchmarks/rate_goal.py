@@ -1,7 +1,7 @@
 """The rate-aware calibration's goal per speed and phase, as the rate benchmarks state and
 judge it: the rate-aware model error at most ``GOAL_RATIO`` times the static one and at most
 ``GOAL_SHARE_FS`` of full scale, the model error being the error low-passed at
-``MODEL_CUTOFF_HZ`` (``analysis/rate_evaluation.py`` holds the numbers)."""
+``MODEL_CUTOFF_HZ`` (``analysis/rate/evaluation.py`` holds the numbers)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
-from tactile_sensor.analysis.rate_evaluation import (
+from tactile_sensor.analysis.rate.evaluation import (
     GOAL_RATIO,
     GOAL_SHARE_FS,
     MODEL_CUTOFF_HZ,

@@ -4,7 +4,7 @@ Fit: outputs are binned, the mean force per bin is made non-decreasing by weight
 isotonic regression, and a PCHIP through those points (monotone by construction) is
 sampled at evenly spaced outputs. Files are read and written through the driver's own
 ``sensing.calibration.Calibration`` (and ``sensing.rate_calibration`` for a calibration
-with rate terms, fitted by ``rate_fit``), so the two can never disagree about the format.
+with rate terms, fitted by ``rate.fit``), so the two can never disagree about the format.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from tactile_sensor.sensing.errors import CalibrationError
 from tactile_sensor.sensing.rate_calibration import RateCalibration, load_file
 
 from .errors import CalibrationFileError, SegmentError
-from .rate_history import rate_force_history
+from .rate.history import rate_force_history
 
 MIN_BIN_SAMPLES = 5
 

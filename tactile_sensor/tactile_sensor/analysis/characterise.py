@@ -8,18 +8,18 @@ from typing import Any
 
 import numpy as np
 
-from . import array as arr
 from . import metrics as m
 from .alignment import Aligned, align
-from .array_fit import ArrayFit, fit_array_recording
+from .array import analysis as arr
+from .array.fit import ArrayFit, fit_array_recording
 from .bag_reader import Notify, Progress, Recording, TopicSpec, read_recording
 from .calibration_fit import Calibration, fit_calibration
 from .errors import RateFitError, SegmentError, TopicError
 from .prediction import Prediction
-from .rate_evaluation import phase_table, table_dict
-from .rate_fit import FitProgress, RateFit, fit_rate_calibration
-from .rate_record import record_from_segmentation
-from .segmentation import GAP_SHARE, Segmentation, segment
+from .rate.evaluation import phase_table, table_dict
+from .rate.fit import FitProgress, RateFit, fit_rate_calibration
+from .rate.record import RateRecord, record_from_segmentation
+from .segmentation import GAP_SHARE, Cycle, Segmentation, segment
 
 SCHEMA = "tactile_sensor/analysis-metrics"
 ROLES = ("reading", "reference", "position")  # the single-module analysis' topics
@@ -135,11 +135,49 @@ def gap_notes(recording: Recording, aligned: Aligned, seg: Segmentation) -> list
     return notes
 
 
-def characterise(recording: Recording, options: Options) -> Characterisation:
-    aligned = align(recording)
-    seg = segment(aligned, options.reference_speed_mm_s, recording.series["position"].topic)
-    sig = m.baseline(aligned, seg)
-    cycles = seg.cycles
+@dataclass(frozen=True)
+class _FullScale:
+    """The reference speed's presses and their median peak: what every metric scales by."""
+
+    ref_key: str
+    ref_cycles: list[Cycle]
+    peaks: np.ndarray  # (cycles, 2): peak output [V], peak force [N]
+    output_v: float
+    force_n: float
+
+
+@dataclass(frozen=True)
+class _StaticFigures:
+    """The paper's single-speed figures at the reference speed."""
+
+    sensitivity: m.LinearFit | None
+    noise: m.Noise | None
+    resolution_n: float | None
+    dynamic_range_db: float | None
+    hysteresis: m.Hysteresis | None
+    repeatability: m.Repeatability
+
+
+@dataclass(frozen=True)
+class _Calibrations:
+    """The curves fitted from the recording and the one the force error is judged on."""
+
+    fitted: Calibration | None
+    static_reference: Calibration | None
+    rate_fit: RateFit | None
+    evaluated: Calibration | None
+    metrics: dict[str, Any] | None
+
+    @property
+    def compared(self) -> Calibration | None:
+        """The static curve a rate-aware one was compared with, phase by phase."""
+        return (self.static_reference
+                if self.metrics is not None and "by_speed_phase" in self.metrics else None)
+
+
+def recording_notes(recording: Recording, aligned: Aligned, seg: Segmentation) -> list[str]:
+    """What the reader should know before trusting the figures: a flipped gauge, presses
+    left out, topics that lost messages."""
     notes = list(recording.notes)
     if aligned.force_flipped:
         notes.append("reference force was mostly negative; its sign was flipped so that "
@@ -147,19 +185,27 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
     if seg.skipped:
         notes.append(f"{seg.skipped} press(es) cut off by the recording's start or end, or "
                      "with too few samples, were left out.")
-    notes += gap_notes(recording, aligned, seg)
-    ref_key = seg.reference_key
-    ref_cycles = [cycles[i] for i in seg.speed_groups[ref_key]]
-    peaks = np.array([m.peak_values(sig, c) for c in ref_cycles])
-    full_scale_v, full_scale_n = (float(np.median(peaks[:, 0])), float(np.median(peaks[:, 1])))
+    return notes + gap_notes(recording, aligned, seg)
 
+
+def full_scale(sig: m.Signals, seg: Segmentation) -> _FullScale:
+    ref_key = seg.reference_key
+    ref_cycles = [seg.cycles[i] for i in seg.speed_groups[ref_key]]
+    peaks = np.array([m.peak_values(sig, c) for c in ref_cycles])
+    return _FullScale(ref_key, ref_cycles, peaks, float(np.median(peaks[:, 0])),
+                      float(np.median(peaks[:, 1])))
+
+
+def speed_table(sig: m.Signals, seg: Segmentation, rate_hz: float
+                ) -> tuple[dict[str, Any], dict[str, float | None]]:
+    """Each speed's sensitivity, peaks and phase lag: the paper's across-speed figure."""
     by_speed: dict[str, Any] = {}
     lags: dict[str, float | None] = {}
     for key, members in seg.speed_groups.items():
-        group = [cycles[i] for i in members]
+        group = [seg.cycles[i] for i in members]
         fit = m.sensitivity(sig, group)
         gpeaks = np.array([m.peak_values(sig, c) for c in group])
-        per_cycle = m.phase_lags(sig, group, aligned.rate_hz)
+        per_cycle = m.phase_lags(sig, group, rate_hz)
         lags[key] = float(np.median(per_cycle)) if per_cycle else None
         by_speed[key] = {
             "cycles": len(group),
@@ -173,107 +219,153 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
             "phase_lag_s": _num(lags[key]),
             "phase_lag_sem_s": _num(m.lag_standard_error(per_cycle)),
         }
+    return by_speed, lags
 
-    sens = m.sensitivity(sig, ref_cycles)
-    noise = m.noise(sig, seg, options.noise_window)
+
+def static_figures(sig: m.Signals, seg: Segmentation, scale: _FullScale,
+                   noise_window: int) -> _StaticFigures:
+    sens = m.sensitivity(sig, scale.ref_cycles)
+    noise = m.noise(sig, seg, noise_window)
     resolution = (noise.sigma_v / sens.slope
                   if noise and sens and sens.slope > 0 and noise.sigma_v > 0 else None)
-    dyn = (20 * math.log10(full_scale_n / resolution)
-           if resolution and full_scale_n > 0 else None)
-    hyst = m.hysteresis(sig, ref_cycles, full_scale_n, full_scale_v)
-    rep = m.repeatability(peaks[:, 0])
+    dyn = (20 * math.log10(scale.force_n / resolution)
+           if resolution and scale.force_n > 0 else None)
+    return _StaticFigures(sens, noise, resolution, dyn,
+                          m.hysteresis(sig, scale.ref_cycles, scale.force_n, scale.output_v),
+                          m.repeatability(scale.peaks[:, 0]))
 
-    fitted = None
-    static_ref = None  # today's static curve: the reference speed's ramps
+
+def static_reference(recording: Recording, sig: m.Signals, scale: _FullScale
+                     ) -> Calibration:
+    """Today's static curve: the reference speed's ramps."""
+    idx = np.concatenate([m.ramp_indices(scale.ref_cycles, "load"),
+                          m.ramp_indices(scale.ref_cycles, "unload")])
+    curve = fit_calibration(sig.output_v[idx], sig.force_n[idx],
+                            source=f"tactile-sensor analyze {recording.path}")
+    curve.fit.update({"speed_mm_s": float(scale.ref_key), "cycles": len(scale.ref_cycles),
+                      "output_baseline_v": sig.output_baseline_v,
+                      "force_baseline_n": sig.force_baseline_n})
+    return curve
+
+
+def fit_rates(recording: Recording, sig: m.Signals, seg: Segmentation, record: RateRecord,
+              options: Options, notes: list[str]) -> RateFit | None:
+    """The rate terms, where the recording has two speeds or more; a failed fit is a note
+    and the static curve stands."""
+    if len(seg.speed_groups) < 2:
+        return None
+    try:
+        return fit_rate_calibration(record, source=f"tactile-sensor analyze {recording.path}",
+                                    progress=options.fit_progress)
+    except RateFitError as err:
+        notes.append(f"no rate terms fitted: {err} The static curve at "
+                     f"{seg.reference_key} mm/s was written instead.")
+        return None
+
+
+def rate_aware_curve(rate_fit: RateFit, sig: m.Signals) -> Calibration:
+    rate_cal = rate_fit.calibration
+    return Calibration(np.asarray(rate_cal.static.output_v),
+                       np.asarray(rate_cal.static.force_n), rate_cal.source,
+                       {**rate_fit.metadata(),
+                        "output_baseline_v": sig.output_baseline_v,
+                        "force_baseline_n": sig.force_baseline_n},
+                       rate_cal)
+
+
+def calibration_error(evaluated: Calibration, options: Options, sig: m.Signals,
+                      seg: Segmentation, scale: _FullScale, record: RateRecord,
+                      static_ref: Calibration | None, rate_fit: RateFit | None
+                      ) -> dict[str, Any]:
+    """The force error of the calibration judged (given or fitted), per speed, and per
+    phase against the static curve when it has rate terms."""
+    history = evaluated.force_history(sig.t_s, sig.output_v)
+    per_speed = {}
+    for key, members in seg.speed_groups.items():
+        group = [seg.cycles[i] for i in members]
+        idx = np.concatenate([m.ramp_indices(group, "load"), m.ramp_indices(group, "unload")])
+        per_speed[key] = _err_dict(m.estimation_error(
+            history[idx], sig.force_n[idx], scale.force_n))
+    rate = evaluated.rate
+    out: dict[str, Any] = {
+        "source": evaluated.source, "in_sample": options.calibration is None,
+        "by_speed": per_speed,
+        "rate_terms": ([{"g": t.g, "tau_s": t.tau_s} for t in rate.terms]
+                       if rate is not None else None),
+        "play": rate.play.to_dict() if rate is not None and rate.play is not None else None}
+    if rate is not None and static_ref is not None:
+        out["by_speed_phase"] = table_dict(phase_table(record, static_ref, rate))
+        out["static_reference"] = (
+            f"a static curve fitted on this recording's {scale.ref_key} mm/s ramps")
+    if rate_fit is not None:
+        out["held_out_rmse_n"] = rate_fit.folds.held_out_rmse_n
+        out["static_held_out_rmse_n"] = rate_fit.folds.static_rmse_n
+    return out
+
+
+def calibrate(recording: Recording, sig: m.Signals, seg: Segmentation, scale: _FullScale,
+              options: Options, notes: list[str]) -> _Calibrations:
+    """Fit the curves asked for (static, then rate-aware) and judge the one in use."""
+    static_ref = None
     if options.fit_calibration or (options.calibration is not None
                                    and options.calibration.rate is not None):
-        idx = np.concatenate([m.ramp_indices(ref_cycles, "load"),
-                              m.ramp_indices(ref_cycles, "unload")])
-        static_ref = fit_calibration(sig.output_v[idx], sig.force_n[idx],
-                                     source=f"tactile-sensor analyze {recording.path}")
-        static_ref.fit.update({"speed_mm_s": float(ref_key), "cycles": len(ref_cycles),
-                               "output_baseline_v": sig.output_baseline_v,
-                               "force_baseline_n": sig.force_baseline_n})
-    rate_fit = None
+        static_ref = static_reference(recording, sig, scale)
     record = record_from_segmentation(sig.t_s, sig.output_v, sig.force_n, seg)
+    fitted, rate_fit = None, None
     if options.fit_calibration:
         fitted = static_ref
-        if len(seg.speed_groups) >= 2:
-            try:
-                rate_fit = fit_rate_calibration(
-                    record, source=f"tactile-sensor analyze {recording.path}",
-                    progress=options.fit_progress)
-            except RateFitError as err:
-                notes.append(f"no rate terms fitted: {err} The static curve at "
-                             f"{ref_key} mm/s was written instead.")
+        rate_fit = fit_rates(recording, sig, seg, record, options, notes)
         if rate_fit is not None and static_ref is not None:
-            rate_cal = rate_fit.calibration
             notes.extend(rate_fit.notes)
-            fitted = Calibration(np.asarray(rate_cal.static.output_v),
-                                 np.asarray(rate_cal.static.force_n), rate_cal.source,
-                                 {**rate_fit.metadata(),
-                                  "output_baseline_v": sig.output_baseline_v,
-                                  "force_baseline_n": sig.force_baseline_n},
-                                 rate_cal)
+            fitted = rate_aware_curve(rate_fit, sig)
     evaluated = options.calibration or fitted
-    cal_metrics = None
-    if evaluated is not None:
-        history = evaluated.force_history(sig.t_s, sig.output_v)
-        per_speed = {}
-        for key, members in seg.speed_groups.items():
-            group = [cycles[i] for i in members]
-            idx = np.concatenate([m.ramp_indices(group, "load"),
-                                  m.ramp_indices(group, "unload")])
-            per_speed[key] = _err_dict(m.estimation_error(
-                history[idx], sig.force_n[idx], full_scale_n))
-        cal_metrics = {"source": evaluated.source,
-                       "in_sample": options.calibration is None, "by_speed": per_speed,
-                       "rate_terms": ([{"g": t.g, "tau_s": t.tau_s}
-                                       for t in evaluated.rate.terms]
-                                      if evaluated.rate is not None else None),
-                       "play": (evaluated.rate.play.to_dict()
-                                if evaluated.rate is not None
-                                and evaluated.rate.play is not None else None)}
-        if evaluated.rate is not None and static_ref is not None:
-            cal_metrics["by_speed_phase"] = table_dict(
-                phase_table(record, static_ref, evaluated.rate))
-            cal_metrics["static_reference"] = (
-                f"a static curve fitted on this recording's {ref_key} mm/s ramps")
-        if rate_fit is not None:
-            cal_metrics["held_out_rmse_n"] = rate_fit.folds.held_out_rmse_n
-            cal_metrics["static_held_out_rmse_n"] = rate_fit.folds.static_rmse_n
+    cal_metrics = (calibration_error(evaluated, options, sig, seg, scale, record, static_ref,
+                                     rate_fit) if evaluated is not None else None)
+    return _Calibrations(fitted, static_ref, rate_fit, evaluated, cal_metrics)
 
-    pred_cmp = None
-    pred_metrics = None
-    if options.prediction is not None:
-        pred_cmp = m.compare_prediction(sig, ref_cycles, options.prediction.indentation_m,
-                                        options.prediction.output_v, full_scale_v)
-        if pred_cmp is not None:
-            pred_metrics = {"source": options.prediction.source, "rmse_v": _num(pred_cmp.rmse_v),
-                            "max_v": _num(pred_cmp.max_v),
-                            "rmse_pct_fs": _num(pred_cmp.rmse_pct_fs)}
-        else:
-            notes.append("the prediction does not overlap the measured indentation range.")
-    else:
+
+def compare_with_prediction(sig: m.Signals, scale: _FullScale, options: Options,
+                            notes: list[str]
+                            ) -> tuple[m.PredictionComparison | None, dict[str, Any] | None]:
+    if options.prediction is None:
         notes.append(f"model prediction: {options.prediction_note}.")
+        return None, None
+    pred_cmp = m.compare_prediction(sig, scale.ref_cycles, options.prediction.indentation_m,
+                                    options.prediction.output_v, scale.output_v)
+    if pred_cmp is None:
+        notes.append("the prediction does not overlap the measured indentation range.")
+        return None, None
+    return pred_cmp, {"source": options.prediction.source, "rmse_v": _num(pred_cmp.rmse_v),
+                      "max_v": _num(pred_cmp.max_v), "rmse_pct_fs": _num(pred_cmp.rmse_pct_fs)}
 
-    metrics: dict[str, Any] = {
+
+def characterisation_metrics(recording: Recording, aligned: Aligned, sig: m.Signals,
+                             seg: Segmentation, scale: _FullScale, figures: _StaticFigures,
+                             speeds: tuple[dict[str, Any], dict[str, float | None]],
+                             cal_metrics: dict[str, Any] | None,
+                             pred_metrics: dict[str, Any] | None, notes: list[str]
+                             ) -> dict[str, Any]:
+    """The metrics file's content (docs/analysis-metrics.md)."""
+    by_speed, lags = speeds
+    sens, noise, hyst, rep = (figures.sensitivity, figures.noise, figures.hysteresis,
+                              figures.repeatability)
+    return {
         "schema": SCHEMA, "version": 1,
         "bag": str(recording.path), "storage": recording.storage,
         "topics": {r: recording.series[r].topic for r in ROLES},
         "stamps": {r: recording.series[r].stamp_source for r in ROLES},
         "samples": int(aligned.t_s.size), "duration_s": _num(float(aligned.t_s[-1])),
         "sample_rate_hz": _num(aligned.rate_hz),
-        "cycles": len(cycles), "reference_speed_mm_s": float(ref_key),
-        "full_scale_n": _num(full_scale_n), "full_scale_output_v": _num(full_scale_v),
+        "cycles": len(seg.cycles), "reference_speed_mm_s": float(scale.ref_key),
+        "full_scale_n": _num(scale.force_n), "full_scale_output_v": _num(scale.output_v),
         "output_baseline_v": _num(sig.output_baseline_v),
         "force_baseline_n": _num(sig.force_baseline_n),
         "sensitivity_v_per_n": _num(sens.slope) if sens else None,
         "sensitivity_r2": _num(sens.r2) if sens else None,
         "noise_v": _num(noise.sigma_v) if noise else None,
         "noise_estimate": noise.source if noise else None,
-        "resolution_n": _num(resolution),
-        "dynamic_range_db": _num(dyn),
+        "resolution_n": _num(figures.resolution_n),
+        "dynamic_range_db": _num(figures.dynamic_range_db),
         "hysteresis_pct_fs": _num(hyst.pct_fs) if hyst else None,
         "peak_output_cv_pct": _num(rep.cv_pct),
         "drift_pct": _num(rep.drift_pct),
@@ -285,10 +377,25 @@ def characterise(recording: Recording, options: Options) -> Characterisation:
         "paper": PAPER,
         "notes": notes,
     }
-    compared = (static_ref if cal_metrics is not None and "by_speed_phase" in cal_metrics
-                else None)
-    return Characterisation(metrics, recording, aligned, seg, sig, hyst, rep, pred_cmp, fitted,
-                            evaluated, lags, rate_fit, compared)
+
+
+def characterise(recording: Recording, options: Options) -> Characterisation:
+    """The paper's characterisation as a pipeline: align, find the presses, take the
+    baselines, then the figures, the calibrations and the prediction's fit."""
+    aligned = align(recording)
+    seg = segment(aligned, options.reference_speed_mm_s, recording.series["position"].topic)
+    sig = m.baseline(aligned, seg)
+    notes = recording_notes(recording, aligned, seg)
+    scale = full_scale(sig, seg)
+    speeds = speed_table(sig, seg, aligned.rate_hz)
+    figures = static_figures(sig, seg, scale, options.noise_window)
+    cal = calibrate(recording, sig, seg, scale, options, notes)
+    pred_cmp, pred_metrics = compare_with_prediction(sig, scale, options, notes)
+    metrics = characterisation_metrics(recording, aligned, sig, seg, scale, figures, speeds,
+                                       cal.metrics, pred_metrics, notes)
+    return Characterisation(metrics, recording, aligned, seg, sig, figures.hysteresis,
+                            figures.repeatability, pred_cmp, cal.fitted, cal.evaluated,
+                            speeds[1], cal.rate_fit, cal.compared)
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from .array import AXES, ArrayAnalysis
+from .array.analysis import AXES, ArrayAnalysis
 from .characterise import Characterisation
 from .metrics import ramp_indices
 
@@ -200,26 +200,38 @@ def all_figures(ch: Characterisation, out_dir: Path) -> dict[str, Path]:
     return {name: make(ch, out_dir / f"{name}.png") for name, make in makers.items()}
 
 
-def array_force_time(an: ArrayAnalysis, path: Path) -> Path:
-    """Estimated (driver) and reference (gauge) force per axis over the recording."""
-    sig = an.signals
-    idx = _thin(np.arange(sig.t_s.size))
+def _traces_per_axis(t_s: np.ndarray, estimate: np.ndarray, reference: np.ndarray,
+                     quantity: str, unit: str, titles: list[str], noun: str, path: Path,
+                     unobserved: tuple[bool, ...] = (False, False, False)) -> Path:
+    """Estimate (driver) and reference (gauge) per axis over the recording, one panel an
+    axis; a panel of an axis the driver does not observe says so."""
+    idx = _thin(np.arange(t_s.size))
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for j, (ax, name) in enumerate(zip(axes, AXES, strict=True)):
         # the reference drawn last: under the noisy estimate it cannot be seen
-        ax.plot(sig.t_s[idx], sig.estimate_n[idx, j], lw=0.6, color="tab:red", alpha=0.8,
+        ax.plot(t_s[idx], estimate[idx, j], lw=0.6, color="tab:red", alpha=0.8,
                 label="estimated (driver)")
-        ax.plot(sig.t_s[idx], sig.reference_n[idx, j], lw=0.9, color="black", zorder=3,
+        ax.plot(t_s[idx], reference[idx, j], lw=0.9, color="black", zorder=3,
                 label="reference (gauge)")
-        ax.set_ylabel(f"F{name} [N]")
-        ax.set_title(f"F{name}: rmse {an.rmse_n[j]:.3g} N over a range of {an.range_n[j]:.3g} N",
-                     fontsize=9, loc="left")
+        ax.set_ylabel(f"{quantity}{name} [{unit}]")
+        if unobserved[j]:
+            _unobserved(ax, name)
+        ax.set_title(titles[j], fontsize=9, loc="left")
     # above the first panel, right of its title: inside, it covers a stretch of the trace
     axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2,
                    frameon=False, borderaxespad=0.1)
     axes[-1].set_xlabel("time [s]")
-    fig.suptitle("Estimated vs reference force per axis")
+    fig.suptitle(f"Estimated vs reference {noun} per axis")
     return _save(fig, path, top=0.9)
+
+
+def array_force_time(an: ArrayAnalysis, path: Path) -> Path:
+    """Estimated (driver) and reference (gauge) force per axis over the recording."""
+    sig = an.signals
+    titles = [f"F{name}: rmse {an.rmse_n[j]:.3g} N over a range of {an.range_n[j]:.3g} N"
+              for j, name in enumerate(AXES)]
+    return _traces_per_axis(sig.t_s, sig.estimate_n, sig.reference_n, "F", "N", titles,
+                            "force", path)
 
 
 def array_force_scatter(an: ArrayAnalysis, path: Path) -> Path:
@@ -262,25 +274,13 @@ def array_torque_time(an: ArrayAnalysis, path: Path) -> Path:
     sig = an.signals
     est, ref = sig.estimate_torque_nm * 1e3, sig.reference_torque_nm * 1e3
     rmse, span = np.asarray(an.torque_rmse_nm) * 1e3, np.asarray(an.torque_range_nm) * 1e3
-    idx = _thin(np.arange(sig.t_s.size))
-    fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
-    for j, (ax, name) in enumerate(zip(axes, AXES, strict=True)):
-        ax.plot(sig.t_s[idx], est[idx, j], lw=0.6, color="tab:red", alpha=0.8,
-                label="estimated (driver)")
-        ax.plot(sig.t_s[idx], ref[idx, j], lw=0.9, color="black", zorder=3,
-                label="reference (gauge)")
-        ax.set_ylabel(f"T{name} [mN m]")
-        if np.isfinite(rmse[j]):
-            title = f"T{name}: rmse {rmse[j]:.3g} mN m over a range of {span[j]:.3g} mN m"
-        else:
-            title = f"T{name}: not observed (driver NaN); reference range {span[j]:.3g} mN m"
-            _unobserved(ax, name)
-        ax.set_title(title, fontsize=9, loc="left")
-    axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2,
-                   frameon=False, borderaxespad=0.1)
-    axes[-1].set_xlabel("time [s]")
-    fig.suptitle("Estimated vs reference torque per axis")
-    return _save(fig, path, top=0.9)
+    unobserved = tuple(not np.isfinite(r) for r in rmse)
+    titles = [f"T{name}: rmse {rmse[j]:.3g} mN m over a range of {span[j]:.3g} mN m"
+              if not unobserved[j] else
+              f"T{name}: not observed (driver NaN); reference range {span[j]:.3g} mN m"
+              for j, name in enumerate(AXES)]
+    return _traces_per_axis(sig.t_s, est, ref, "T", "mN m", titles, "torque", path,
+                            unobserved)
 
 
 def array_torque_scatter(an: ArrayAnalysis, path: Path) -> Path:

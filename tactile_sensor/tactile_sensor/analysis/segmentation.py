@@ -114,19 +114,8 @@ def segment(aligned: Aligned, reference_speed_mm_s: float = 1.0,
             tail_counted |= base_after > cut_level and k == len(ups) - 1
             prev_end = down
             continue
-        peak_i = up + int(np.argmax(d[up:down]))
-        peak = float(d[peak_i])
-        travel, back = peak - base_before, peak - base_after
-        # loading: last sample at base before `up` .. first sample near the peak
-        at_base = np.flatnonzero(before <= base_before + TRAVEL_TRIM * travel)
-        load_start = prev_end + int(at_base[-1])
-        near_peak = np.flatnonzero(d[load_start:peak_i + 1] >= peak - TRAVEL_TRIM * travel)
-        load_stop = load_start + int(near_peak[0]) + 1
-        # unloading: last sample near the peak .. first sample back at base
-        still_high = np.flatnonzero(d[peak_i:down] >= peak - TRAVEL_TRIM * back)
-        unload_start = peak_i + int(still_high[-1])
-        at_base_after = np.flatnonzero(after <= base_after + TRAVEL_TRIM * back)
-        unload_stop = down + int(at_base_after[0]) + 1
+        (load_start, load_stop), (unload_start, unload_stop), peak = _press_ramps(
+            d, prev_end, up, down, next_up)
         if (load_stop - load_start < MIN_RAMP_SAMPLES
                 or unload_stop - unload_start < MIN_RAMP_SAMPLES):
             skipped += 1
@@ -150,15 +139,44 @@ def segment(aligned: Aligned, reference_speed_mm_s: float = 1.0,
         raise SegmentError(f"no complete loading and unloading cycle on {position_topic} "
                            "lies inside the span where all topics were recorded (an empty "
                            "segment); record whole presses with all three topics running.")
-    rest = np.zeros(d.size, dtype=bool)
-    edges_rest = [0] + [x for c in cycles for x in c.window] + [d.size]
-    for a, b in zip(edges_rest[::2], edges_rest[1::2], strict=True):
-        rest[a:b] = True
-    rest &= d <= lo_d + 0.02 * span
+    rest = _rest_samples(d, cycles, lo_d + 0.02 * span)
     groups = _group_by_speed(cycles)
     ref = min(groups, key=lambda k: abs(np.log10(float(k) / reference_speed_mm_s)))
     return Segmentation(cycles=cycles, rest=rest, speed_groups=groups, reference_key=ref,
                         skipped=skipped, in_position_gaps=in_gaps)
+
+
+def _press_ramps(d: np.ndarray, prev_end: int, up: int, down: int, next_up: int
+                 ) -> tuple[tuple[int, int], tuple[int, int], float]:
+    """One press's loading and unloading ramps (half-open) and its peak, trimmed to the
+    travel between TRAVEL_TRIM and 1 - TRAVEL_TRIM so that rests and holds belong to
+    neither."""
+    before, after = d[prev_end:up], d[down:next_up]
+    base_before, base_after = float(before.min()), float(after.min())
+    peak_i = up + int(np.argmax(d[up:down]))
+    peak = float(d[peak_i])
+    travel, back = peak - base_before, peak - base_after
+    # loading: last sample at base before `up` .. first sample near the peak
+    at_base = np.flatnonzero(before <= base_before + TRAVEL_TRIM * travel)
+    load_start = prev_end + int(at_base[-1])
+    near_peak = np.flatnonzero(d[load_start:peak_i + 1] >= peak - TRAVEL_TRIM * travel)
+    load_stop = load_start + int(near_peak[0]) + 1
+    # unloading: last sample near the peak .. first sample back at base
+    still_high = np.flatnonzero(d[peak_i:down] >= peak - TRAVEL_TRIM * back)
+    unload_start = peak_i + int(still_high[-1])
+    at_base_after = np.flatnonzero(after <= base_after + TRAVEL_TRIM * back)
+    unload_stop = down + int(at_base_after[0]) + 1
+    return (load_start, load_stop), (unload_start, unload_stop), peak
+
+
+def _rest_samples(d: np.ndarray, cycles: list[Cycle], rest_level: float) -> np.ndarray:
+    """Samples outside every cycle with the skin unloaded: where baselines and noise are
+    read."""
+    rest = np.zeros(d.size, dtype=bool)
+    edges = [0] + [x for c in cycles for x in c.window] + [d.size]
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        rest[a:b] = True
+    return rest & (d <= rest_level)
 
 
 def _lost_in_gaps(aligned: Aligned, t0: float, t1: float) -> bool:

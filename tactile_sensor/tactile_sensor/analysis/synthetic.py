@@ -431,7 +431,7 @@ def rate_press_record(speeds_m_s: Sequence[float], hold_s: float = 2.0,
     from tactile_sensor.sim.bench_world import play
     from tactile_sensor.sim.profiles import LoadProfile
 
-    from .rate_record import RateRecord, labels_from_knots
+    from .rate.record import RateRecord, labels_from_knots
 
     profile = LoadProfile(depth_m=3e-3, speeds_m_s=tuple(speeds_m_s), cycles=1, hold_s=hold_s,
                           rest_s=1.0)

@@ -20,9 +20,8 @@ from hypothesis import strategies as st
 from rosbags.rosbag2 import Writer
 from rosbags.typesys import get_types_from_msg
 
-from tactile_sensor.analysis import array as arr
 from tactile_sensor.analysis import characterise as ch
-from tactile_sensor.analysis import cli
+from tactile_sensor.analysis.array import analysis as arr
 from tactile_sensor.analysis.bag_reader import Recording, Series
 from tactile_sensor.analysis.report import array_lines
 from tactile_sensor.analysis.synthetic import (
@@ -259,23 +258,9 @@ def test_detection_reads_the_data():
 
 # --- the CLI end to end ------------------------------------------------------------------
 
-def run(argv, capsys):
-    code = cli.main([*argv, "--quiet"])
-    return code, capsys.readouterr().err
-
-
-def assert_one_sentence(code, err, *fragments):
-    assert code == 1
-    assert "Traceback" not in err
-    lines = [x for x in err.splitlines() if x.strip()]
-    assert len(lines) == 1, err
-    for fragment in fragments:
-        assert fragment in lines[0]
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("press", [True, False])
-def test_cli_writes_the_array_metrics_figures_and_report(tmp_path, capsys, press):
+def test_cli_writes_the_array_metrics_figures_and_report(run, tmp_path, capsys, press):
     signals = shear_signals(dataclasses.replace(PROTOCOL, press=press, directions=8),
                             ArrayTruth(estimate_offset_n=OFFSET, estimate_noise_n=(0.02,) * 3))
     if not press:  # and a driver that observes only the twist
@@ -301,14 +286,14 @@ def test_cli_writes_the_array_metrics_figures_and_report(tmp_path, capsys, press
     assert "Module array" in (out / "report.html").read_text()
 
 
-def test_array_bag_without_the_gauge(tmp_path, capsys):
+def test_array_bag_without_the_gauge(run, assert_one_sentence, tmp_path, capsys):
     bag = write_array_bag(tmp_path / "bag", shear_signals(PROTOCOL, ArrayTruth()),
                           omit=("reference",))
     code, err = run([str(bag), "--out", str(tmp_path / "o")], capsys)
     assert_one_sentence(code, err, "/bench/gauge/wrench", "--reference-topic")
 
 
-def test_array_bag_without_the_driver_wrench(tmp_path, capsys):
+def test_array_bag_without_the_driver_wrench(run, assert_one_sentence, tmp_path, capsys):
     bag = write_array_bag(tmp_path / "bag", shear_signals(PROTOCOL, ArrayTruth()), "mcap",
                           omit=("estimate",))
     code, err = run([str(bag), "--out", str(tmp_path / "o"), "--prediction", "none"], capsys)
@@ -316,7 +301,7 @@ def test_array_bag_without_the_driver_wrench(tmp_path, capsys):
                         "--estimate-topic")
 
 
-def test_driver_wrench_without_lateral_force(tmp_path, capsys):
+def test_driver_wrench_without_lateral_force(run, assert_one_sentence, tmp_path, capsys):
     signals = shear_signals(PROTOCOL, ArrayTruth())
     flat = signals.estimate_n.copy()
     flat[:, :2] = 0.0
@@ -325,14 +310,14 @@ def test_driver_wrench_without_lateral_force(tmp_path, capsys):
     assert_one_sentence(code, err, "no lateral force", "/driver/wrench", "--estimate-topic")
 
 
-def test_estimate_topic_of_the_wrong_type(tmp_path, capsys):
+def test_estimate_topic_of_the_wrong_type(run, assert_one_sentence, tmp_path, capsys):
     bag = write_array_bag(tmp_path / "bag", shear_signals(PROTOCOL, ArrayTruth()))
     code, err = run([str(bag), "--out", str(tmp_path / "o"), "--prediction", "none",
                      "--estimate-topic", "/bench/stage/joint_states"], capsys)
     assert_one_sentence(code, err, "JointState", "no field wrench.force.x", "--estimate-topic")
 
 
-def test_array_topics_that_do_not_overlap(tmp_path, capsys):
+def test_array_topics_that_do_not_overlap(run, assert_one_sentence, tmp_path, capsys):
     signals = shear_signals(PROTOCOL, ArrayTruth())
     late = signals.estimate_n.copy()
     late[: late.shape[0] // 2] = np.nan  # the driver's wrench only in the second half ...
@@ -344,7 +329,7 @@ def test_array_topics_that_do_not_overlap(tmp_path, capsys):
     assert_one_sentence(code, err, "do not overlap")
 
 
-def test_reference_of_a_type_without_lateral_force(tmp_path, capsys):
+def test_reference_of_a_type_without_lateral_force(run, assert_one_sentence, tmp_path, capsys):
     """A one-axis gauge type (force.z only) on an array recording: no lateral reference."""
     store = writer_typestore()
     store.register({**get_types_from_msg("float64 z", "test_msgs/msg/ZForce"),

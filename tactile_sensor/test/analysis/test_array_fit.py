@@ -14,9 +14,9 @@ import json
 import numpy as np
 import pytest
 
-from tactile_sensor.analysis import array_fit as af
 from tactile_sensor.analysis import cli
-from tactile_sensor.analysis.array import ArraySignals
+from tactile_sensor.analysis.array import fit as af
+from tactile_sensor.analysis.array.analysis import ArraySignals
 from tactile_sensor.analysis.errors import SegmentError
 from tactile_sensor.analysis.synthetic import (
     ArrayTruth,

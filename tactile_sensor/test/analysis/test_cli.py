@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from tactile_sensor import cli as top_cli
-from tactile_sensor.analysis import cli
 from tactile_sensor.analysis.synthetic import (
     PressProtocol,
     SensorTruth,
@@ -33,23 +32,8 @@ def bags(tmp_path_factory):
     return a, b
 
 
-def run(argv, capsys):
-    code = cli.main([*argv, "--quiet"])
-    err = capsys.readouterr().err
-    return code, err
-
-
-def assert_one_sentence(code, err, *fragments):
-    assert code == 1
-    assert "Traceback" not in err
-    lines = [x for x in err.splitlines() if x.strip()]
-    assert len(lines) == 1, err
-    for fragment in fragments:
-        assert fragment in lines[0]
-
-
 @pytest.mark.slow
-def test_fit_on_one_bag_evaluate_on_another_with_prediction_overlay(bags, tmp_path, capsys):
+def test_fit_on_one_bag_evaluate_on_another_with_prediction_overlay(run, bags, tmp_path, capsys):
     a, b = bags
     d = np.linspace(0, PROTOCOL.depth_m, 50)
     model = TRUTH.sensitivity_v_per_n * TRUTH.elastic_force_n(d, PROTOCOL.depth_m)
@@ -91,7 +75,7 @@ def test_fit_on_one_bag_evaluate_on_another_with_prediction_overlay(bags, tmp_pa
     assert held_out["by_speed"]["10.0"]["rmse_n"] == pytest.approx(noise_n, rel=0.3)
 
 
-def test_prediction_offset_shows_in_the_comparison(bags, tmp_path, capsys):
+def test_prediction_offset_shows_in_the_comparison(run, bags, tmp_path, capsys):
     d = np.linspace(0, PROTOCOL.depth_m, 50)
     model = TRUTH.sensitivity_v_per_n * TRUTH.elastic_force_n(d, PROTOCOL.depth_m) + 0.05
     pred = tmp_path / "sweep.json"
@@ -104,13 +88,13 @@ def test_prediction_offset_shows_in_the_comparison(bags, tmp_path, capsys):
     assert metrics["prediction"]["rmse_v"] == pytest.approx(0.05, abs=0.01)
 
 
-def test_top_level_command_dispatches_to_analyze(bags, tmp_path, capsys):
+def test_top_level_command_dispatches_to_analyze(assert_one_sentence, bags, tmp_path, capsys):
     code = top_cli.main(["analyze", str(bags[1]), "--out", str(tmp_path), "--prediction",
                          "none", "--reading-topic", "/nope", "--quiet"])
     assert_one_sentence(code, capsys.readouterr().err, "/nope", "--reading-topic")
 
 
-def test_missing_bag(tmp_path, capsys):
+def test_missing_bag(run, assert_one_sentence, tmp_path, capsys):
     code, err = run([str(tmp_path / "absent"), "--out", str(tmp_path / "o"),
                      "--prediction", "none"], capsys)
     assert_one_sentence(code, err, "does not exist")
@@ -118,7 +102,7 @@ def test_missing_bag(tmp_path, capsys):
 
 @pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
 @pytest.mark.parametrize("damage", ["garbage", "truncate"])
-def test_corrupt_or_truncated_bag(tmp_path, capsys, storage, damage):
+def test_corrupt_or_truncated_bag(run, assert_one_sentence, tmp_path, capsys, storage, damage):
     bag = write_press_bag(tmp_path / "bag", press_signals(PROTOCOL, TRUTH), storage)
     (data,) = [p for p in bag.iterdir() if p.suffix in (".db3", ".mcap")]
     raw = data.read_bytes()
@@ -127,13 +111,13 @@ def test_corrupt_or_truncated_bag(tmp_path, capsys, storage, damage):
     assert_one_sentence(code, err, "cannot read the bag")
 
 
-def test_missing_topic(bags, tmp_path, capsys):
+def test_missing_topic(run, assert_one_sentence, bags, tmp_path, capsys):
     code, err = run([str(bags[0]), "--out", str(tmp_path), "--prediction", "none",
                      "--position-topic", "/stage/none"], capsys)
     assert_one_sentence(code, err, "/stage/none", "--position-topic", "/driver/reading")
 
 
-def test_topic_of_the_wrong_type(bags, tmp_path, capsys):
+def test_topic_of_the_wrong_type(run, assert_one_sentence, bags, tmp_path, capsys):
     code, err = run([str(bags[0]), "--out", str(tmp_path), "--prediction", "none",
                      "--reading-topic", "/bench/gauge/wrench"], capsys)
     assert_one_sentence(code, err, "WrenchStamped", "no field output")
@@ -146,7 +130,7 @@ def _cut(signals, n):
 
 
 @pytest.mark.parametrize("case", ["flat", "cut_mid_press"])
-def test_empty_segment(tmp_path, capsys, case):
+def test_empty_segment(run, assert_one_sentence, tmp_path, capsys, case):
     signals = press_signals(PressProtocol(speeds_mm_s=(10.0,), cycles=(1,), rate_hz=200.0),
                             TRUTH)
     if case == "flat":
@@ -182,7 +166,7 @@ BAD_CALIBRATIONS = {
 
 
 @pytest.mark.parametrize("case", sorted(BAD_CALIBRATIONS))
-def test_bad_calibration_file(bags, tmp_path, capsys, case):
+def test_bad_calibration_file(run, assert_one_sentence, bags, tmp_path, capsys, case):
     text, fragment = BAD_CALIBRATIONS[case]
     path = tmp_path / "cal.json"
     path.write_text(text)
@@ -191,7 +175,7 @@ def test_bad_calibration_file(bags, tmp_path, capsys, case):
     assert_one_sentence(code, err, fragment)
 
 
-def test_missing_calibration_file(bags, tmp_path, capsys):
+def test_missing_calibration_file(run, assert_one_sentence, bags, tmp_path, capsys):
     code, err = run([str(bags[0]), "--out", str(tmp_path / "o"), "--prediction", "none",
                      "--calibration", str(tmp_path / "nope.json")], capsys)
     assert_one_sentence(code, err, "nope.json does not exist")
@@ -202,7 +186,7 @@ def test_missing_calibration_file(bags, tmp_path, capsys):
     (json.dumps({"indentation_m": [0, 1e-3]}), "output_v"),
     (json.dumps({"indentation_m": [1e-3, 0], "output_v": [0, 1]}), "strictly increasing"),
 ])
-def test_bad_prediction_file(bags, tmp_path, capsys, text, fragment):
+def test_bad_prediction_file(run, assert_one_sentence, bags, tmp_path, capsys, text, fragment):
     path = tmp_path / "p.json"
     path.write_text(text)
     code, err = run([str(bags[0]), "--out", str(tmp_path / "o"), "--prediction", str(path)],
@@ -210,7 +194,7 @@ def test_bad_prediction_file(bags, tmp_path, capsys, text, fragment):
     assert_one_sentence(code, err, fragment)
 
 
-def test_bad_noise_window(bags, tmp_path, capsys):
+def test_bad_noise_window(run, assert_one_sentence, bags, tmp_path, capsys):
     code, err = run([str(bags[0]), "--out", str(tmp_path / "o"), "--prediction", "none",
                      "--noise-window", "0"], capsys)
     assert_one_sentence(code, err, "--noise-window")

@@ -12,14 +12,14 @@ import pytest
 
 from tactile_sensor.analysis.calibration_fit import fit_calibration
 from tactile_sensor.analysis.errors import RateFitError
-from tactile_sensor.analysis.rate_evaluation import phase_table, table_dict
-from tactile_sensor.analysis.rate_fit import (
+from tactile_sensor.analysis.rate.evaluation import phase_table, table_dict
+from tactile_sensor.analysis.rate.fit import (
     TermCount,
     fit_rate_calibration,
     resolvable_tau_range,
 )
-from tactile_sensor.analysis.rate_history import rate_force_history
-from tactile_sensor.analysis.rate_record import (
+from tactile_sensor.analysis.rate.history import rate_force_history
+from tactile_sensor.analysis.rate.record import (
     LOADING,
     OUTSIDE,
     UNLOADING,

@@ -12,16 +12,16 @@ import math
 import numpy as np
 import pytest
 
-from tactile_sensor.analysis.rate_fit import (
-    SEGMENT_CUTOFF_HZ,
+from tactile_sensor.analysis.rate.fit import (
     TermCount,
     _count_order,
-    _low_pass_runs,
     _resolves_every_term,
-    _run_starts,
     fit_rate_calibration,
 )
-from tactile_sensor.analysis.rate_history import zero_phase_low_pass
+from tactile_sensor.analysis.rate.grid import SEGMENT_CUTOFF_HZ
+from tactile_sensor.analysis.rate.grid import low_pass_runs as _low_pass_runs
+from tactile_sensor.analysis.rate.grid import run_starts as _run_starts
+from tactile_sensor.analysis.rate.history import zero_phase_low_pass
 from tactile_sensor.analysis.synthetic import rate_press_record
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.rate_calibration import RateCalibration, RateTerm

@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 
 from tactile_sensor.analysis.errors import SegmentError
-from tactile_sensor.analysis.rate_evaluation import phase_errors
-from tactile_sensor.analysis.rate_floor import (
+from tactile_sensor.analysis.rate.evaluation import phase_errors
+from tactile_sensor.analysis.rate.floor import (
     bench_world,
     exact_force,
     simulate_run,
     stage_play_lag,
     tracker_play_lag,
 )
-from tactile_sensor.analysis.rate_record import HOLD, LOADING, OUTSIDE, UNLOADING, labels_from_knots
+from tactile_sensor.analysis.rate.record import HOLD, LOADING, OUTSIDE, UNLOADING, labels_from_knots
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.sim.adc_device import AdcNoise
 from tactile_sensor.sim.profiles import LoadProfile

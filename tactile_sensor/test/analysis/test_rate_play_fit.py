@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from tactile_sensor.analysis.calibration_fit import fit_calibration
-from tactile_sensor.analysis.rate_evaluation import phase_table
-from tactile_sensor.analysis.rate_fit import fit_rate_calibration
-from tactile_sensor.analysis.rate_history import loading_history, rate_force_history
-from tactile_sensor.analysis.rate_record import LOADING, UNLOADING, RateRecord
+from tactile_sensor.analysis.rate.evaluation import phase_table
+from tactile_sensor.analysis.rate.fit import fit_rate_calibration
+from tactile_sensor.analysis.rate.history import loading_history, rate_force_history
+from tactile_sensor.analysis.rate.record import LOADING, UNLOADING, RateRecord
 from tactile_sensor.analysis.synthetic import rate_press_record
 
 PLAY_M = 65e-6  # the mock's output_play

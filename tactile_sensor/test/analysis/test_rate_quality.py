@@ -14,21 +14,19 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactile_sensor.analysis.rate_evaluation import (
+from tactile_sensor.analysis.rate.evaluation import (
     GOAL_RATIO,
     GOAL_SHARE_FS,
     PhaseError,
     phase_table,
     table_dict,
 )
-from tactile_sensor.analysis.rate_fit import (
-    REVERSAL_SHARE,
-    _speed_weights,
-    _without_reversals,
-    fit_rate_calibration,
-)
-from tactile_sensor.analysis.rate_history import rate_force_history, zero_phase_low_pass
-from tactile_sensor.analysis.rate_record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
+from tactile_sensor.analysis.rate.fit import fit_rate_calibration
+from tactile_sensor.analysis.rate.grid import REVERSAL_SHARE
+from tactile_sensor.analysis.rate.grid import speed_weights as _speed_weights
+from tactile_sensor.analysis.rate.grid import without_reversals as _without_reversals
+from tactile_sensor.analysis.rate.history import rate_force_history, zero_phase_low_pass
+from tactile_sensor.analysis.rate.record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
 from tactile_sensor.analysis.synthetic import TRUE_PRONY_G as TRUE_G
 from tactile_sensor.analysis.synthetic import TRUE_PRONY_TAU_S as TRUE_TAU_S
 from tactile_sensor.analysis.synthetic import rate_press_record
@@ -230,7 +228,7 @@ def test_the_zero_phase_low_pass_is_scipys_filtfilt_with_odd_padding(rows, lengt
                                                                      cutoff_hz, seed):
     from scipy.signal import butter, filtfilt
 
-    from tactile_sensor.analysis.rate_history import LOW_PASS_ORDER
+    from tactile_sensor.analysis.rate.history import LOW_PASS_ORDER
 
     values = np.random.default_rng(seed).normal(size=(rows, length)).cumsum(axis=-1)
     b, a = butter(LOW_PASS_ORDER, 2.0 * cutoff_hz * 1e-3)

@@ -15,8 +15,8 @@ import numpy as np
 
 from tactile_sensor.sensing.rate_calibration import RateCalibration
 
-from .rate_history import rate_force_history, static_force, zero_phase_low_pass
-from .rate_record import PHASES, RateRecord
+from .history import rate_force_history, static_force, zero_phase_low_pass
+from .record import PHASES, RateRecord
 
 MODEL_CUTOFF_HZ = 5.0  # a 20 mm/s ramp (0.15 s) still has ~1 cycle; white noise is cut ~10x
 GOAL_RATIO = 0.5  # rate-aware RMSE at most half the static curve's ...

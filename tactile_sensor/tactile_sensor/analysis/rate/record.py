@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import SegmentError
-from .segmentation import Segmentation
+from ..errors import SegmentError
+from ..segmentation import Segmentation
 
 OUTSIDE, LOADING, HOLD, UNLOADING = 0, 1, 2, 3
 PHASES = {LOADING: "loading", HOLD: "hold", UNLOADING: "unloading"}

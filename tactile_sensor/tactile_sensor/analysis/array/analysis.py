@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from .bag_reader import Recording, Series
-from .errors import SegmentError, TopicError
+from ..bag_reader import Recording, Series
+from ..errors import SegmentError, TopicError
 
 AXES = ("x", "y", "z")
 # an axis is excited (its column of the sensitivity matrix and of the cross-talk can be
@@ -383,21 +383,6 @@ def analyse_array(recording: Recording, reason: str) -> ArrayAnalysis:
         notes.append(f"the lateral reference force never reaches {SHEAR_MIN_N} N, so no shear "
                      "direction is compared.")
     pct = _pct(rmse, span)
-    sensitivity = None
-    if sens is not None:
-        sensitivity = {
-            "faces": list(sens.faces), "axes": list(AXES),
-            "values_v_per_n": [[_num(v) for v in row] for row in sens.matrix_v_per_n],
-            "offset_v": [_num(v) for v in sens.offset_v],
-            "r2": [_num(v) for v in sens.r2],
-        }
-    direction = None
-    if shear is not None:
-        deg = np.degrees(shear.error_rad)
-        direction = {"threshold_n": _num(shear.threshold_n), "samples": int(deg.size),
-                     "rmse_deg": _num(float(np.sqrt(np.mean(deg ** 2)))),
-                     "median_abs_deg": _num(float(np.median(np.abs(deg)))),
-                     "max_abs_deg": _num(float(np.max(np.abs(deg))))}
     metrics: dict[str, Any] = {
         "force_rmse_n": _per_axis(rmse),
         "force_range_n": _per_axis(span),
@@ -411,29 +396,57 @@ def analyse_array(recording: Recording, reason: str) -> ArrayAnalysis:
             "duration_s": _num(float(sig.t_s[-1])),
             "sample_rate_hz": _num(sig.rate_hz),
             "excited_axes": [a for a, e in zip(AXES, excited, strict=True) if e],
-            "sensitivity_matrix": sensitivity,
+            "sensitivity_matrix": _sensitivity_dict(sens),
             "force_cross_talk": {"rows": "estimated axis", "columns": "reference axis",
                                  "axes": list(AXES),
                                  "values": [[_num(v) for v in row] for row in talk]},
-            "shear_direction": direction,
+            "shear_direction": _direction_dict(shear),
         },
     }
-    torque_rmse = torque_span = None
-    unobserved: tuple[str, ...] = ()
-    if sig.estimate_torque_nm is not None and sig.reference_torque_nm is not None:
-        torque_rmse, torque_span = force_errors(sig.estimate_torque_nm, sig.reference_torque_nm)
-        unobserved = tuple(a for a, col in zip(AXES, sig.estimate_torque_nm.T, strict=True)
-                           if np.all(np.isnan(col)))
-        metrics["torque_rmse_nm"] = _per_axis(torque_rmse)
-        metrics["torque_range_nm"] = _per_axis(torque_span)
-        metrics["torque_rmse_pct_range"] = _per_axis(_pct(torque_rmse, torque_span))
-        metrics["array"]["torque_unobserved_axes"] = list(unobserved)
-        if unobserved:
-            names = ", ".join(f"T{a}" for a in unobserved)
-            them, their = ("them", "their") if len(unobserved) > 1 else ("it", "its")
-            notes.append(f"the driver publishes {names} as NaN throughout (its module layout "
-                         f"does not observe {them}), so {their} torque error is null.")
+    torque_rmse, torque_span, unobserved = _torque_errors(sig, metrics, notes)
     return ArrayAnalysis(metrics=metrics, notes=notes, signals=sig, rmse_n=rmse, range_n=span,
                          sensitivity=sens, cross_talk=talk, shear=shear, detected_by=reason,
                          torque_rmse_nm=torque_rmse, torque_range_nm=torque_span,
                          torque_unobserved=unobserved)
+
+
+def _sensitivity_dict(sens: Sensitivity | None) -> dict[str, Any] | None:
+    if sens is None:
+        return None
+    return {
+        "faces": list(sens.faces), "axes": list(AXES),
+        "values_v_per_n": [[_num(v) for v in row] for row in sens.matrix_v_per_n],
+        "offset_v": [_num(v) for v in sens.offset_v],
+        "r2": [_num(v) for v in sens.r2],
+    }
+
+
+def _direction_dict(shear: ShearDirections | None) -> dict[str, Any] | None:
+    if shear is None:
+        return None
+    deg = np.degrees(shear.error_rad)
+    return {"threshold_n": _num(shear.threshold_n), "samples": int(deg.size),
+            "rmse_deg": _num(float(np.sqrt(np.mean(deg ** 2)))),
+            "median_abs_deg": _num(float(np.median(np.abs(deg)))),
+            "max_abs_deg": _num(float(np.max(np.abs(deg))))}
+
+
+def _torque_errors(sig: ArraySignals, metrics: dict[str, Any], notes: list[str]
+                   ) -> tuple[np.ndarray | None, np.ndarray | None, tuple[str, ...]]:
+    """The torque's errors per axis where the recording has both torques (added to
+    ``metrics``), and the axes the driver does not observe (a note)."""
+    if sig.estimate_torque_nm is None or sig.reference_torque_nm is None:
+        return None, None, ()
+    torque_rmse, torque_span = force_errors(sig.estimate_torque_nm, sig.reference_torque_nm)
+    unobserved = tuple(a for a, col in zip(AXES, sig.estimate_torque_nm.T, strict=True)
+                       if np.all(np.isnan(col)))
+    metrics["torque_rmse_nm"] = _per_axis(torque_rmse)
+    metrics["torque_range_nm"] = _per_axis(torque_span)
+    metrics["torque_rmse_pct_range"] = _per_axis(_pct(torque_rmse, torque_span))
+    metrics["array"]["torque_unobserved_axes"] = list(unobserved)
+    if unobserved:
+        names = ", ".join(f"T{a}" for a in unobserved)
+        them, their = ("them", "their") if len(unobserved) > 1 else ("it", "its")
+        notes.append(f"the driver publishes {names} as NaN throughout (its module layout "
+                     f"does not observe {them}), so {their} torque error is null.")
+    return torque_rmse, torque_span, unobserved

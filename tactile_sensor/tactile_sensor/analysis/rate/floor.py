@@ -29,13 +29,13 @@ from tactile_sensor.sim.bench_world import BenchWorld, play
 from tactile_sensor.sim.profiles import LoadProfile
 from tactile_sensor.sim.skin_response import TabulatedSkin
 
-from .alignment import Aligned
-from .errors import SegmentError
-from .metrics import baseline, peak_values
-from .rate_fit import TRACKER_SMOOTHING_HZ, tracker_band_v
-from .rate_history import loading_history
-from .rate_record import RateRecord, record_from_segmentation
-from .segmentation import segment
+from ..alignment import Aligned
+from ..errors import SegmentError
+from ..metrics import baseline, peak_values
+from ..segmentation import segment
+from .grid import TRACKER_SMOOTHING_HZ, tracker_band_v
+from .history import loading_history
+from .record import RateRecord, record_from_segmentation
 
 TARE_WINDOW_S = (0.2, 0.9)  # inside the first rest, after the filter has filled
 

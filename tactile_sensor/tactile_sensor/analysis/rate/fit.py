@@ -18,7 +18,7 @@ Why this way:
   limit a `speeds` record without holds fitted a third term, 0.15 @ 28 ms.)
 - Number of terms (and play) by held-out error: leave one speed out, fit on the rest, and
   score the held-out speed as the goal scores a recording: the error low-passed at
-  ``rate_evaluation.MODEL_CUTOFF_HZ`` (the output's white noise, the same for every
+  ``evaluation.MODEL_CUTOFF_HZ`` (the output's white noise, the same for every
   choice, would hide the differences), RMS per phase, the worst phase counting
   (``TermCount.worst_phase_n``). Held-out speeds only rule counts out: the fold that holds
   the fastest speed out cannot fit a term only that speed resolves, so a fast term scores
@@ -30,12 +30,12 @@ Why this way:
   press's samples, decide, and kept play out although it halved the unloading error
   (0.120 against 0.117 N whole, 0.13 against 0.115 N worst phase, on a `speeds` recording
   with holds).
-- Every speed weighs the same (``_speed_weights``): on the grid a 0.1 mm/s press has ~100x
+- Every speed weighs the same (``speed_weights``): on the grid a 0.1 mm/s press has ~100x
   the samples of a 10 mm/s one, so unweighted the fit served the slow press, where the
   rate force is nearly nil, and fitted the fast terms to nothing (one 18 s term came out).
 - Output and force are low-passed, zero phase, at ``SEGMENT_CUTOFF_HZ`` before the block
   means, each run of one phase label (a ramp, a hold, a rest) on its own
-  (``_low_pass_runs``), and the model's force goes through the same low-pass before it is
+  (``low_pass_runs``), and the model's force goes through the same low-pass before it is
   compared (``_fit``). Why: the curve and the terms are regressions on the noisy output,
   and noise in a regressor biases them (errors in variables). It flattens the curve at
   both ends, and a fast term, g x the output's changes over its time, passes the noise
@@ -51,7 +51,7 @@ Why this way:
   0.038-0.052 @ 1.4-2.3 s (the simulation: 0.05 @ 0.1 s, 0.04 @ 1.5 s).
 - The curve is fitted on the output as recorded, not low-passed: its hat functions are
   taken per recorded sample, averaged per grid block and then low-passed per run like the
-  force (``_prepare``'s blocks). The driver applies the curve to the noisy output, and
+  force (``prepare_grid``'s blocks). The driver applies the curve to the noisy output, and
   the mean of C(output + noise) is not C(output) where the curve bends: fitted on the
   low-passed output, the curve ended flat just past the holds' mean output, the noise
   above it was clamped, and every hold of the mock's pairs read 0.03-0.09 N low (0.14-
@@ -97,16 +97,24 @@ from tactile_sensor.sensing.rate_calibration import (
     RateTerm,
 )
 
-from .calibration_fit import fit_calibration
-from .errors import RateFitError
-from .rate_evaluation import MODEL_CUTOFF_HZ
-from .rate_history import (
-    UNIFORM_RTOL,
-    rate_force_history,
-    static_force,
-    zero_phase_low_pass,
+from ..calibration_fit import fit_calibration
+from ..errors import RateFitError
+from ..segmentation import speed_key
+from .evaluation import MODEL_CUTOFF_HZ
+from .grid import (
+    SEGMENT_CUTOFF_HZ,
+    TRACKER_SMOOTHING_HZ,
+    low_pass_runs,
+    low_passed,
+    on_uniform_times,
+    prepare_grid,
+    rms,
+    rmse,
+    speed_weights,
+    tracker_band_v,
 )
-from .rate_record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
+from .history import rate_force_history, static_force, zero_phase_low_pass
+from .record import HOLD, LOADING, OUTSIDE, UNLOADING, RateRecord
 
 MIN_TAU_PERIODS = 5
 SELECT_TOLERANCE = 0.10  # counts held out within 10 % of the best are not ruled out
@@ -120,13 +128,8 @@ PLAY_TOLERANCE = 0.02
 AT_BOUND = 0.01  # a fitted time within 1 % of a bound sits on it (not resolved)
 NEGLIGIBLE_G = 1e-3  # a term this small does nothing; its time does not matter
 START_G = 0.02
-SEGMENT_CUTOFF_HZ = 4.0  # the fit's low-pass of each phase run (module docstring)
 KNOT_MARGIN_SIGMAS = 3.0  # the curve reaches this many output-noise RMS past the data
-REVERSAL_SHARE = 0.05  # unloading samples before the output fell by this share are left out
 FIT_TOLERANCE = 1e-6  # relative change of cost / parameters that ends a fit
-TRACKER_SMOOTHING_HZ = 10.0  # the direction tracker's first-order low-pass
-BAND_SIGMAS = 8.0  # tracker band / noise of its smoothed output: noise flips it ~never
-MIN_BAND_V = 1e-6  # a noise-free record still gets a band (it must be > 0)
 GAP_SMOOTHING = 0.3  # penalty on half-gap changes between knots / mean data weight
 CURVE_SMOOTHING = 1e-3  # penalty on the curve's second differences / mean data weight
 ONE_SPEED = ("the rate terms cannot be fitted from one speed; record the `speeds` protocol "
@@ -197,10 +200,6 @@ class RateFit:
         }
 
 
-def speed_label(speed_mm_s: float) -> str:
-    return str(float(f"{speed_mm_s:.2g}"))
-
-
 def resolvable_tau_range(record: RateRecord, fit_rate_hz: float) -> tuple[float, float]:
     """[lowest, highest] relaxation time [s] this record resolves on the fit grid after
     the fit's low-pass."""
@@ -221,42 +220,14 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     RateFitError for one speed only or times the record cannot resolve. ``progress`` hears
     of every fit (a minute or more on a `speeds` recording)."""
     speeds = record.speeds()
-    if len(speeds) < 2:
-        raise RateFitError(ONE_SPEED)
-    if terms is not None and not (isinstance(terms, int) and 1 <= terms <= MAX_RATE_TERMS):
-        raise RateFitError(f"the number of rate terms must be 1 to {MAX_RATE_TERMS}, got "
-                           f"{terms!r}; pass 1, 2 or 3, or none to choose by held-out error.")
-    if not 2 <= knots <= 200:
-        raise RateFitError(f"the static curve needs 2 to 200 knots, got {knots}; pass e.g. 16.")
-    lo, hi = resolvable_tau_range(record, fit_rate_hz)
-    floor_s = lo  # a term on it is kept (_fit), unless the caller set the bounds
-    if not hi > 2 * lo:
-        raise RateFitError(f"the longest press lasts {hi:.3g} s, too short to resolve any "
-                           f"relaxation time above {lo:.3g} s; record whole presses with holds.")
-    if tau_bounds_s is not None:
-        a, b = (float(v) for v in tau_bounds_s)
-        if not (lo <= a < b <= hi):
-            raise RateFitError(
-                f"the requested relaxation times {a:.3g}..{b:.3g} s lie outside what this "
-                f"recording resolves ({lo:.3g}..{hi:.3g} s: from the fit's {fit_rate_hz:g} Hz "
-                f"grid and {SEGMENT_CUTOFF_HZ:g} Hz low-pass up to the longest press); request "
-                "times in that range or record longer presses and holds.")
-        lo, hi, floor_s = a, b, 0.0
-    grid, blocks_v, noise_v, loading, runs = _prepare(record, fit_rate_hz)
+    lo, hi, floor_s = _tau_range(record, speeds, terms, tau_bounds_s, knots, fit_rate_hz)
+    grid, blocks_v, noise_v, loading, runs = prepare_grid(record, fit_rate_hz)
     margin_v = KNOT_MARGIN_SIGMAS * noise_v
     split = _Split(loading, tracker_band_v(record), TRACKER_SMOOTHING_HZ)
     choices = {False: None, True: split} if play is None else {play: split if play else None}
     numbers = [terms] if terms is not None else list(range(1, MAX_RATE_TERMS + 1))
     # every fold of every choice, then at most one fit on all speeds per number of terms
-    total = len(choices) * len(numbers) * len(speeds) + len(numbers)
-    done = 0
-
-    def step(what: str) -> None:
-        nonlocal done
-        done += 1
-        if progress is not None:
-            progress(min(1.0, done / total), what)
-
+    step = _stepper(progress, len(choices) * len(numbers) * len(speeds) + len(numbers))
     tried: dict[bool, dict[int, TermCount]] = {}
     for key, how in choices.items():
         tried[key] = {n: _cross_validate(record, grid, blocks_v, runs, speeds, n, (lo, hi),
@@ -267,17 +238,77 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
     use_play = (best_of[True] < best_of[False] * (1 - PLAY_TOLERANCE) if len(tried) == 2
                 else next(iter(tried)))
     counts = tried[use_play]
-    other = tried.get(not use_play, {})
     how = split if use_play else None
-    # held-out speeds cannot confirm a term only the fastest speed resolves (the fold that
-    # holds that speed out lacks it), so they only rule counts out: of the counts within
-    # the tolerance of the best held-out error, the most terms whose fit on all speeds
-    # resolves every term wins, then the rest by error; never a fit with a time on a bound
-    # (but the fastest the record resolves: that term is at most as fast, see _fit)
+    n, cal = _choose_count(counts, lambda n: _fit(grid, blocks_v, runs, speeds, n, (lo, hi),
+                                                  knots, source, margin_v, how, floor_s),
+                           step, (lo, hi))
+    if progress is not None:
+        progress(1.0, f"{n} term(s) {'with' if how else 'without'} play chosen")
+    cal, notes = _tidy_terms(cal, floor_s)
+    if counts[n].pinned_folds:
+        notes.append(f"{counts[n].pinned_folds} of {len(speeds)} leave-one-speed-out fits put "
+                     "a relaxation time on a bound (their training speeds alone do not "
+                     "resolve it); their held-out errors are pessimistic.")
+    in_press = record.mask()
+    force = rate_force_history(cal, record.t_s, record.output_v)
+    in_sample = float(np.sqrt(np.mean((force[in_press] - record.force_n[in_press]) ** 2)))
+    return RateFit(cal, (lo, hi), counts, in_sample, fit_rate_hz, notes,
+                   tried.get(not use_play, {}))
+
+
+def _tau_range(record: RateRecord, speeds: list[float], terms: int | None,
+               tau_bounds_s: tuple[float, float] | None, knots: int, fit_rate_hz: float
+               ) -> tuple[float, float, float]:
+    """(lowest, highest relaxation time to fit [s], the floor a term may sit on): what the
+    record resolves, or the caller's bounds inside it; RateFitError for arguments or a
+    record the fit cannot work with."""
+    if len(speeds) < 2:
+        raise RateFitError(ONE_SPEED)
+    if terms is not None and not (isinstance(terms, int) and 1 <= terms <= MAX_RATE_TERMS):
+        raise RateFitError(f"the number of rate terms must be 1 to {MAX_RATE_TERMS}, got "
+                           f"{terms!r}; pass 1, 2 or 3, or none to choose by held-out error.")
+    if not 2 <= knots <= 200:
+        raise RateFitError(f"the static curve needs 2 to 200 knots, got {knots}; pass e.g. 16.")
+    lo, hi = resolvable_tau_range(record, fit_rate_hz)
+    if not hi > 2 * lo:
+        raise RateFitError(f"the longest press lasts {hi:.3g} s, too short to resolve any "
+                           f"relaxation time above {lo:.3g} s; record whole presses with holds.")
+    if tau_bounds_s is None:
+        return lo, hi, lo  # a term on the floor is kept (_fit)
+    a, b = (float(v) for v in tau_bounds_s)
+    if not (lo <= a < b <= hi):
+        raise RateFitError(
+            f"the requested relaxation times {a:.3g}..{b:.3g} s lie outside what this "
+            f"recording resolves ({lo:.3g}..{hi:.3g} s: from the fit's {fit_rate_hz:g} Hz "
+            f"grid and {SEGMENT_CUTOFF_HZ:g} Hz low-pass up to the longest press); request "
+            "times in that range or record longer presses and holds.")
+    return a, b, 0.0
+
+
+def _stepper(progress: FitProgress | None, total: int) -> Callable[[str], None]:
+    """Counts the fits done and tells ``progress`` the share of ``total``."""
+    done = 0
+
+    def step(what: str) -> None:
+        nonlocal done
+        done += 1
+        if progress is not None:
+            progress(min(1.0, done / total), what)
+    return step
+
+
+def _choose_count(counts: dict[int, TermCount],
+                  fit_all: Callable[[int], tuple[RateCalibration, bool]],
+                  step: Callable[[str], None], tau_range: tuple[float, float]
+                  ) -> tuple[int, RateCalibration]:
+    """Held-out speeds cannot confirm a term only the fastest speed resolves (the fold that
+    holds that speed out lacks it), so they only rule counts out: of the counts within
+    the tolerance of the best held-out error, the most terms whose fit on all speeds
+    resolves every term wins, then the rest by error; never a fit with a time on a bound
+    (but the fastest the record resolves: that term is at most as fast, see _fit)."""
     chosen: tuple[int, RateCalibration] | None = None
     for n in _count_order(counts):
-        cal, pinned = _fit(grid, blocks_v, runs, speeds, n, (lo, hi), knots, source,
-                           margin_v, how, floor_s)
+        cal, pinned = fit_all(n)
         step(f"{n} term(s) on all speeds")
         if pinned:
             continue
@@ -287,13 +318,16 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
             chosen = (n, cal)
             break
     if chosen is None:
+        lo, hi = tau_range
         raise RateFitError(
             f"every fitted relaxation time sits on the edge of what this recording resolves "
             f"({lo:.3g}..{hi:.3g} s), so the rate terms are not determined; record the "
             "`speeds` protocol with holds (e.g. --protocol speeds:hold=2).")
-    n, cal = chosen
-    if progress is not None:
-        progress(1.0, f"{n} term(s) {'with' if how else 'without'} play chosen")
+    return chosen
+
+
+def _tidy_terms(cal: RateCalibration, floor_s: float) -> tuple[RateCalibration, list[str]]:
+    """Negligible terms dropped, and a note where the fastest term sits on the floor."""
     notes = []
     kept = [t for t in cal.terms if t.g >= NEGLIGIBLE_G] or [max(cal.terms, key=lambda t: t.g)]
     if len(kept) < len(cal.terms):
@@ -305,14 +339,7 @@ def fit_rate_calibration(record: RateRecord, source: str, terms: int | None = No
         notes.append(f"the fastest term's time sits on the fastest this recording resolves "
                      f"({floor_s * 1e3:.0f} ms), so it is at most that; on ramps only its "
                      f"g x tau ({fastest.g * fastest.tau_s * 1e3:.2f} ms) shows.")
-    if counts[n].pinned_folds:
-        notes.append(f"{counts[n].pinned_folds} of {len(speeds)} leave-one-speed-out fits put "
-                     "a relaxation time on a bound (their training speeds alone do not "
-                     "resolve it); their held-out errors are pessimistic.")
-    in_press = record.mask()
-    force = rate_force_history(cal, record.t_s, record.output_v)
-    rmse = float(np.sqrt(np.mean((force[in_press] - record.force_n[in_press]) ** 2)))
-    return RateFit(cal, (lo, hi), counts, rmse, fit_rate_hz, notes, other)
+    return cal, notes
 
 
 # -- internals -----------------------------------------------------------------------------
@@ -325,154 +352,6 @@ class _Split:
     loading: np.ndarray
     band_v: float
     smoothing_hz: float
-
-
-def _prepare(record: RateRecord, fit_rate_hz: float
-             ) -> tuple[RateRecord, np.ndarray, float, np.ndarray, np.ndarray]:
-    """(the fit's grid: uniform, low-passed, reversal plays left out, block means; the
-    output as recorded (uniform, not low-passed) in the grid's blocks, one row per grid
-    sample [V]; the RMS the low-pass removed from the in-press output [V], its noise; each
-    grid sample's branch by its press phase, True for loading; where the grid's phase runs
-    start, as the low-pass saw them, before the reversals were left out)."""
-    uniform = _uniform(record)
-    smooth = _smooth(uniform)
-    inside = uniform.mask()
-    noise_v = _rmse(uniform.output_v[inside], smooth.output_v[inside]) if np.any(inside) else 0.0
-    grid = _decimate(_without_reversals(smooth), fit_rate_hz)
-    q = _block_size(uniform, fit_rate_hz)
-    blocks_v = uniform.output_v[:grid.t_s.size * q].reshape(grid.t_s.size, q)
-    phase = _decimate(smooth, fit_rate_hz).phase
-    return grid, blocks_v, noise_v, _phase_branches(phase), _run_starts(phase)
-
-
-def _phase_branches(phase: np.ndarray) -> np.ndarray:
-    """True on loading and hold samples, False on unloading, the last of those between
-    presses (True before the first)."""
-    code = np.where(np.isin(phase, (LOADING, HOLD)), 1, np.where(phase == UNLOADING, 0, -1))
-    known = np.flatnonzero(code >= 0)
-    if known.size == 0:
-        return np.ones(phase.size, dtype=bool)
-    last = np.maximum.accumulate(np.where(code >= 0, np.arange(phase.size), -1))
-    return np.where(last >= 0, code[np.maximum(last, 0)] == 1, True)
-
-
-def tracker_band_v(record: RateRecord) -> float:
-    """The direction tracker's band [V] for this record's noise: ``BAND_SIGMAS`` x the
-    noise of its smoothed output (at least ``MIN_BAND_V``)."""
-    return max(MIN_BAND_V, BAND_SIGMAS * _tracker_noise(record))
-
-
-def _tracker_noise(record: RateRecord) -> float:
-    """RMS noise [V] of the in-press output after the tracker's first-order smoothing:
-    the robust spread of what a zero-phase low-pass at a quarter of its cut-off leaves."""
-    uniform = _uniform(record)
-    period = float(uniform.t_s[1] - uniform.t_s[0])
-    alpha = -math.expm1(-2.0 * math.pi * TRACKER_SMOOTHING_HZ * period)
-    out = uniform.output_v
-    smooth = lfilter([alpha], [1.0, alpha - 1.0], out - out[0]) + out[0]
-    slow = zero_phase_low_pass(period, TRACKER_SMOOTHING_HZ / 4.0, smooth)
-    inside = uniform.mask()
-    if slow is None or not np.any(inside):
-        return 0.0
-    residual = (smooth - slow)[inside]
-    return float(1.4826 * np.median(np.abs(residual - np.median(residual))))
-
-
-def _uniform(record: RateRecord) -> RateRecord:
-    """The record itself when its times are uniform, else interpolated onto its median
-    period (labels of the nearest later sample)."""
-    period = float(np.median(np.diff(record.t_s)))
-    if np.allclose(np.diff(record.t_s), period, rtol=UNIFORM_RTOL, atol=0.0):
-        return record
-    t = np.arange(record.t_s[0], record.t_s[-1], period)
-    near = np.clip(np.searchsorted(record.t_s, t), 0, record.t_s.size - 1)
-    return RateRecord(t, np.interp(t, record.t_s, record.output_v),
-                      np.interp(t, record.t_s, record.force_n),
-                      record.speed_mm_s[near], record.phase[near])
-
-
-def _smooth(record: RateRecord) -> RateRecord:
-    """Output and force through ``_low_pass_runs`` (module docstring)."""
-    period = float(record.t_s[1] - record.t_s[0])
-    starts = _run_starts(record.phase)
-    return RateRecord(record.t_s, _low_pass_runs(period, starts, record.output_v),
-                      _low_pass_runs(period, starts, record.force_n), record.speed_mm_s,
-                      record.phase)
-
-
-def _run_starts(phase: np.ndarray) -> np.ndarray:
-    """Indices where a run of one phase label starts (after the first)."""
-    return np.flatnonzero(np.diff(phase)) + 1
-
-
-def _low_pass_runs(period_s: float, starts: np.ndarray, values: np.ndarray,
-                   only: np.ndarray | None = None) -> np.ndarray:
-    """``values`` (time along the last axis), each run between ``starts`` on its own,
-    through a zero-phase low-pass at ``SEGMENT_CUTOFF_HZ`` padded by a cut-off period;
-    runs too short to filter stay as they are, and so do runs without an ``only`` sample
-    (the caller never reads them)."""
-    out = np.array(values, dtype=float)
-    for run in np.split(np.arange(out.shape[-1]), starts):
-        if only is not None and not np.any(only[run]):
-            continue
-        part = slice(int(run[0]), int(run[-1]) + 1) if run.size else slice(0, 0)
-        smooth = zero_phase_low_pass(period_s, SEGMENT_CUTOFF_HZ, out[..., part], long_pad=True)
-        if smooth is not None:
-            out[..., part] = smooth
-    return out
-
-
-def _without_reversals(record: RateRecord) -> RateRecord:
-    """The record with the first samples of each unloading ramp labelled OUTSIDE, until
-    the output has fallen by ``REVERSAL_SHARE`` of the in-press output range."""
-    inside = record.mask()
-    if not np.any(inside):
-        return record
-    drop = REVERSAL_SHARE * float(np.ptp(record.output_v[inside]))
-    unloading = record.phase == UNLOADING
-    starts = np.flatnonzero(unloading & ~np.concatenate(([False], unloading[:-1])))
-    phase = record.phase.copy()
-    for start in starts.tolist():
-        after = np.flatnonzero(~unloading[start:])
-        stop = start + (int(after[0]) if after.size else unloading.size - start)
-        moved = np.flatnonzero(record.output_v[start:stop] <= record.output_v[start] - drop)
-        phase[start:start + (int(moved[0]) if moved.size else stop - start)] = OUTSIDE
-    return RateRecord(record.t_s, record.output_v, record.force_n, record.speed_mm_s, phase)
-
-
-def _speed_weights(record: RateRecord, speeds: list[float], score: np.ndarray) -> np.ndarray:
-    """Per scored sample, 1 / (that speed's scored samples), scaled to a mean of 1: each
-    speed counts the same, however long its presses last."""
-    labels = record.speed_mm_s[score]
-    weights = np.zeros(labels.size)
-    for s in speeds:
-        mine = labels == s
-        if np.any(mine):
-            weights[mine] = 1.0 / np.count_nonzero(mine)
-    return weights * (weights.size / weights.sum())
-
-
-def _decimate(record: RateRecord, fit_rate_hz: float) -> RateRecord:
-    """The record on a uniform grid near ``fit_rate_hz``: block means of time, output and
-    force, labels of each block's middle sample (a non-uniform record is first
-    interpolated onto its median period)."""
-    record = _uniform(record)
-    q = _block_size(record, fit_rate_hz)
-    if q == 1:
-        return record
-    n = record.t_s.size // q * q
-
-    def mean(a: np.ndarray) -> np.ndarray:
-        return a[:n].reshape(-1, q).mean(axis=1)
-
-    mid = np.arange(q // 2, n, q)
-    return RateRecord(mean(record.t_s), mean(record.output_v), mean(record.force_n),
-                      record.speed_mm_s[mid], record.phase[mid])
-
-
-def _block_size(record: RateRecord, fit_rate_hz: float) -> int:
-    """Samples per grid block of a uniform record (``_decimate``)."""
-    return max(1, round(1.0 / (fit_rate_hz * float(np.median(np.diff(record.t_s))))))
 
 
 def _fold_bounds(record: RateRecord, train: list[float], tau_bounds: tuple[float, float]
@@ -500,8 +379,8 @@ def _cross_validate(record: RateRecord, grid: RateRecord, blocks_v: np.ndarray,
     worst: dict[str, float] = {}
     static: dict[str, float] = {}
     pinned_folds = 0
-    uniform = _uniform(record)
-    scored = _smooth(uniform)
+    uniform = on_uniform_times(record)
+    scored = low_passed(uniform)
     period = float(uniform.t_s[1] - uniform.t_s[0])
     for out in speeds:
         train = [s for s in speeds if s != out]
@@ -510,18 +389,18 @@ def _cross_validate(record: RateRecord, grid: RateRecord, blocks_v: np.ndarray,
                            split, floor_s)
         if step is not None:
             step(f"{n} term(s) {'with' if split else 'without'} play, "
-                 f"{speed_label(out)} mm/s held out")
+                 f"{speed_key(out)} mm/s held out")
         pinned_folds += int(pinned)
         test = scored.mask([out])
         force = rate_force_history(cal, scored.t_s, scored.output_v)
-        held[speed_label(out)] = _rmse(force[test], scored.force_n[test])
+        held[speed_key(out)] = rmse(force[test], scored.force_n[test])
         error = zero_phase_low_pass(period, MODEL_CUTOFF_HZ, rate_force_history(
             cal, uniform.t_s, uniform.output_v) - uniform.force_n)
         phases = [uniform.mask([out], code) for code in (LOADING, HOLD, UNLOADING)]
         if error is not None:
-            worst[speed_label(out)] = max(_rms(error[m]) for m in phases if np.any(m))
+            worst[speed_key(out)] = max(rms(error[m]) for m in phases if np.any(m))
         curve = _static_competitor(record, train)
-        static[speed_label(out)] = _rmse(
+        static[speed_key(out)] = rmse(
             static_force(curve.output_v, curve.force_n, scored.output_v[test]),
             scored.force_n[test])
     return TermCount(n, held, static, pinned_folds,
@@ -553,14 +432,6 @@ def _resolves_every_term(cal: RateCalibration) -> bool:
             and all(b >= MIN_TAU_RATIO * a for a, b in itertools.pairwise(taus)))
 
 
-def _rmse(a: np.ndarray, b: np.ndarray) -> float:
-    return _rms(a - b)
-
-
-def _rms(x: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(x ** 2))) if x.size else math.nan
-
-
 def _fit(grid: RateRecord, blocks_v: np.ndarray, runs: np.ndarray, speeds: list[float],
          n: int, tau_bounds: tuple[float, float], knots: int, source: str,
          margin_v: float = 0.0, split: _Split | None = None, floor_s: float = 0.0
@@ -580,40 +451,21 @@ def _fit(grid: RateRecord, blocks_v: np.ndarray, runs: np.ndarray, speeds: list[
     nonlinear fit of 2n numbers only; ~20x faster than fitting all together. With a
     ``split`` B has each branch's hats on its own samples (2 x knots columns)."""
     score = grid.mask(speeds)
-    x = grid.output_v[score]
-    lo_x, hi_x = np.percentile(x, [0.5, 99.5])
-    if not hi_x > lo_x:
-        raise RateFitError("the module output does not change during the presses, so no "
-                           "calibration can be fitted; check the reading topic and the sensor.")
-    # the curve reaches ``margin_v`` beyond the (low-passed) outputs: the driver's noisy
-    # outputs past its ends would be clamped, biasing a hold at full scale low
-    knot_v = np.linspace(lo_x - margin_v, hi_x + margin_v, knots)
-    hats = _hat_basis(knot_v, blocks_v.ravel()).reshape(*blocks_v.shape, knots).mean(axis=1)
-    cumulative = np.tril(np.ones((knots, knots)))  # knot forces = f0 + running increments
-    lower_u = np.concatenate(([-np.inf], np.zeros(knots - 1)))
-    # curvature: knots beyond the data (the margin, the top of the unloading branch)
-    # continue the curve's slope instead of staying where the bounded solve leaves them
-    penalty = math.sqrt(CURVE_SMOOTHING) * np.diff(np.eye(knots), 2, axis=0)
-    if split is not None:  # [loading | unloading] columns, each branch monotone
-        on = split.loading[:, None]
-        hats = np.hstack((hats * on, hats * ~on))
-        cumulative = np.kron(np.eye(2), cumulative)
-        lower_u = np.tile(lower_u, 2)
-        penalty = np.vstack((np.kron(np.eye(2), penalty), math.sqrt(GAP_SMOOTHING) * np.kron(
-            [[1.0, -1.0]], np.diff(np.eye(knots), axis=0))))  # and the gap's changes
+    knot_v = _knot_outputs(grid.output_v[score], margin_v, knots)
+    hats, cumulative, lower_u, penalty = _curve_basis(knot_v, blocks_v, split)
     columns = hats.shape[1]
     # columns x samples, C order: lfilter along the last axis runs ~3x faster than strided
     hat_changes = np.ascontiguousarray(
         np.vstack((np.zeros((1, columns)), np.diff(hats, axis=0))).T)
     dt = float(grid.t_s[1] - grid.t_s[0])
-    root_w = np.sqrt(_speed_weights(grid, speeds, score))
+    root_w = np.sqrt(speed_weights(grid, speeds, score))
     measured = grid.force_n[score] * root_w
     upper_u = np.full(columns, np.inf)
     ridge = 1e-12 * max(1.0, float(np.sum(hats[score] ** 2)))
     smoothing = penalty.T @ penalty * (float(np.sum(root_w ** 2)) / knots)
 
     def low_pass(columns_by_time: np.ndarray) -> np.ndarray:
-        return _low_pass_runs(dt, runs, columns_by_time, score)[:, score].T
+        return low_pass_runs(dt, runs, columns_by_time, score)[:, score].T
 
     hats_scored = low_pass(np.ascontiguousarray(hats.T)) * root_w[:, None]
 
@@ -651,21 +503,71 @@ def _fit(grid: RateRecord, blocks_v: np.ndarray, runs: np.ndarray, speeds: list[
         u = lsq_linear(r @ cumulative, z, bounds=(lower_u, upper_u), method="bvls").x
         return u, a @ (cumulative @ u) - measured
 
+    best = _multi_start(lambda p: solve(p)[1], n, tau_bounds)
+    u, _ = solve(best)
+    return _calibration(knot_v, cumulative @ u, best, tau_bounds, split, source, floor_s)
+
+
+def _knot_outputs(x: np.ndarray, margin_v: float, knots: int) -> np.ndarray:
+    """The curve's knots [V] over the scored outputs ``x``. They reach ``margin_v`` beyond
+    the (low-passed) outputs: the driver's noisy outputs past its ends would be clamped,
+    biasing a hold at full scale low."""
+    lo_x, hi_x = np.percentile(x, [0.5, 99.5])
+    if not hi_x > lo_x:
+        raise RateFitError("the module output does not change during the presses, so no "
+                           "calibration can be fitted; check the reading topic and the sensor.")
+    return np.linspace(lo_x - margin_v, hi_x + margin_v, knots)
+
+
+def _curve_basis(knot_v: np.ndarray, blocks_v: np.ndarray, split: _Split | None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The curve's part of the least squares: (hat columns per grid sample, increments ->
+    knot forces, the increments' lower bounds, the smoothing penalty's rows); with a
+    ``split``, each branch's hats on its own samples."""
+    knots = knot_v.size
+    hats = _hat_basis(knot_v, blocks_v.ravel()).reshape(*blocks_v.shape, knots).mean(axis=1)
+    cumulative = np.tril(np.ones((knots, knots)))  # knot forces = f0 + running increments
+    lower_u = np.concatenate(([-np.inf], np.zeros(knots - 1)))
+    # curvature: knots beyond the data (the margin, the top of the unloading branch)
+    # continue the curve's slope instead of staying where the bounded solve leaves them
+    penalty = math.sqrt(CURVE_SMOOTHING) * np.diff(np.eye(knots), 2, axis=0)
+    if split is not None:  # [loading | unloading] columns, each branch monotone
+        on = split.loading[:, None]
+        hats = np.hstack((hats * on, hats * ~on))
+        cumulative = np.kron(np.eye(2), cumulative)
+        lower_u = np.tile(lower_u, 2)
+        penalty = np.vstack((np.kron(np.eye(2), penalty), math.sqrt(GAP_SMOOTHING) * np.kron(
+            [[1.0, -1.0]], np.diff(np.eye(knots), axis=0))))  # and the gap's changes
+    return hats, cumulative, lower_u, penalty
+
+
+def _multi_start(residuals: Callable[[np.ndarray], np.ndarray], n: int,
+                 tau_bounds: tuple[float, float]) -> np.ndarray:
+    """(g..., log tau...) of the better of two starts: times spread evenly over the
+    bounds, then shifted by half a step."""
     lo_log, hi_log = math.log(tau_bounds[0]), math.log(tau_bounds[1])
     best = None
     for offset in (0.0, 0.5):
         log_tau = [lo_log + (hi_log - lo_log) * (i + 1 + offset) / (n + 1 + offset)
                    for i in range(n)]
-        result = least_squares(lambda p: solve(p)[1], np.array([START_G] * n + log_tau),
+        result = least_squares(residuals, np.array([START_G] * n + log_tau),
                                bounds=([0.0] * n + [lo_log] * n, [2.0] * n + [hi_log] * n),
                                x_scale=[0.05] * n + [1.0] * n, method="trf",
                                ftol=FIT_TOLERANCE, xtol=FIT_TOLERANCE)
         if best is None or result.cost < best.cost:
             best = result
     assert best is not None
-    u, _ = solve(best.x)
-    force_knots = cumulative @ u
-    g, log_tau = best.x[:n], best.x[n:]
+    return best.x
+
+
+def _calibration(knot_v: np.ndarray, force_knots: np.ndarray, p: np.ndarray,
+                 tau_bounds: tuple[float, float], split: _Split | None, source: str,
+                 floor_s: float) -> tuple[RateCalibration, bool]:
+    """The fitted numbers as a calibration (branches as curve and half-gap, terms by time)
+    and whether a non-negligible term's time sits on a bound (``_fit``)."""
+    knots, n = knot_v.size, p.size // 2
+    lo_log, hi_log = math.log(tau_bounds[0]), math.log(tau_bounds[1])
+    g, log_tau = p[:n], p[n:]
     play = None
     if split is not None:
         up = np.maximum.accumulate(force_knots[:knots])

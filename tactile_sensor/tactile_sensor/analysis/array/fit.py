@@ -38,9 +38,9 @@ from scipy.signal import butter, sosfiltfilt
 from tactile_sensor.sensing.array_calibration import COMPONENTS, TORQUE_DEGREE, ArrayCalibration
 from tactile_sensor.sensing.errors import CalibrationError
 
-from .array import ArraySignals, align_array, reference_has_torque
-from .bag_reader import Recording
-from .errors import SegmentError
+from ..bag_reader import Recording
+from ..errors import SegmentError
+from .analysis import ArraySignals, align_array, reference_has_torque
 
 #: Cut-off [Hz] of the zero-phase low-pass applied alike to outputs and gauge: well above
 #: the protocol's motions (about 1 mm/s over millimetres) and well below the force filter's
