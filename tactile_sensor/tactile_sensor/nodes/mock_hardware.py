@@ -53,9 +53,8 @@ from tactile_sensor.sim.adc_device import AdcNoise, MockAdcDevice
 from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin
 from tactile_sensor.sim.bench_world import BenchWorld
 from tactile_sensor.sim.errors import SimError
-from tactile_sensor.sim.profiles import MAX_SHEAR_M, LoadProfile, array_profile
+from tactile_sensor.sim.profiles import MAX_ROTATION_RAD, MAX_SHEAR_M, LoadProfile, array_profile
 from tactile_sensor.sim.skin_response import TabulatedSkin
-from tactile_sensor.sim.wrench_profile import MAX_ROTATION_RAD
 from tactile_sensor.sim.wrench_world import WRENCH_MIN_MODULES, WrenchBenchWorld, WrenchSkin
 
 SPECS = [
