@@ -51,11 +51,10 @@ from tactile_sensor.physics.prediction import load_or_compute_curve
 from tactile_sensor.physics.viscoelastic import RateDependentForce
 from tactile_sensor.sim.adc_device import AdcNoise, MockAdcDevice
 from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin
-from tactile_sensor.sim.bench_world import BenchWorld
+from tactile_sensor.sim.bench_world import BenchRun, BenchWorld
 from tactile_sensor.sim.errors import SimError
-from tactile_sensor.sim.profiles import MAX_SHEAR_M, LoadProfile, array_profile
+from tactile_sensor.sim.profiles import MAX_ROTATION_RAD, MAX_SHEAR_M, LoadProfile, array_profile
 from tactile_sensor.sim.skin_response import TabulatedSkin
-from tactile_sensor.sim.wrench_profile import MAX_ROTATION_RAD
 from tactile_sensor.sim.wrench_world import WRENCH_MIN_MODULES, WrenchBenchWorld, WrenchSkin
 
 SPECS = [
@@ -151,7 +150,7 @@ class ProtocolSource:
     module stay aligned to the ADC's clock.
     """
 
-    def __init__(self, world: BenchWorld | ArrayBenchWorld) -> None:
+    def __init__(self, world: BenchRun) -> None:
         self.world = world
         self._start_device_s: float | None = None
         #: Bumped at each start: the ADC samples ahead of time and must sample again.
@@ -184,7 +183,7 @@ STAGE_JOINTS = ("stage_z", "stage_x", "stage_y")
 WRENCH_STAGE_JOINTS = (*STAGE_JOINTS, "stage_rx", "stage_ry", "stage_rz")
 
 
-def stage_and_gauge(world: BenchWorld | ArrayBenchWorld, t: float
+def stage_and_gauge(world: BenchRun, t: float
                     ) -> tuple[list[float], tuple[float, ...]]:
     """Stage positions (d, sx, sy [m], and rx, ry, rz [rad] on the six-axis bench) and gauge
     (Fx, Fy, Fz [N], then Tx, Ty, Tz [N m] on the six-axis bench) at protocol time t; a
@@ -193,16 +192,10 @@ def stage_and_gauge(world: BenchWorld | ArrayBenchWorld, t: float
     return stage[0].tolist(), tuple(gauge[0].tolist())
 
 
-def stage_and_gauge_block(world: BenchWorld | ArrayBenchWorld, t: np.ndarray
+def stage_and_gauge_block(world: BenchRun, t: np.ndarray
                           ) -> tuple[np.ndarray, np.ndarray]:
     """``stage_and_gauge`` at every time of ``t`` in one call: shapes (n, 3 or 6) each."""
-    if isinstance(world, WrenchBenchWorld):
-        return np.asarray(world.stage_m(t), float), np.asarray(world.wrench_n(t), float)
-    if isinstance(world, ArrayBenchWorld):
-        return np.asarray(world.stage_m(t), float), np.asarray(world.force_n(t), float)
-    d, zero = np.asarray(world.indentation_m(t), float), np.zeros(len(t))
-    return (np.stack([d, zero, zero], axis=-1),
-            np.stack([zero, zero, np.asarray(world.force_n(t), float)], axis=-1))
+    return world.stage_and_gauge(t)
 
 
 class MockHardwareNode(Node):
@@ -289,7 +282,7 @@ class MockHardwareNode(Node):
     def _build_bench(self, skin: TabulatedSkin | ArraySkin | WrenchSkin, physics: Any) -> None:
         v = self.values
         rate = RateDependentForce.from_params(physics)
-        self.world: BenchWorld | ArrayBenchWorld
+        self.world: BenchRun
         if isinstance(skin, ArraySkin | WrenchSkin):
             profile = array_profile(depth_m=v["protocol.depth"],
                                     speeds_m_s=tuple(v["protocol.speeds"]),

@@ -19,8 +19,8 @@ same indentation levels. Interpolation is trilinear in (d, r, theta), periodic i
 Voltages are ``V_rest - output``, V_rest the photoreflector's voltage at the rest gap (the
 single-module curve's voltage at 0).
 
-``ArrayBenchWorld`` is ``BenchWorld`` with a three-axis stage and gauge: precomputed on a
-1 kHz grid over the protocol, pure functions of time, safe from any thread.
+``ArrayBenchWorld`` is the bench (``BenchRun``) with a three-axis stage and gauge: precomputed
+on a 1 kHz grid over the protocol, pure functions of time, safe from any thread.
 """
 
 from __future__ import annotations
@@ -28,31 +28,18 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import numpy.typing as npt
 
-from tactile_sensor.sim.bench_world import TimeLike, ViscoelasticModel, play
+from tactile_sensor.sim.bench_world import BenchRun, TimeLike, ViscoelasticModel, play, rate_force
 from tactile_sensor.sim.errors import SimError
 
+if TYPE_CHECKING:
+    from tactile_sensor.physics.array_grid import ArrayGrid
+
 Progress = Callable[[float, str], None]
-
-
-class ArrayGridLike(Protocol):
-    """What ``ArraySkin`` reads of ``physics.array_grid.ArrayGrid``."""
-
-    indentation_m: np.ndarray
-    shear_x_m: np.ndarray
-    shear_y_m: np.ndarray
-    force_x_n: np.ndarray
-    force_y_n: np.ndarray
-    force_n: np.ndarray
-    outputs_v: dict[str, np.ndarray]
-    direction: np.ndarray
-    level: np.ndarray
-    step: np.ndarray
-    digest: str
 
 
 class ArraySkin:
@@ -62,7 +49,7 @@ class ArraySkin:
     +x toward the right face, +y toward the front face). Vectorised over states.
     """
 
-    def __init__(self, grid: ArrayGridLike, rest_voltage_v: float, source: str = "grid"
+    def __init__(self, grid: ArrayGrid, rest_voltage_v: float, source: str = "grid"
                  ) -> None:
         if not (isinstance(rest_voltage_v, int | float) and math.isfinite(rest_voltage_v)):
             raise SimError(f"rest_voltage_v must be a finite voltage, got {rest_voltage_v!r}.")
@@ -227,46 +214,50 @@ def stage_path(profile: StageProfile, t_s: npt.ArrayLike) -> np.ndarray:
     return np.stack([d, np.asarray(sx, float), np.asarray(sy, float)], axis=-1)
 
 
-class ArrayBenchWorld:
-    """Ground truth of one array bench run; ``t`` [s] counts from the protocol's start.
+class ArrayBenchWorld(BenchRun):
+    """The array bench: a three-axis stage (d, sx, sy) and gauge (Fx, Fy, Fz) from the
+    profile and the skin; the gauge carries the viscoelastic rate effect on each component
+    (the Prony series is linear in the elastic force history, so it applies per axis). The
+    modules see the indentation through the output play, as in ``BenchWorld``.
 
-    Stage (d, sx, sy) and gauge (Fx, Fy, Fz) come from the profile and the skin; the gauge
-    carries the viscoelastic rate effect on each component (the Prony series is linear in
-    the elastic force history, so it applies per axis). The modules see the indentation
-    through the output play, as in ``BenchWorld``.
+    A layout with more stage axes (``WrenchBenchWorld``) changes ``_stage_path`` and
+    ``_gauge_of``: the gauge's first three columns are always the force.
     """
+
+    #: The protocol as a refusal names it.
+    _protocol = "shear"
+    _stage_path = staticmethod(stage_path)
 
     def __init__(self, profile: StageProfile, skin: ArraySkin,
                  viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
                  loop: bool = False, output_play_m: float = 0.0) -> None:
-        if not 1.0 <= grid_hz <= 100_000.0:
-            raise SimError(f"grid_hz must be in [1, 100000] Hz, got {grid_hz!r}.")
-        if not 0.0 <= output_play_m <= 0.001:
-            raise SimError(f"output_play_m must be in [0, 0.001] m, got {output_play_m!r}.")
+        super().__init__(profile, grid_hz, loop, output_play_m)
+        self._refuse_path(profile, skin)
+        self.skin = skin
+        self.faces = skin.faces
+        self._stage = self._stage_path(profile, self._t)
+        cols = self._stage.T
+        self._w_el = self._gauge_of(skin, cols)
+        self._v = skin.voltages_v(play(cols[0], output_play_m), *cols[1:])
+        self._w = self._w_el if viscoelastic is None else np.column_stack(
+            [filtered_rate_force(viscoelastic, self._t, self._w_el[:, a])
+             for a in range(self._w_el.shape[1])])
+        self._f_el, self._f = self._w_el[:, :3], self._w[:, :3]
+
+    @staticmethod
+    def _gauge_of(skin: Any, cols: np.ndarray) -> np.ndarray:
+        return np.asarray(skin.force_n(*cols))
+
+    def _refuse_path(self, profile: StageProfile, skin: ArraySkin) -> None:
         ratio = getattr(profile, "shear_ratio", 0.0)
         if ratio > skin.max_shear_ratio * (1 + 1e-9):
             raise SimError(
-                f"The shear protocol moves the probe {ratio:g} x its depth sideways, beyond "
-                f"the grid's slip limit of {skin.max_shear_ratio:g} x (the skin would slide "
-                "on the probe); lower protocol.shear or raise array_shear_ratio.")
-        self.profile = profile
-        self.skin = skin
-        self.faces = skin.faces
-        self.loop = loop
-        self.duration_s = float(profile.duration_s)
-        n = max(2, int(np.ceil(self.duration_s * grid_hz)) + 1)
-        self._t = np.linspace(0.0, self.duration_s, n)
-        self._stage = stage_path(profile, self._t)
-        d, sx, sy = self._stage.T
-        self._f_el = skin.force_n(d, sx, sy)
-        self._v = skin.voltages_v(play(d, output_play_m), sx, sy)
-        self._f = self._f_el if viscoelastic is None else np.column_stack(
-            [_rate_force(viscoelastic, self._t, self._f_el[:, a]) for a in range(3)])
+                f"The {self._protocol} protocol moves the probe {ratio:g} x its depth sideways,"
+                f" beyond the grid's slip limit of {skin.max_shear_ratio:g} x (the skin would "
+                "slide on the probe); lower protocol.shear or raise array_shear_ratio.")
 
     def _at(self, t: TimeLike, values: np.ndarray) -> Any:
-        times = np.asarray(t, dtype=float)
-        if self.loop and self.duration_s > 0:
-            times = np.mod(times, self.duration_s)
+        times = self._time(t)
         # one index and weight for every channel (the ADC asks ~1000 times a second)
         flat = np.clip(times.ravel(), 0.0, self.duration_s)
         pos = flat * ((self._t.size - 1) / self.duration_s) if self.duration_s > 0 else \
@@ -277,7 +268,8 @@ class ArrayBenchWorld:
         return out.reshape(*times.shape, values.shape[1])
 
     def stage_m(self, t: TimeLike) -> Any:
-        """Stage positions [m] (indentation, lateral x, lateral y), shape (..., 3)."""
+        """Stage positions [m] (indentation, lateral x, lateral y), shape (..., 3); the
+        six-axis stage adds its rotations [rad], shape (..., 6)."""
         return self._at(t, self._stage)
 
     def indentation_m(self, t: TimeLike) -> Any:
@@ -285,21 +277,12 @@ class ArrayBenchWorld:
         out = self._at(t, self._stage[:, :1])[..., 0]
         return float(out) if np.ndim(out) == 0 else out
 
-    def force_n(self, t: TimeLike) -> Any:
-        """Gauge (Fx, Fy, Fz) [N] with the rate effect, shape (..., 3)."""
-        return self._at(t, self._f)
-
-    def elastic_force_n(self, t: TimeLike) -> Any:
-        """Quasi-static (Fx, Fy, Fz) [N] at the same stage position, shape (..., 3)."""
-        return self._at(t, self._f_el)
-
-    def photoreflector_voltage(self, t: TimeLike) -> Any:
-        """Noise-free voltages [V] of every module, shape (..., modules): ADC channel i
-        carries ``faces[i]``."""
-        return self._at(t, self._v)
+    def stage_and_gauge(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.asarray(self.stage_m(t), float), np.asarray(self.force_n(t), float)
 
 
-def _rate_force(model: ViscoelasticModel, t: np.ndarray, f_el: np.ndarray) -> np.ndarray:
+def filtered_rate_force(model: ViscoelasticModel, t: np.ndarray, f_el: np.ndarray
+                        ) -> np.ndarray:
     """The rate effect along a record from rest. A Prony series (``g``, ``tau``) on this
     uniform time grid runs as one linear filter per term: the same recursion as
     ``RateDependentForce.step`` (exact for a force linear over each step), but a
@@ -317,9 +300,4 @@ def _rate_force(model: ViscoelasticModel, t: np.ndarray, f_el: np.ndarray) -> np
             decay = math.exp(-step / ti)
             out[1:] += lfilter([gi * (1.0 - decay) * ti / step], [1.0, -decay], change)
         return out
-    batch = getattr(model, "force_history", None)
-    if callable(batch):
-        return np.asarray(batch(t, f_el), dtype=float)
-    model.reset()
-    dt = float(t[1] - t[0])
-    return np.array([model.step(f, dt) for f in f_el.tolist()])
+    return rate_force(model, t, f_el)

@@ -1,5 +1,9 @@
 """The bench rig as a pure function of time: stage indentation, gauge force, sensor voltage.
 
+``BenchRun`` is what every bench layout shares (the time grid, the gauge with its rate
+effect, the modules' voltages, the stage and gauge the rig publishes); ``BenchWorld`` is
+the single-module layout, ``sim/array_world.py`` and ``sim/wrench_world.py`` the others.
+
 Everything is precomputed on a regular grid (1 kHz by default) over the protocol and
 linearly interpolated, so any thread may ask for any time (or array of times) without
 shared state: the bench node reads stage and gauge from it, and the mock ADC in the same
@@ -45,43 +49,86 @@ def play(indentation_m: npt.NDArray[np.float64], width_m: float) -> npt.NDArray[
     return out
 
 
-class BenchWorld:
-    """Ground truth of one bench run; time ``t`` [s] counts from the protocol's start."""
+def rate_force(model: ViscoelasticModel, t: npt.NDArray[np.float64],
+               f_el: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """The rate effect along a record from rest, streamed sample by sample (the model's own
+    batch when it has one)."""
+    batch = getattr(model, "force_history", None)
+    if callable(batch):
+        return np.asarray(batch(t, f_el), dtype=float)
+    model.reset()
+    dt = float(t[1] - t[0])
+    out = np.empty_like(f_el)
+    step = model.step
+    for k, f in enumerate(f_el.tolist()):
+        out[k] = step(f, dt)
+    return out
 
-    def __init__(self, profile: LoadProfile, skin: SkinResponse,
-                 viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
-                 loop: bool = False, output_play_m: float = 0.0) -> None:
+
+class BenchRun:
+    """What every bench layout shares: the protocol precomputed on a regular ``grid_hz``
+    time grid, so any thread may ask for any time (or array of times) without shared state;
+    the gauge with the viscoelastic rate effect (``_f``) and without (``_f_el``), the
+    modules' voltages (``_v``) seen through the output play. Time ``t`` [s] counts from the
+    protocol's start; ``loop`` repeats the protocol."""
+
+    _f: npt.NDArray[np.float64]
+    _f_el: npt.NDArray[np.float64]
+    _v: npt.NDArray[np.float64]
+
+    def __init__(self, profile: Any, grid_hz: float, loop: bool, output_play_m: float) -> None:
         if not 1.0 <= grid_hz <= 100_000.0:
             raise SimError(f"grid_hz must be in [1, 100000] Hz, got {grid_hz!r}.")
         if not 0.0 <= output_play_m <= 0.001:
             raise SimError(f"output_play_m must be in [0, 0.001] m, got {output_play_m!r}.")
         self.profile = profile
         self.loop = loop
-        self.duration_s = profile.duration_s
+        self.duration_s = float(profile.duration_s)
         n = max(2, int(np.ceil(self.duration_s * grid_hz)) + 1)
         self._t = np.linspace(0.0, self.duration_s, n)
-        self._d = np.asarray(profile.indentation(self._t), dtype=float)
-        self._f_el = np.asarray(skin.force_n(self._d), dtype=float)
-        self._v = np.asarray(skin.voltage_v(play(self._d, output_play_m)), dtype=float)
-        self._f = self._f_el if viscoelastic is None else self._rate_force(viscoelastic)
-
-    def _rate_force(self, model: ViscoelasticModel) -> npt.NDArray[np.float64]:
-        batch = getattr(model, "force_history", None)
-        if callable(batch):
-            return np.asarray(batch(self._t, self._f_el), dtype=float)
-        model.reset()
-        dt = float(self._t[1] - self._t[0])
-        out = np.empty_like(self._f_el)
-        step = model.step
-        for k, f in enumerate(self._f_el.tolist()):
-            out[k] = step(f, dt)
-        return out
 
     def _time(self, t: TimeLike) -> Any:
         t = np.asarray(t, dtype=float)
         if self.loop and self.duration_s > 0:
             t = np.mod(t, self.duration_s)
         return t
+
+    def _at(self, t: TimeLike, values: npt.NDArray[np.float64]) -> Any:
+        raise NotImplementedError
+
+    def stage_and_gauge(self, t: npt.NDArray[np.float64]
+                        ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """Stage positions and gauge at every time of ``t``, shapes (n, 3) each (d, sx, sy
+        [m]; Fx, Fy, Fz [N]) or (n, 6) on the six-axis bench (rotations [rad], torques
+        [N m] after): what the mock rig publishes, whatever the layout."""
+        raise NotImplementedError
+
+    def force_n(self, t: TimeLike) -> Any:
+        """Force-gauge reading [N], including the viscoelastic rate effect."""
+        return self._at(t, self._f)
+
+    def elastic_force_n(self, t: TimeLike) -> Any:
+        """Quasi-static (hyperelastic) force [N] at the same stage position."""
+        return self._at(t, self._f_el)
+
+    def photoreflector_voltage(self, t: TimeLike) -> Any:
+        """Noise-free photoreflector voltage [V] (one per module on an array, ADC channel i
+        carrying ``faces[i]``); the mock ADC adds noise and quantisation."""
+        return self._at(t, self._v)
+
+
+class BenchWorld(BenchRun):
+    """The single-module bench: an indentation stage and a normal-force gauge."""
+
+    def __init__(self, profile: LoadProfile, skin: SkinResponse,
+                 viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
+                 loop: bool = False, output_play_m: float = 0.0) -> None:
+        super().__init__(profile, grid_hz, loop, output_play_m)
+        self._d = np.asarray(profile.indentation(self._t), dtype=float)
+        self._f_el = np.asarray(skin.force_n(self._d), dtype=float)
+        self._v = np.asarray(skin.voltage_v(play(self._d, output_play_m)), dtype=float)
+        self._f = self._f_el if viscoelastic is None else rate_force(viscoelastic, self._t,
+                                                                     self._f_el)
 
     def _at(self, t: TimeLike, values: npt.NDArray[np.float64]) -> Any:
         out = np.interp(self._time(t), self._t, values)
@@ -91,14 +138,9 @@ class BenchWorld:
         """Stage indentation [m] (0 = probe just touching)."""
         return self._at(t, self._d)
 
-    def force_n(self, t: TimeLike) -> Any:
-        """Force-gauge reading [N], including the viscoelastic rate effect."""
-        return self._at(t, self._f)
-
-    def elastic_force_n(self, t: TimeLike) -> Any:
-        """Quasi-static (hyperelastic) force [N] at the same indentation."""
-        return self._at(t, self._f_el)
-
-    def photoreflector_voltage(self, t: TimeLike) -> Any:
-        """Noise-free photoreflector voltage [V]; the mock ADC adds noise and quantisation."""
-        return self._at(t, self._v)
+    def stage_and_gauge(self, t: npt.NDArray[np.float64]
+                        ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """A single-module bench has no lateral axis and no lateral force (0)."""
+        d, zero = np.asarray(self.indentation_m(t), float), np.zeros(len(t))
+        return (np.stack([d, zero, zero], axis=-1),
+                np.stack([zero, zero, np.asarray(self.force_n(t), float)], axis=-1))

@@ -14,8 +14,19 @@ The protocols of the paper are parameter sets (``PROTOCOLS``); the CLI option
 A ``ShearProfile`` adds the probe's lateral path for a skin with modules on several faces
 (``sim/array_world.py``): press, sweep out and back along 4 or 8 directions, release.
 The array protocols (config/protocols.yaml, section ``array``) are ``ARRAY_PROTOCOLS``;
-``array_profile_from_protocol`` turns one into a ``ShearProfile`` (shear > 0) or a
-``LoadProfile`` (shear 0).
+``array_profile_from_protocol`` turns one into a ``WrenchProfile`` (tilt or twist > 0), a
+``ShearProfile`` (shear > 0) or a ``LoadProfile`` (shear 0).
+
+A ``WrenchProfile`` is the wrench protocol's six stage axes (d, sx, sy [m], rx, ry, rz [rad]).
+Each move goes out and back; its duration is the longest of its axes' travel at their speed
+(lateral and indentation at ``speed_m_s``, rotations at ``angular_speed_rad_s``), so combined
+moves end together. Order: rest, press to ``depth_m``, hold; shear +x, -x, +y, -y; tilt +x,
+-x, +y, -y; twist +z, -z; shear +x with twist +z, tilt +x with twist +z, tilt +x with tilt
++y; release; rest. Rotations at 0.05 rad/s change the torque slowly enough for a 1 kHz
+driver with a 10 Hz torque filter (its lag is 16 ms, 0.8 mrad).
+
+Shear and wrench paths share their knots' form (``StagePath``): times and (n, axes) stage
+positions, column 0 the indentation and columns 1-2 the lateral displacement.
 """
 
 from __future__ import annotations
@@ -30,9 +41,10 @@ import numpy.typing as npt
 import yaml
 
 from tactile_sensor.sim.errors import SimError
-from tactile_sensor.sim.wrench_profile import MAX_ROTATION_RAD, WrenchProfile
 
 MAX_DEPTH_M = 0.02
+MAX_SHEAR_M = 0.05
+MAX_ROTATION_RAD = 0.5
 
 
 @dataclass(frozen=True)
@@ -59,9 +71,7 @@ class LoadProfile:
             raise SimError("A profile needs at least one speed; give speed=0.001 (m/s).")
         for s in speeds:
             _check("speed", s, 1e-6, 1.0, "m/s")
-        if isinstance(self.cycles, bool) or not isinstance(self.cycles, int) or not (
-                1 <= self.cycles <= 100_000):
-            raise SimError(f"Profile cycles must be an integer 1..100000, got {self.cycles!r}.")
+        _check_cycles(self.cycles)
         times, depths = [0.0, self.rest_s], [self.preload_m, self.preload_m]
         stroke = self.depth_m - self.preload_m
         for speed in speeds:
@@ -148,10 +158,68 @@ def _parse_overrides(text: str, spec: str) -> Mapping[str, Any]:
     return out
 
 
-def _check(name: str, value: object, lo: float, hi: float, unit: str) -> None:
+def _check(name: str, value: object, lo: float, hi: float, unit: str,
+           what: str = "Profile") -> None:
+    """Refuse a parameter outside its range; ``what`` names it as the user set it (a
+    ``--profile`` field or a ``protocol.`` parameter)."""
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
             value) or not lo <= value <= hi:
-        raise SimError(f"Profile {name} must be within [{lo:g}, {hi:g}] {unit}, got {value!r}.")
+        raise SimError(f"{what} {name} must be within [{lo:g}, {hi:g}] {unit}, got {value!r}.")
+
+
+def _check_cycles(cycles: object, what: str = "Profile") -> None:
+    if isinstance(cycles, bool) or not isinstance(cycles, int) or not 1 <= cycles <= 100_000:
+        raise SimError(f"{what} cycles must be an integer 1..100000, got {cycles!r}.")
+
+
+Knots = tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]
+
+
+class StagePath:
+    """A probe path on several stage axes, read from its knots: times [s] and (n, axes)
+    positions, column 0 the indentation [m], columns 1-2 the lateral displacement [m];
+    before 0 and after the end every axis rests at 0 (the probe just touching)."""
+
+    _knots: Knots
+
+    @property
+    def duration_s(self) -> float:
+        return float(self._knots[0][-1])
+
+    def _column(self, t_s: float | npt.ArrayLike, c: int) -> Any:
+        times, points = self._knots
+        return np.interp(t_s, times, points[:, c], left=0.0, right=0.0)
+
+    def indentation(self, t_s: float | npt.ArrayLike) -> Any:
+        """d(t) [m]; before 0 and after the end the probe rests just touching."""
+        return self._column(t_s, 0)
+
+    def lateral(self, t_s: float | npt.ArrayLike) -> tuple[Any, Any]:
+        """(sx(t), sy(t)) [m], the probe's lateral displacement along +x and +y."""
+        return self._column(t_s, 1), self._column(t_s, 2)
+
+    def knots(self) -> Knots:
+        """Corner times [s] and (n, axes) stage positions (copies)."""
+        return self._knots[0].copy(), self._knots[1].copy()
+
+
+class _KnotTrail:
+    """Knots laid move by move from rest: each at the previous one's time plus the move's
+    duration."""
+
+    def __init__(self, rest_s: float, start: Any) -> None:
+        self.times: list[float] = [0.0, rest_s]
+        self.points: list[Any] = [start, start]
+
+    def add(self, dt: float, point: Any) -> None:
+        self.times.append(self.times[-1] + dt)
+        self.points.append(point)
+
+    def hold(self, dt: float) -> None:
+        self.add(dt, self.points[-1])
+
+    def arrays(self) -> Knots:
+        return np.asarray(self.times), np.asarray(self.points)
 
 
 # -- shear (module arrays) ---------------------------------------------------------------------
@@ -161,11 +229,10 @@ SHEAR_DIRECTIONS: tuple[tuple[float, float], ...] = (
     (1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0),
     (math.sqrt(0.5), math.sqrt(0.5)), (-math.sqrt(0.5), -math.sqrt(0.5)),
     (-math.sqrt(0.5), math.sqrt(0.5)), (math.sqrt(0.5), -math.sqrt(0.5)))
-MAX_SHEAR_M = 0.05
 
 
 @dataclass(frozen=True)
-class ShearProfile:
+class ShearProfile(StagePath):
     """Probe path [m] versus time [s] of the shear protocol.
 
     Per cycle (after an initial rest): press from contact to ``depth_m`` at ``speed_m_s``,
@@ -182,8 +249,7 @@ class ShearProfile:
     cycles: int = 1
     hold_s: float = 0.0
     rest_s: float = 1.0
-    _knots: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] = field(
-        init=False, repr=False, compare=False)
+    _knots: Knots = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _check("depth", self.depth_m, 1e-6, MAX_DEPTH_M, "m (a shear needs contact)")
@@ -195,53 +261,94 @@ class ShearProfile:
                 self.directions not in (4, 8):
             raise SimError(f"Shear directions must be 4 (+x, -x, +y, -y) or 8 (with the "
                            f"diagonals), got {self.directions!r}.")
-        if isinstance(self.cycles, bool) or not isinstance(self.cycles, int) or not (
-                1 <= self.cycles <= 100_000):
-            raise SimError(f"Profile cycles must be an integer 1..100000, got {self.cycles!r}.")
+        _check_cycles(self.cycles)
         press = self.depth_m / self.speed_m_s
         sweep = self.amplitude_m / self.speed_m_s
-        times, points = [0.0, self.rest_s], [(0.0, 0.0, 0.0)] * 2
-
-        def add(dt: float, point: tuple[float, float, float]) -> None:
-            times.append(times[-1] + dt)
-            points.append(point)
-
+        rest = (0.0, 0.0, 0.0)
+        trail = _KnotTrail(self.rest_s, rest)
         bottom = (self.depth_m, 0.0, 0.0)
         for _ in range(self.cycles):
-            add(press, bottom)
-            add(self.hold_s, bottom)
+            trail.add(press, bottom)
+            trail.add(self.hold_s, bottom)
             for ux, uy in SHEAR_DIRECTIONS[:self.directions]:
-                add(sweep, (self.depth_m, self.amplitude_m * ux, self.amplitude_m * uy))
-                add(sweep, bottom)
-                add(self.hold_s, bottom)
-            add(press, (0.0, 0.0, 0.0))
-            add(self.rest_s, (0.0, 0.0, 0.0))
-        object.__setattr__(self, "_knots", (np.asarray(times), np.asarray(points)))
-
-    @property
-    def duration_s(self) -> float:
-        return float(self._knots[0][-1])
+                trail.add(sweep, (self.depth_m, self.amplitude_m * ux, self.amplitude_m * uy))
+                trail.add(sweep, bottom)
+                trail.add(self.hold_s, bottom)
+            trail.add(press, rest)
+            trail.add(self.rest_s, rest)
+        object.__setattr__(self, "_knots", trail.arrays())
 
     @property
     def shear_ratio(self) -> float:
         """The largest lateral displacement per unit indentation along the path."""
         return self.amplitude_m / self.depth_m
 
-    def _column(self, t_s: float | npt.ArrayLike, c: int) -> Any:
-        times, points = self._knots
-        return np.interp(t_s, times, points[:, c], left=0.0, right=0.0)
 
-    def indentation(self, t_s: float | npt.ArrayLike) -> Any:
-        """d(t) [m]; before 0 and after the end the probe rests just touching."""
-        return self._column(t_s, 0)
+# -- wrench (six-axis stage) -------------------------------------------------------------------
 
-    def lateral(self, t_s: float | npt.ArrayLike) -> tuple[Any, Any]:
-        """(sx(t), sy(t)) [m], the probe's lateral displacement along +x and +y."""
-        return self._column(t_s, 1), self._column(t_s, 2)
 
-    def knots(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-        """Corner times [s] and (n, 3) positions (d, sx, sy) [m] (copies)."""
-        return self._knots[0].copy(), self._knots[1].copy()
+@dataclass(frozen=True)
+class WrenchProfile(StagePath):
+    """Probe path of the wrench protocol (see the module docstring)."""
+
+    depth_m: float = 0.003
+    speed_m_s: float = 0.001
+    shear_m: float = 0.003
+    tilt_rad: float = 0.1
+    twist_rad: float = 0.2
+    angular_speed_rad_s: float = 0.05
+    cycles: int = 1
+    hold_s: float = 0.0
+    rest_s: float = 1.0
+    _knots: Knots = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for name, value, lo, hi, unit in (
+                ("depth", self.depth_m, 1e-6, MAX_DEPTH_M, "m (a wrench needs contact)"),
+                ("speed", self.speed_m_s, 1e-6, 1.0, "m/s"),
+                ("shear", self.shear_m, 0.0, MAX_SHEAR_M, "m"),
+                ("tilt", self.tilt_rad, 0.0, MAX_ROTATION_RAD, "rad"),
+                ("twist", self.twist_rad, 0.0, MAX_ROTATION_RAD, "rad"),
+                ("angular_speed", self.angular_speed_rad_s, 1e-4, 1.0, "rad/s"),
+                ("hold", self.hold_s, 0.0, 3600.0, "s"),
+                ("rest", self.rest_s, 0.0, 3600.0, "s")):
+            _check(name, value, lo, hi, unit, "Protocol")
+        _check_cycles(self.cycles, "Protocol")
+        rest = np.zeros(6)
+        bottom = np.array([self.depth_m, 0, 0, 0, 0, 0], float)
+        trail = _KnotTrail(self.rest_s, rest)
+        rates = np.array([self.speed_m_s] * 3 + [self.angular_speed_rad_s] * 3)
+
+        def go(point: np.ndarray) -> None:
+            trail.add(float(np.max(np.abs(point - trail.points[-1]) / rates)), point)
+
+        s, tl, tw = self.shear_m, self.tilt_rad, self.twist_rad
+        moves = [(1, s), (1, -s), (2, s), (2, -s), (3, tl), (3, -tl), (4, tl), (4, -tl),
+                 (5, tw), (5, -tw), ((1, 5), (s, tw)), ((3, 5), (tl, tw)),
+                 ((3, 4), (tl, tl))]
+        for _ in range(self.cycles):
+            go(bottom)
+            trail.hold(self.hold_s)
+            for axes, amounts in moves:
+                target = bottom.copy()
+                target[list(np.atleast_1d(axes))] = amounts
+                if np.array_equal(target, bottom):
+                    continue          # a zero amplitude leaves that move out
+                go(target)
+                go(bottom)
+                trail.hold(self.hold_s)
+            go(rest)
+            trail.add(self.rest_s, rest)
+        object.__setattr__(self, "_knots", trail.arrays())
+
+    @property
+    def shear_ratio(self) -> float:
+        """The largest lateral displacement per unit indentation along the path."""
+        return self.shear_m / self.depth_m
+
+    def rotation(self, t_s: float | npt.ArrayLike) -> tuple[Any, Any, Any]:
+        """(tilt about x, tilt about y, twist about z)(t) [rad]."""
+        return self._column(t_s, 3), self._column(t_s, 4), self._column(t_s, 5)
 
 
 _ARRAY_KEYS = {**_KEYS, "shear": "shear_m", "shear_directions": "shear_directions",

@@ -41,10 +41,9 @@ from tactile_sensor.sim.array_world import (
     ArraySkin,
     Progress,
     StageProfile,
-    _rate_force,
     stage_path,
 )
-from tactile_sensor.sim.bench_world import TimeLike, ViscoelasticModel, play
+from tactile_sensor.sim.bench_world import TimeLike
 from tactile_sensor.sim.errors import SimError
 
 #: Modules a wrench protocol needs at least: one output per wrench component.
@@ -282,48 +281,28 @@ class WrenchBenchWorld(ArrayBenchWorld):
     three-axis gauge give them, each with the viscoelastic rate effect (linear in the
     elastic history, so per component). Precomputed on a ``grid_hz`` grid."""
 
-    def __init__(self, profile: StageProfile, skin: WrenchSkin,
-                 viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
-                 loop: bool = False, output_play_m: float = 0.0) -> None:
-        if not 1.0 <= grid_hz <= 100_000.0:
-            raise SimError(f"grid_hz must be in [1, 100000] Hz, got {grid_hz!r}.")
-        if not 0.0 <= output_play_m <= 0.001:
-            raise SimError(f"output_play_m must be in [0, 0.001] m, got {output_play_m!r}.")
-        ratio = getattr(profile, "shear_ratio", 0.0)
-        if ratio > skin.max_shear_ratio * (1 + 1e-9):
-            raise SimError(
-                f"The wrench protocol moves the probe {ratio:g} x its depth sideways, beyond "
-                f"the grid's slip limit of {skin.max_shear_ratio:g} x (the skin would slide "
-                "on the probe); lower protocol.shear or raise array_shear_ratio.")
-        knots = getattr(profile, "knots", None)
-        if knots is not None:
-            _, pts = knots()
-            if pts.shape[1] == 6:   # the lift is convex along each segment: knots suffice
-                lift = skin.edge_lift_m(pts[:, 3], pts[:, 4])
-                worst = int(np.argmax(lift - pts[:, 0]))
-                if lift[worst] > pts[worst, 0] + 1e-12:
-                    raise SimError(
-                        f"The protocol's tilt lifts the probe's edge {lift[worst] * 1e3:.3g} mm"
-                        f" at {pts[worst, 0] * 1e3:.3g} mm depth (the edge would leave the "
-                        "skin); lower protocol.tilt or raise protocol.depth.")
-        self.profile = profile
-        self.skin = skin  # type: ignore[assignment]
-        self.faces = skin.faces
-        self.loop = loop
-        self.duration_s = float(profile.duration_s)
-        n = max(2, int(np.ceil(self.duration_s * grid_hz)) + 1)
-        self._t = np.linspace(0.0, self.duration_s, n)
-        self._stage = wrench_stage_path(profile, self._t)
-        cols = self._stage.T
-        self._w_el = skin.wrench(*cols)
-        self._v = skin.voltages_v(play(cols[0], output_play_m), *cols[1:])
-        self._w = self._w_el if viscoelastic is None else np.column_stack(
-            [_rate_force(viscoelastic, self._t, self._w_el[:, a]) for a in range(6)])
-        self._f_el, self._f = self._w_el[:, :3], self._w[:, :3]
+    skin: WrenchSkin  # type: ignore[assignment]
+    _protocol = "wrench"
+    _stage_path = staticmethod(wrench_stage_path)
 
-    def stage_m(self, t: TimeLike) -> Any:
-        """Stage (d, sx, sy [m], rx, ry, rz [rad]), shape (..., 6)."""
-        return self._at(t, self._stage)
+    @staticmethod
+    def _gauge_of(skin: Any, cols: np.ndarray) -> np.ndarray:
+        return np.asarray(skin.wrench(*cols))
+
+    def _refuse_path(self, profile: StageProfile, skin: ArraySkin) -> None:
+        super()._refuse_path(profile, skin)
+        knots = getattr(profile, "knots", None)
+        if knots is None:
+            return
+        _, pts = knots()
+        if pts.shape[1] == 6:   # the lift is convex along each segment: knots suffice
+            lift = skin.edge_lift_m(pts[:, 3], pts[:, 4])  # type: ignore[attr-defined]
+            worst = int(np.argmax(lift - pts[:, 0]))
+            if lift[worst] > pts[worst, 0] + 1e-12:
+                raise SimError(
+                    f"The protocol's tilt lifts the probe's edge {lift[worst] * 1e3:.3g} mm"
+                    f" at {pts[worst, 0] * 1e3:.3g} mm depth (the edge would leave the "
+                    "skin); lower protocol.tilt or raise protocol.depth.")
 
     def wrench_n(self, t: TimeLike) -> Any:
         """Gauge (Fx, Fy, Fz [N], Tx, Ty, Tz [N m]) with the rate effect, shape (..., 6)."""
@@ -332,3 +311,6 @@ class WrenchBenchWorld(ArrayBenchWorld):
     def elastic_wrench_n(self, t: TimeLike) -> Any:
         """Quasi-static wrench at the same stage position, shape (..., 6)."""
         return self._at(t, self._w_el)
+
+    def stage_and_gauge(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.asarray(self.stage_m(t), float), np.asarray(self.wrench_n(t), float)

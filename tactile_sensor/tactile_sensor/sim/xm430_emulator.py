@@ -11,18 +11,15 @@ faster link really is faster; a host whose port is set to another baud rate gets
 A :class:`MotorModel` moves the output toward Goal Position under the profile and the current
 limit; an optional :class:`GripperWorld` loads it (fingers, skin, rod). Faults can be injected
 through methods or, from another process, through a line-based control FIFO
-(``--control PATH``; see :data:`CONTROL_HELP`).
+(``--control PATH``, ``sim/control_fifo.py``; see :data:`CONTROL_HELP`). The control table's
+bytes and write rules are ``sim/xm430_control_table.py``.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
-import errno
 import math
-import os
 import signal
-import stat
 import sys
 import termios
 import threading
@@ -34,6 +31,7 @@ from types import TracebackType
 
 from tactile_sensor.hardware import xm430_table as table
 from tactile_sensor.hardware.xm430_table import OperatingMode
+from tactile_sensor.sim.control_fifo import ControlFifo
 from tactile_sensor.sim.dynamixel_packets import (
     ALERT_BIT,
     BROADCAST_ID,
@@ -48,6 +46,7 @@ from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.gripper_world import GripperWorld
 from tactile_sensor.sim.motor_model import MotorCommand, MotorModel
 from tactile_sensor.sim.pty_link import PtyLink
+from tactile_sensor.sim.xm430_control_table import ControlTable, baud_item_value
 
 CONTROL_HELP = """\
 control FIFO commands (one per line, e.g. `echo "fault overload" > CONTROL`):
@@ -64,20 +63,10 @@ control FIFO commands (one per line, e.g. `echo "fault overload" > CONTROL`):
 _INTERBYTE_TIMEOUT_S = 0.01
 _POSITION_MODES = (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION,
                    OperatingMode.CURRENT_BASED_POSITION)
-_VALID_MODES = frozenset(int(m) for m in OperatingMode)
 #: pty default speed (openpty): the host has not set a baud rate, so accept any.
 _UNSET_SPEED = termios.B38400
 _BAUD_TO_TERMIOS = {bps: getattr(termios, f"B{bps}", None) for bps in table.BAUD_RATES.values()}
 _OVERLOAD_AFTER_S = 1.0
-
-
-def baud_item_value(baudrate: int) -> int:
-    """Baud Rate (8) item value for a bit rate (SimError if the servo has no such rate)."""
-    for value, bps in table.BAUD_RATES.items():
-        if bps == baudrate:
-            return value
-    rates = ", ".join(str(b) for b in table.BAUD_RATES.values())
-    raise SimError(f"The XM430 has no {baudrate} bps setting; choose --baud from {rates}.")
 
 
 @dataclass
@@ -96,75 +85,6 @@ class _Pending:
     after: Callable[[], None] | None = field(default=None)
 
 
-class ControlTable:
-    """The servo's bytes, with the e-Manual's access and range rules."""
-
-    def __init__(self) -> None:
-        self.data = bytearray(table.TABLE_SIZE)
-        for item in table.ITEMS:
-            self.set(item.name, item.initial)
-
-    def get(self, name: str) -> int:
-        item = table.BY_NAME[name]
-        return item.from_bytes(bytes(self.data[item.address: item.end]))
-
-    def set(self, name: str, value: int) -> None:
-        item = table.BY_NAME[name]
-        self.data[item.address: item.end] = item.to_bytes(int(value))
-
-    def reset_area(self, eeprom: bool, keep: tuple[str, ...] = ()) -> None:
-        for item in table.ITEMS:
-            if item.eeprom == eeprom and item.name not in keep and item.writable:
-                self.set(item.name, item.initial)
-
-    def read(self, address: int, length: int) -> tuple[StatusError, bytes]:
-        if length < 0 or address < 0 or address + length > table.TABLE_SIZE:
-            return StatusError.ACCESS, b""
-        return StatusError.NONE, bytes(self.data[address: address + length])
-
-    def check_write(self, address: int, data: bytes) -> tuple[StatusError, dict[str, int]]:
-        """Validate a write; returns the error or the item values to apply."""
-        end = address + len(data)
-        if not data or address < 0 or end > table.TABLE_SIZE:
-            return StatusError.ACCESS, {}
-        values: dict[str, int] = {}
-        covered = 0
-        for item in table.ITEMS:
-            if item.end <= address or item.address >= end:
-                continue
-            if item.address < address or item.end > end:
-                return StatusError.DATA_LENGTH, {}
-            if not item.writable or (item.eeprom and self.get("Torque Enable")):
-                return StatusError.ACCESS, {}
-            values[item.name] = item.from_bytes(
-                data[item.address - address: item.end - address])
-            covered += item.size
-        if covered != len(data):  # bytes of undefined addresses
-            return StatusError.ACCESS, {}
-        for name, value in values.items():
-            error = self._check_value(table.BY_NAME[name], value, values)
-            if error:
-                return error, {}
-        return StatusError.NONE, values
-
-    def _check_value(self, item: table.ControlItem, value: int,
-                     values: dict[str, int]) -> StatusError:
-        if not item.minimum <= value <= item.maximum:
-            return StatusError.DATA_RANGE
-        if item.name == "Operating Mode" and value not in _VALID_MODES:
-            return StatusError.DATA_RANGE
-        if item.limited_by is not None:
-            limit = values.get(item.limited_by, self.get(item.limited_by))
-            if abs(value) > limit:
-                return StatusError.DATA_LIMIT
-        if item.name == "Goal Position" and values.get(
-                "Operating Mode", self.get("Operating Mode")) == OperatingMode.POSITION:
-            low, high = self.get("Min Position Limit"), self.get("Max Position Limit")
-            if not low <= value <= high:
-                return StatusError.DATA_LIMIT
-        return StatusError.NONE
-
-
 class Xm430Emulator:
     """One emulated servo behind a :class:`PtyLink`; ``start()`` runs it in a thread."""
 
@@ -181,9 +101,7 @@ class Xm430Emulator:
         self.faults = Faults()
         self.reboot_s = reboot_s
         self._clock = clock
-        self._control_path = Path(control_path) if control_path else None
-        self._control_fd: int | None = None
-        self._control_buffer = b""
+        self._control = ControlFifo(Path(control_path), "xm430") if control_path else None
         self._lock = threading.RLock()
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -214,8 +132,8 @@ class Xm430Emulator:
 
     def start(self) -> Xm430Emulator:
         self.link.open()
-        if self._control_path is not None:
-            self._open_control()
+        if self._control is not None:
+            self._control.open()
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="xm430-emulator", daemon=True)
         self._thread.start()
@@ -227,12 +145,8 @@ class Xm430Emulator:
             self._thread.join(timeout=2.0)
             self._thread = None
         self.link.close()
-        if self._control_fd is not None:
-            with contextlib.suppress(OSError):
-                os.close(self._control_fd)
-            self._control_fd = None
-            with contextlib.suppress(OSError):
-                self._control_path.unlink()  # type: ignore[union-attr]
+        if self._control is not None:
+            self._control.close()
 
     def __enter__(self) -> Xm430Emulator:
         return self.start()
@@ -332,8 +246,8 @@ class Xm430Emulator:
                     self._parser.reset()
                 self._advance(now)
                 self._flush(now)
-            if self._control_fd is not None:
-                self._poll_control()
+            if self._control is not None:
+                self._control.poll(self.control)
 
     def _host_baud_matches(self) -> bool:
         try:
@@ -675,42 +589,6 @@ class Xm430Emulator:
                                              / table.V_PER_VOLTAGE_UNIT))
         t.set("Present Temperature", max(0, min(255, round(self.motor.temperature_c))))
         t.set("Realtime Tick", int((self._clock() - self._t0) * 1000) % 32768)
-
-    # -- control FIFO ----------------------------------------------------------------------
-
-    def _open_control(self) -> None:
-        path = self._control_path
-        assert path is not None
-        if path.exists() and not stat.S_ISFIFO(path.stat().st_mode):
-            raise SimError(f"Cannot create the control FIFO {path}: a file is in the way; "
-                           "remove it or choose another --control path.")
-        if not path.exists():
-            try:
-                os.mkfifo(path)
-            except OSError as exc:
-                raise SimError(f"Cannot create the control FIFO {path}: {exc.strerror}; "
-                               "choose another --control path.") from None
-        # O_RDWR keeps the FIFO open between writers, so no EOF storms.
-        self._control_fd = os.open(path, os.O_RDWR | os.O_NONBLOCK)
-
-    def _poll_control(self) -> None:
-        try:
-            chunk = os.read(self._control_fd, 4096)  # type: ignore[arg-type]
-        except OSError as exc:
-            if exc.errno in (errno.EAGAIN, errno.EWOULDBLOCK):
-                return
-            raise
-        self._control_buffer += chunk
-        while b"\n" in self._control_buffer:
-            line, self._control_buffer = self._control_buffer.split(b"\n", 1)
-            text = line.decode("utf-8", "replace").strip()
-            if not text:
-                continue
-            try:
-                print(f"xm430: {self.control(text)}", file=sys.stderr, flush=True)
-            except SimError as exc:
-                print(f"xm430: {exc}", file=sys.stderr, flush=True)
-
 
 # -- command line --------------------------------------------------------------------------
 

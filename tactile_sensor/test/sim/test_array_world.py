@@ -14,7 +14,12 @@ from tactile_sensor.physics.array_grid import load_or_compute_grid
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import module_output
 from tactile_sensor.physics.viscoelastic import RateDependentForce
-from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin, _rate_force, stage_path
+from tactile_sensor.sim.array_world import (
+    ArrayBenchWorld,
+    ArraySkin,
+    filtered_rate_force,
+    stage_path,
+)
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.profiles import LoadProfile, ShearProfile, array_profile_from_protocol
 
@@ -210,7 +215,7 @@ def test_rate_filter_matches_the_streaming_model():
     model = RateDependentForce.from_params(PARAMS)
     t = np.linspace(0.0, 5.0, 5001)
     f = np.interp(t, [0, 1, 2, 3, 5], [0.0, 0.0, 7.0, -2.0, 0.0])
-    np.testing.assert_allclose(_rate_force(model, t, f), model.force_history(t, f),
+    np.testing.assert_allclose(filtered_rate_force(model, t, f), model.force_history(t, f),
                                atol=1e-12)
 
 

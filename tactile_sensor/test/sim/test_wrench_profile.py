@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 from tactile_sensor.sim.errors import SimError
-from tactile_sensor.sim.profiles import array_profile, array_profile_from_protocol
-from tactile_sensor.sim.wrench_profile import WrenchProfile
+from tactile_sensor.sim.profiles import WrenchProfile, array_profile, array_profile_from_protocol
 
 
 def test_protocol_wrench_presses_shears_tilts_twists_and_combines() -> None:

@@ -14,7 +14,7 @@ from tactile_sensor.physics.params import PhysicsParams, parse_modules
 from tactile_sensor.physics.wrench import compute_wrench_set, map_wrench
 from tactile_sensor.sim.array_world import ArraySkin
 from tactile_sensor.sim.errors import SimError
-from tactile_sensor.sim.wrench_profile import WrenchProfile
+from tactile_sensor.sim.profiles import WrenchProfile
 from tactile_sensor.sim.wrench_world import (
     WrenchBenchWorld,
     WrenchSkin,
