@@ -33,8 +33,9 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 import numpy.typing as npt
 
-from tactile_sensor.sim.bench_world import BenchRun, TimeLike, ViscoelasticModel, play, rate_force
+from tactile_sensor.sim.bench_world import BenchRun, TimeLike, play
 from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.skin_block import SkinBlock, ViscoelasticModel
 
 if TYPE_CHECKING:
     from tactile_sensor.physics.array_grid import ArrayGrid
@@ -48,6 +49,9 @@ class ArraySkin:
     Forces follow the grid's convention (the probe's force on the skin, +z pressing in,
     +x toward the right face, +y toward the front face). Vectorised over states.
     """
+
+    #: What acts on it: indentation and lateral displacement (x, y).
+    axes = 3
 
     def __init__(self, grid: ArrayGrid, rest_voltage_v: float, source: str = "grid"
                  ) -> None:
@@ -220,8 +224,8 @@ class ArrayBenchWorld(BenchRun):
     (the Prony series is linear in the elastic force history, so it applies per axis). The
     modules see the indentation through the output play, as in ``BenchWorld``.
 
-    A layout with more stage axes (``WrenchBenchWorld``) changes ``_stage_path`` and
-    ``_gauge_of``: the gauge's first three columns are always the force.
+    A layout with more stage axes (``WrenchBenchWorld``) changes ``_stage_path``; the
+    skin block's load follows the skin's axes, its first three columns always the force.
     """
 
     #: The protocol as a refusal names it.
@@ -231,22 +235,16 @@ class ArrayBenchWorld(BenchRun):
     def __init__(self, profile: StageProfile, skin: ArraySkin,
                  viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
                  loop: bool = False, output_play_m: float = 0.0) -> None:
-        super().__init__(profile, grid_hz, loop, output_play_m)
+        block = SkinBlock(skin, viscoelastic=viscoelastic)
+        super().__init__(profile, block, grid_hz, loop, output_play_m)
         self._refuse_path(profile, skin)
         self.skin = skin
-        self.faces = skin.faces
         self._stage = self._stage_path(profile, self._t)
         cols = self._stage.T
-        self._w_el = self._gauge_of(skin, cols)
-        self._v = skin.voltages_v(play(cols[0], output_play_m), *cols[1:])
-        self._w = self._w_el if viscoelastic is None else np.column_stack(
-            [filtered_rate_force(viscoelastic, self._t, self._w_el[:, a])
-             for a in range(self._w_el.shape[1])])
+        self._w_el = np.asarray(block.load(*cols))
+        self._v = block.module_voltages(play(cols[0], output_play_m), *cols[1:])
+        self._w = block.rated(self._t, self._w_el)
         self._f_el, self._f = self._w_el[:, :3], self._w[:, :3]
-
-    @staticmethod
-    def _gauge_of(skin: Any, cols: np.ndarray) -> np.ndarray:
-        return np.asarray(skin.force_n(*cols))
 
     def _refuse_path(self, profile: StageProfile, skin: ArraySkin) -> None:
         ratio = getattr(profile, "shear_ratio", 0.0)
@@ -279,25 +277,3 @@ class ArrayBenchWorld(BenchRun):
 
     def stage_and_gauge(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.asarray(self.stage_m(t), float), np.asarray(self.force_n(t), float)
-
-
-def filtered_rate_force(model: ViscoelasticModel, t: np.ndarray, f_el: np.ndarray
-                        ) -> np.ndarray:
-    """The rate effect along a record from rest. A Prony series (``g``, ``tau``) on this
-    uniform time grid runs as one linear filter per term: the same recursion as
-    ``RateDependentForce.step`` (exact for a force linear over each step), but a
-    104 s shear run's three axes take milliseconds instead of seconds in Python."""
-    g, tau = getattr(model, "g", None), getattr(model, "tau", None)
-    dt = np.diff(t)
-    if g is not None and tau is not None and dt.size and np.allclose(dt, dt[0], rtol=1e-9):
-        from scipy.signal import lfilter
-
-        step = float(dt[0])
-        change = np.diff(f_el)
-        out = f_el.astype(float).copy()
-        for gi, ti in zip(np.asarray(g, float).tolist(), np.asarray(tau, float).tolist(),
-                          strict=True):
-            decay = math.exp(-step / ti)
-            out[1:] += lfilter([gi * (1.0 - decay) * ti / step], [1.0, -decay], change)
-        return out
-    return rate_force(model, t, f_el)

@@ -15,24 +15,17 @@ output does not depend on speed (paper Sec. III-D).
 
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.profiles import LoadProfile
+from tactile_sensor.sim.skin_block import SkinBlock, ViscoelasticModel
 from tactile_sensor.sim.skin_response import SkinResponse
 
 TimeLike = float | npt.ArrayLike
-
-
-class ViscoelasticModel(Protocol):
-    """Streaming rate effect, as physics' ``RateDependentForce`` provides."""
-
-    def step(self, elastic_force_n: float, dt: float) -> float: ...
-
-    def reset(self) -> None: ...
 
 
 def play(indentation_m: npt.NDArray[np.float64], width_m: float) -> npt.NDArray[np.float64]:
@@ -49,22 +42,6 @@ def play(indentation_m: npt.NDArray[np.float64], width_m: float) -> npt.NDArray[
     return out
 
 
-def rate_force(model: ViscoelasticModel, t: npt.NDArray[np.float64],
-               f_el: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-    """The rate effect along a record from rest, streamed sample by sample (the model's own
-    batch when it has one)."""
-    batch = getattr(model, "force_history", None)
-    if callable(batch):
-        return np.asarray(batch(t, f_el), dtype=float)
-    model.reset()
-    dt = float(t[1] - t[0])
-    out = np.empty_like(f_el)
-    step = model.step
-    for k, f in enumerate(f_el.tolist()):
-        out[k] = step(f, dt)
-    return out
-
-
 class BenchRun:
     """What every bench layout shares: the protocol precomputed on a regular ``grid_hz``
     time grid, so any thread may ask for any time (or array of times) without shared state;
@@ -76,12 +53,16 @@ class BenchRun:
     _f_el: npt.NDArray[np.float64]
     _v: npt.NDArray[np.float64]
 
-    def __init__(self, profile: Any, grid_hz: float, loop: bool, output_play_m: float) -> None:
+    def __init__(self, profile: Any, block: SkinBlock, grid_hz: float, loop: bool,
+                 output_play_m: float) -> None:
         if not 1.0 <= grid_hz <= 100_000.0:
             raise SimError(f"grid_hz must be in [1, 100000] Hz, got {grid_hz!r}.")
         if not 0.0 <= output_play_m <= 0.001:
             raise SimError(f"output_play_m must be in [0, 0.001] m, got {output_play_m!r}.")
         self.profile = profile
+        self.block = block
+        #: The modules in layout order: ADC channel i carries ``faces[i]``.
+        self.faces = block.faces
         self.loop = loop
         self.duration_s = float(profile.duration_s)
         n = max(2, int(np.ceil(self.duration_s * grid_hz)) + 1)
@@ -116,19 +97,27 @@ class BenchRun:
         carrying ``faces[i]``); the mock ADC adds noise and quantisation."""
         return self._at(t, self._v)
 
+    def module_voltages(self, t: TimeLike) -> npt.NDArray[np.float64]:
+        """Noise-free voltages [V], shape (..., modules) in ``faces`` order: what the mock
+        ADC samples, whatever the layout."""
+        return np.asarray(self.photoreflector_voltage(t), dtype=float).reshape(
+            *np.shape(t), len(self.faces))
+
 
 class BenchWorld(BenchRun):
-    """The single-module bench: an indentation stage and a normal-force gauge."""
+    """The single-module bench: an indentation stage and a normal-force gauge; ``faces``
+    names the module (the physics default's when None)."""
 
     def __init__(self, profile: LoadProfile, skin: SkinResponse,
                  viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
-                 loop: bool = False, output_play_m: float = 0.0) -> None:
-        super().__init__(profile, grid_hz, loop, output_play_m)
+                 loop: bool = False, output_play_m: float = 0.0,
+                 faces: tuple[str, ...] | None = None) -> None:
+        block = SkinBlock(skin, faces, viscoelastic)
+        super().__init__(profile, block, grid_hz, loop, output_play_m)
         self._d = np.asarray(profile.indentation(self._t), dtype=float)
-        self._f_el = np.asarray(skin.force_n(self._d), dtype=float)
-        self._v = np.asarray(skin.voltage_v(play(self._d, output_play_m)), dtype=float)
-        self._f = self._f_el if viscoelastic is None else rate_force(viscoelastic, self._t,
-                                                                     self._f_el)
+        self._f_el = np.asarray(block.load(self._d), dtype=float)
+        self._v = block.module_voltages(play(self._d, output_play_m))[:, 0]
+        self._f = block.rated(self._t, self._f_el)
 
     def _at(self, t: TimeLike, values: npt.NDArray[np.float64]) -> Any:
         out = np.interp(self._time(t), self._t, values)

@@ -5,8 +5,9 @@ pitch radius 14 mm) between two racks, so both fingers move symmetrically along 
 guide. Servo angle ``theta`` is measured from ``open_position_rad`` (fingers fully open);
 **positive rotation closes**: ``opening = open_opening_m - 2 * pitch_radius_m * theta``.
 ``opening`` is the distance between the two skin surfaces. A rod of ``rod_diameter_m`` is held
-fixed at ``rod_offset_m`` from the gripper centre (positive towards finger B). Finger A carries
-the tactile module under its skin; finger B has the same skin without a module.
+fixed at ``rod_offset_m`` from the gripper centre (positive towards finger B). Each
+fingertip is a skin block (``sim/skin_block.py``), the same skin model the bench presses:
+finger A's carries the tactile module, finger B's the same skin without a module.
 
 Contact: a finger's skin indentation is how far its surface has passed the rod's edge; the
 skin's response (force and photoreflector voltage against indentation) comes from the physics
@@ -15,7 +16,7 @@ frame, modelled as a stiff spring. The motor must supply ``pitch_radius_m * (F_A
 hold a position; hard stops at both ends of the travel do the same with a stiff spring.
 
 Threads: the emulator thread calls :meth:`GripperWorld.update`; the mock ADC thread calls
-:meth:`GripperWorld.photoreflector_voltage`; a lock guards the shared state.
+:meth:`GripperWorld.module_voltages`; a lock guards the shared state.
 """
 
 from __future__ import annotations
@@ -24,13 +25,17 @@ import bisect
 import threading
 from dataclasses import dataclass
 
+import numpy as np
+import numpy.typing as npt
+
 from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.sim.skin_block import SkinBlock
 from tactile_sensor.sim.skin_response import RIGID_STIFFNESS_N_PER_M, SkinResponse
 
 
 @dataclass(frozen=True)
 class WorldSample:
-    """Ground truth at one instant."""
+    """Ground truth at one instant; ``voltages_v``: finger A's modules, layout order."""
 
     t_s: float
     position_rad: float
@@ -39,11 +44,11 @@ class WorldSample:
     indentation_b_m: float
     force_a_n: float
     force_b_n: float
-    voltage_v: float
+    voltages_v: tuple[float, ...]
 
 
 class GripperWorld:
-    """Fingers, skins and the rod; feeds load torque to the motor and voltage to the ADC."""
+    """Fingers, skins and the rod; feeds load torque to the motor and voltages to the ADC."""
 
     def __init__(self, skin: SkinResponse, geometry: GripperGeometry | None = None,
                  rod_diameter_m: float | None = 0.020, rod_offset_m: float = 0.0,
@@ -51,7 +56,10 @@ class GripperWorld:
         self.geometry = geometry or GripperGeometry()
         if rod_diameter_m is not None and rod_diameter_m <= 0:
             raise ValueError("rod_diameter_m must be positive (or None for no rod)")
-        self.skin = skin
+        #: Finger A's fingertip (its modules are the world's) and finger B's, without one.
+        self.finger_a = SkinBlock(skin)
+        self.finger_b = SkinBlock(skin, faces=())
+        self.faces = self.finger_a.faces
         self._lock = threading.Lock()
         self._rod: tuple[float, float] | None = None
         self.set_rod(rod_diameter_m, rod_offset_m)
@@ -89,8 +97,8 @@ class GripperWorld:
         """Torque the servo must supply to hold ``position_rad`` (positive resists closing)."""
         g = self.geometry
         d_a, d_b = self.indentations_m(position_rad)
-        force = (self.skin.force_n(d_a) if d_a else 0.0) + (
-            self.skin.force_n(d_b) if d_b else 0.0)
+        force = (self.finger_a.load(d_a) if d_a else 0.0) + (
+            self.finger_b.load(d_b) if d_b else 0.0)
         opening = g.opening_m(position_rad)
         if opening < g.closed_opening_m:
             force += RIGID_STIFFNESS_N_PER_M * (g.closed_opening_m - opening)
@@ -102,9 +110,9 @@ class GripperWorld:
     def _sample(self, t_s: float, position_rad: float) -> WorldSample:
         d_a, d_b = self.indentations_m(position_rad)
         return WorldSample(t_s, position_rad, self.geometry.opening_m(position_rad), d_a, d_b,
-                           self.skin.force_n(d_a) if d_a else 0.0,
-                           self.skin.force_n(d_b) if d_b else 0.0,
-                           self.skin.voltage_v(d_a))
+                           self.finger_a.load(d_a) if d_a else 0.0,
+                           self.finger_b.load(d_b) if d_b else 0.0,
+                           tuple(self.finger_a.module_voltages(d_a).tolist()))
 
     def update(self, t_s: float, position_rad: float) -> WorldSample:
         """Record the fingers at ``position_rad`` at time ``t_s`` (emulator thread)."""
@@ -126,11 +134,18 @@ class GripperWorld:
             return self._latest
 
     def photoreflector_voltage(self, t: float) -> float:
-        """Voltage of finger A's photoreflector now (``t`` is the ADC's clock; the world
+        """Voltage of finger A's (first) photoreflector now (``t`` is the ADC's clock; the world
         answers with its latest state, which the emulator keeps within a millisecond)."""
         del t
         with self._lock:
-            return self._latest.voltage_v
+            return self._latest.voltages_v[0]
+
+    def module_voltages(self, t: float | npt.ArrayLike) -> npt.NDArray[np.float64]:
+        """Finger A's modules' voltages [V] now, shape (..., modules) for the times ``t``
+        (the ADC's clock; the latest state for each, as ``photoreflector_voltage``)."""
+        with self._lock:
+            volts = self._latest.voltages_v
+        return np.broadcast_to(np.asarray(volts, dtype=float), (*np.shape(t), len(volts)))
 
     def force_at(self, t_s: float) -> float:
         """Finger A's skin force at time ``t_s`` from the recorded history (interpolated;

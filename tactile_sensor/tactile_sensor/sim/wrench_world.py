@@ -113,6 +113,9 @@ def wrench_points(params: Any, data: WrenchSetLike) -> WrenchPoints:
 class WrenchSkin:
     """(d, sx, sy, rx, ry, rz) -> module outputs and (Fx, Fy, Fz, Tx, Ty, Tz); vectorised."""
 
+    #: What acts on it: indentation, lateral displacement (x, y), tilt (x, y), twist (z).
+    axes = 6
+
     def __init__(self, skin: ArraySkin, points: WrenchPoints, half_width_m: float = 0.011,
                  half_depth_m: float = 0.011, source: str = "") -> None:
         if set(points.modules) != set(skin.faces):
@@ -284,10 +287,6 @@ class WrenchBenchWorld(ArrayBenchWorld):
     skin: WrenchSkin  # type: ignore[assignment]
     _protocol = "wrench"
     _stage_path = staticmethod(wrench_stage_path)
-
-    @staticmethod
-    def _gauge_of(skin: Any, cols: np.ndarray) -> np.ndarray:
-        return np.asarray(skin.wrench(*cols))
 
     def _refuse_path(self, profile: StageProfile, skin: ArraySkin) -> None:
         super()._refuse_path(profile, skin)

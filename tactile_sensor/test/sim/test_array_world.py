@@ -14,14 +14,10 @@ from tactile_sensor.physics.array_grid import load_or_compute_grid
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import module_output
 from tactile_sensor.physics.viscoelastic import RateDependentForce
-from tactile_sensor.sim.array_world import (
-    ArrayBenchWorld,
-    ArraySkin,
-    filtered_rate_force,
-    stage_path,
-)
+from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin, stage_path
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.profiles import LoadProfile, ShearProfile, array_profile_from_protocol
+from tactile_sensor.sim.skin_block import filtered_rate_force
 
 PARAMS = PhysicsParams(modules="front,back,left,right")
 FACES = ("front", "back", "left", "right")
