@@ -18,7 +18,7 @@ servo and the reference instruments agree:
   (config/protocols.yaml) starts ``protocol.start_delay`` s after start-up, or on
   ``~/start``.
 - ``world: gripper`` — the soft gripper: an emulated XM430 moves the fingers, the rod
-  indents the fingertip skin, the mock ADC streams finger A's signal, and
+  indents the fingertip skin, the mock ADC streams finger A's modules, and
   ``~/ground_truth`` carries finger A's true skin force.
 """
 
@@ -168,8 +168,8 @@ class ProtocolSource:
     def __call__(self, t: Any) -> Any:
         start = self._start_device_s
         if start is None:
-            return self.world.photoreflector_voltage(np.zeros_like(np.asarray(t, float)))
-        return self.world.photoreflector_voltage(np.maximum(np.asarray(t, float) - start, 0.0))
+            return self.world.module_voltages(np.zeros_like(np.asarray(t, float)))
+        return self.world.module_voltages(np.maximum(np.asarray(t, float) - start, 0.0))
 
 
 #: How far ahead [s] the stage and gauge are evaluated, in one call.
@@ -239,7 +239,6 @@ class MockHardwareNode(Node):
                 skin = TabulatedSkin.from_prediction_curve(self.curve)
         except (PhysicsError, SimError) as exc:
             raise MockHardwareError(str(exc)) from None
-        channels = len(self.faces) if array else 1
         seed = values["seed"] if values["seed"] >= 0 else None
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
@@ -252,9 +251,10 @@ class MockHardwareNode(Node):
                 self._build_gripper(skin)
             for path in self._links():
                 Path(path).parent.mkdir(parents=True, exist_ok=True)
+            faces = self.world.faces  # the ADC samples every module the world has
             self.adc = MockAdcDevice(values["adc_link"], self.source,
                                      rate_hz=values["adc_rate"], noise=noise, seed=seed,
-                                     channels=channels)
+                                     channels=len(faces))
             self.adc.start()
             if self.emulator is not None:
                 self.emulator.start()
@@ -263,7 +263,7 @@ class MockHardwareNode(Node):
             raise MockHardwareError(f"Cannot start the mock devices: {exc}") from None
         self.get_logger().info(
             f"mock {values['world']} ready: ADC at {values['adc_link']}"
-            + (f" ({channels} channels: {', '.join(self.faces)})" if array else "")
+            + (f" ({len(faces)} channels: {', '.join(faces)})" if len(faces) > 1 else "")
             + (f", XM430 at {values['servo_link']}" if self.emulator is not None else ""))
 
     def _links(self) -> list[str]:
@@ -299,7 +299,8 @@ class MockHardwareNode(Node):
                                   speeds_m_s=tuple(v["protocol.speeds"]),
                                   cycles=v["protocol.cycles"], hold_s=v["protocol.hold"],
                                   rest_s=v["protocol.rest"])
-            self.world = BenchWorld(profile, skin, rate, output_play_m=physics.output_play)
+            self.world = BenchWorld(profile, skin, rate, output_play_m=physics.output_play,
+                                    faces=physics.module_faces)
         self.source = ProtocolSource(self.world)
         self._start_host_ns: int | None = None
         self.published_until_ns = 0  # host time of the last stage/gauge sample published
@@ -409,7 +410,7 @@ class MockHardwareNode(Node):
                                     ) from None
         self.world = GripperWorld(skin, geometry, rod_diameter_m=v["rod.diameter"] or None,
                                   rod_offset_m=v["rod.offset"])
-        self.source = self.world.photoreflector_voltage
+        self.source = self.world.module_voltages
         self.emulator = Xm430Emulator(v["servo_link"], servo_id=v["servo_id"],
                                       baudrate=v["servo_baud_rate"], world=self.world,
                                       control_path=v["servo_control"] or None)

@@ -661,7 +661,7 @@ def main(argv: list[str] | None = None) -> int:
         noise = AdcNoise(white_v=args.noise, drift_v=args.drift, drift_tau_s=args.drift_tau)
         skin = _load_skin(args.skin_table)
         world = BenchWorld(profile, skin, loop=args.loop)
-        device = MockAdcDevice(args.link, FixedSource(world.photoreflector_voltage),
+        device = MockAdcDevice(args.link, FixedSource(world.module_voltages),
                                rate_hz=args.rate,
                                noise=noise, adc_bits=args.adc_bits, vref_v=args.vref,
                                channels=args.channels, seed=args.seed,

@@ -659,7 +659,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise SimError("--adc-link needs the gripper world; drop --no-world.")
             from tactile_sensor.sim.adc_device import MockAdcDevice
 
-            adc = MockAdcDevice(args.adc_link, world.photoreflector_voltage)
+            adc = MockAdcDevice(args.adc_link, world.module_voltages)
             adc.start()
     except (SimError, ValueError) as exc:
         print(f"tactile-sensor mock xm430: {exc}", file=sys.stderr)
