@@ -1,0 +1,138 @@
+"""The workflow pages' figures, drawn from the committed benchmark results with the
+package's own plot functions: ``make docs`` runs this before Sphinx.
+
+Each figure comes from the series a benchmark keeps in its results file
+(``benchmarks/results/<name>.json``, written by ``make bench-publish``), never from a file
+copied by hand. For every page this writes ``docs/_generated/<page>.md`` (ignored by git),
+which the page includes: the figures with a caption naming the benchmark, its commit and
+date, or, where the result or its series is missing, one sentence saying so and how to
+measure it.
+
+    python benchmarks/docs_figures.py [--results DIR] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from results import PUBLISHED, ROOT, ResultsError, read_results
+
+sys.path.insert(0, str(ROOT / "tactile_sensor"))
+
+OUT = ROOT / "docs" / "_generated"
+Series = dict[str, np.ndarray]
+
+
+def array_analysis(series: Series) -> Any:
+    """The array analysis of a benchmark's kept (decimated) signals, as the command's own
+    analysis computes it from the recording."""
+    from tactile_sensor.analysis.array.analysis import ArraySignals, analyse_signals
+
+    t_s = series["t_s"]
+    torque = "estimate_torque_nm" in series
+    signals = ArraySignals(
+        t_s=t_s, estimate_n=series["estimate_n"], reference_n=series["reference_n"],
+        outputs_v=np.zeros((t_s.size, 0)), faces=(),
+        rate_hz=float((t_s.size - 1) / (t_s[-1] - t_s[0])) if t_s.size > 1 else 0.0,
+        start_ns=0, reference_flipped=False,
+        estimate_torque_nm=series["estimate_torque_nm"] if torque else None,
+        reference_torque_nm=series["reference_torque_nm"] if torque else None)
+    return analyse_signals(signals, "a benchmark's kept signals", {}, [])
+
+
+def shear_direction(series: Series, path: Path) -> Path:
+    from tactile_sensor.analysis.plots import array_shear_direction
+
+    return array_shear_direction(array_analysis(series), path)
+
+
+def torque_time(series: Series, path: Path) -> Path:
+    from tactile_sensor.analysis.plots import array_torque_time
+
+    return array_torque_time(array_analysis(series), path)
+
+
+@dataclass(frozen=True)
+class PageFigure:
+    """One figure of a docs page: the benchmark result it is drawn from, what it shows, and
+    the plot that draws it (None: the benchmark keeps no series for it yet)."""
+
+    page: str
+    name: str
+    result: str
+    shows: str
+    draw: Callable[[Series, Path], Path] | None = None
+
+
+FIGURES = (
+    PageFigure("bench-calibration", "compression", "analysis",
+               "the compression curve beside the paper's"),
+    PageFigure("array", "array_shear_direction", "array_shear",
+               "the shear direction, estimated against applied", shear_direction),
+    PageFigure("array", "array_torque_time", "bench_wrench",
+               "the torque, estimated against the gauge", torque_time),
+    PageFigure("design-studies", "pareto", "study_window_placement", "the Pareto front"),
+    PageFigure("rate-calibration", "rate_errors", "rate_calibration",
+               "the rate errors per speed"),
+    PageFigure("gripper-workflow", "grasp", "gripper",
+               "a grasp's force and opening over time"),
+)
+
+
+def figure_lines(figure: PageFigure, results: Path, out: Path) -> list[str]:
+    """The Markdown of one figure: the image and its caption, or the sentence why not."""
+    path = results / f"{figure.result}.json"
+    if not path.exists():
+        return [f"*No figure of {figure.shows}: the result {figure.result} is not published "
+                "yet; run its benchmark at a clean commit, then `make bench-publish`.*", ""]
+    try:
+        record = read_results(path)
+    except ResultsError as exc:
+        return [f"*No figure of {figure.shows}: {exc}*", ""]
+    series = record.get("series")
+    if figure.draw is None or not isinstance(series, dict) or not series:
+        return [f"*No figure of {figure.shows}: the result {figure.result} (commit "
+                f"`{record['commit']}`) keeps no series to draw it from; rerun "
+                f"`{record['command']}` at a clean commit, then `make bench-publish`.*", ""]
+    columns = {k: np.asarray(v, dtype=float) for k, v in series.items()}
+    image = figure.draw(columns, out / f"{figure.name}.png")
+    return [f":::{{figure}} _generated/{image.name}", f":alt: {figure.shows}", "",
+            f"{figure.shows[0].upper()}{figure.shows[1:]}: benchmark {record['benchmark']} "
+            f"(`{record['command']}`), commit `{record['commit']}`, {record['date']}.",
+            ":::", ""]
+
+
+def write_pages(results: Path, out: Path) -> list[Path]:
+    """``<page>.md`` for every page with a figure; returns the files written."""
+    out.mkdir(parents=True, exist_ok=True)
+    pages: dict[str, list[str]] = {}
+    for figure in FIGURES:
+        pages.setdefault(figure.page, []).extend(figure_lines(figure, results, out))
+    written = []
+    for page, lines in pages.items():
+        target = out / f"{page}.md"
+        target.write_text("\n".join(lines).rstrip("\n") + "\n")
+        written.append(target)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--results", type=Path, default=PUBLISHED,
+                        help="folder of results files (default: benchmarks/results)")
+    parser.add_argument("--out", type=Path, default=OUT,
+                        help="folder the pages include (default: docs/_generated)")
+    args = parser.parse_args(argv)
+    written = write_pages(args.results, args.out)
+    print(f"docs figures: {len(written)} page(s) -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
