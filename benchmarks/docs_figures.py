@@ -58,6 +58,25 @@ def torque_time(series: Series, path: Path) -> Path:
     return array_torque_time(array_analysis(series), path)
 
 
+def grasp_trace(series: Series, path: Path) -> Path:
+    """One grasp as its controller saw it: the sensed force closing on the target while the
+    opening narrows (the package draws no plot of a grasp; the demo prints a summary)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (force, opening) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    force.plot(series["t_s"], series["force_n"], lw=0.9, color="tab:red")
+    force.set(ylabel="sensed force [N]", title="Grasp: force and opening from the goal on")
+    opening.plot(series["t_s"], series["opening_m"] * 1e3, lw=0.9, color="tab:blue")
+    opening.set(xlabel="time from the goal [s]", ylabel="opening [mm]")
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.92, hspace=0.15)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 @dataclass(frozen=True)
 class PageFigure:
     """One figure of a docs page: the benchmark result it is drawn from, what it shows, and
@@ -81,7 +100,7 @@ FIGURES = (
     PageFigure("rate-calibration", "rate_errors", "rate_calibration",
                "the rate errors per speed"),
     PageFigure("gripper-workflow", "grasp", "gripper",
-               "a grasp's force and opening over time"),
+               "a grasp's force and opening over time", grasp_trace),
 )
 
 
