@@ -58,23 +58,55 @@ def torque_time(series: Series, path: Path) -> Path:
     return array_torque_time(array_analysis(series), path)
 
 
-def grasp_trace(series: Series, path: Path) -> Path:
-    """One grasp as its controller saw it: the sensed force closing on the target while the
-    opening narrows (the package draws no plot of a grasp; the demo prints a summary)."""
+def pyplot() -> Any:
+    """Matplotlib's pyplot on the Agg backend: the figure step draws files, no windows."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def saved(fig: Any, path: Path) -> Path:
+    fig.savefig(path, dpi=100)
+    pyplot().close(fig)
+    return path
+
+
+def grasp_trace(series: Series, path: Path) -> Path:
+    """One grasp as its controller saw it: the sensed force closing on the target while the
+    opening narrows (the package draws no plot of a grasp; the demo prints a summary)."""
+    plt = pyplot()
     fig, (force, opening) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     force.plot(series["t_s"], series["force_n"], lw=0.9, color="tab:red")
     force.set(ylabel="sensed force [N]", title="Grasp: force and opening from the goal on")
     opening.plot(series["t_s"], series["opening_m"] * 1e3, lw=0.9, color="tab:blue")
     opening.set(xlabel="time from the goal [s]", ylabel="opening [mm]")
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.92, hspace=0.15)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return saved(fig, path)
+
+
+def rate_errors(series: Series, path: Path) -> Path:
+    """Static against rate-aware model error for each speed and phase of the held-out
+    recording, beside the goal's share of full scale (the package draws the force traces,
+    not this table)."""
+    from rate_goal import GOAL_SHARE_FS
+
+    plt = pyplot()
+    labels = [f"{v:g} mm/s\n{p}" for v, p in zip(series["speed_mm_s"], series["phase"],
+                                                 strict=True)]
+    x = np.arange(len(labels))
+    fig, ax = plt.subplots(figsize=(9, 4))
+    ax.bar(x - 0.2, series["static_model_rmse_n"], 0.4, color="tab:blue", label="static curve")
+    ax.bar(x + 0.2, series["rate_model_rmse_n"], 0.4, color="tab:red", label="rate-aware")
+    ax.axhline(GOAL_SHARE_FS * float(series["full_scale_n"][0]), color="k", ls="--", lw=0.8,
+               label=f"goal: {GOAL_SHARE_FS:.1%} of full scale")
+    ax.set_xticks(x, labels, fontsize=8)
+    ax.set(ylabel="model error rmse [N]", title="Held-out force error per speed and phase")
+    ax.legend(fontsize=8)
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.2, top=0.9)
+    return saved(fig, path)
 
 
 @dataclass(frozen=True)
@@ -98,10 +130,17 @@ FIGURES = (
                "the torque, estimated against the gauge", torque_time),
     PageFigure("design-studies", "pareto", "study_window_placement", "the Pareto front"),
     PageFigure("rate-calibration", "rate_errors", "rate_calibration",
-               "the rate errors per speed"),
+               "the rate errors per speed", rate_errors),
     PageFigure("gripper-workflow", "grasp", "gripper",
                "a grasp's force and opening over time", grasp_trace),
 )
+
+
+def column(values: list[object]) -> np.ndarray:
+    """A kept column as numbers (``null`` as NaN), or as text where it names things."""
+    if any(isinstance(v, str) for v in values):
+        return np.asarray(values, dtype=str)
+    return np.asarray(values, dtype=float)
 
 
 def figure_lines(figure: PageFigure, results: Path, out: Path) -> list[str]:
@@ -119,7 +158,7 @@ def figure_lines(figure: PageFigure, results: Path, out: Path) -> list[str]:
         return [f"*No figure of {figure.shows}: the result {figure.result} (commit "
                 f"`{record['commit']}`) keeps no series to draw it from; rerun "
                 f"`{record['command']}` at a clean commit, then `make bench-publish`.*", ""]
-    columns = {k: np.asarray(v, dtype=float) for k, v in series.items()}
+    columns = {k: column(v) for k, v in series.items()}
     image = figure.draw(columns, out / f"{figure.name}.png")
     return [f":::{{figure}} _generated/{image.name}", f":alt: {figure.shows}", "",
             f"{figure.shows[0].upper()}{figure.shows[1:]}: benchmark {record['benchmark']} "

@@ -34,7 +34,9 @@ RESULTS = ROOT / "build" / "benchmarks" / "results"
 PUBLISHED = ROOT / "benchmarks" / "results"
 DIRTY = "-dirty"
 #: The most rows a kept series has: enough for a page's figure, small enough for git.
-SERIES_POINTS = 2_000
+SERIES_POINTS = 1_000
+#: Significant digits a kept series value has: finer than any figure draws.
+SERIES_DIGITS = 5
 
 
 @dataclass(frozen=True)
@@ -139,7 +141,7 @@ def write_results(name: str, figures: list[Figure], *, notes: str = "",
         record["series"] = decimated(series)
     out = (directory or RESULTS) / f"{name}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(record, indent=2, allow_nan=False, default=_plain) + "\n")
+    out.write_text(record_text(record))
     print(f"figures: {out}", flush=True)
     return out
 
@@ -172,4 +174,19 @@ def _finite_rows(column: object) -> object:
     values = tolist() if callable(tolist) else column
     if isinstance(values, (list, tuple)):
         return [_finite_rows(v) for v in values]
-    return _finite(values)  # type: ignore[return-value]
+    value = _finite(values)
+    return float(f"{value:.{SERIES_DIGITS}g}") if isinstance(value, float) else value
+
+
+def record_text(record: dict[str, object]) -> str:
+    """The record as indented JSON, each series column on one line: a figure per line
+    diffs well, a thousand rows per column would not."""
+    series = record.get("series")
+    head = {key: value for key, value in record.items() if key != "series"}
+    text = json.dumps(head, indent=2, allow_nan=False, default=_plain)
+    if not isinstance(series, dict):
+        return text + "\n"
+    columns = ",\n".join(f"    {json.dumps(name)}: "
+                         f"{json.dumps(values, allow_nan=False, separators=(',', ':'))}"
+                         for name, values in series.items())
+    return text[:-2] + ',\n  "series": {\n' + columns + "\n  }\n}\n"
