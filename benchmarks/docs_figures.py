@@ -83,6 +83,16 @@ def pareto(series: Series, path: Path) -> Path:
     return path
 
 
+def compression(series: Series, path: Path) -> Path:
+    """The analysis's own compression curve (Fig. 7a) of the benchmark's 1 mm/s presses."""
+    from tactile_sensor.analysis.plots import compression_curve
+
+    unloading = series["unloading"] > 0.5
+    ramps = {"load": (series["indentation_m"][~unloading], series["force_n"][~unloading]),
+             "unload": (series["indentation_m"][unloading], series["force_n"][unloading])}
+    return compression_curve(ramps, "1.0", path)
+
+
 def pyplot() -> Any:
     """Matplotlib's pyplot on the Agg backend: the figure step draws files, no windows."""
     import matplotlib
@@ -148,7 +158,7 @@ class PageFigure:
 
 FIGURES = (
     PageFigure("bench-calibration", "compression", "analysis",
-               "the compression curve beside the paper's"),
+               "the compression curve beside the paper's", compression),
     PageFigure("array", "array_shear_direction", "array_shear",
                "the shear direction, estimated against applied", shear_direction),
     PageFigure("array", "array_torque_time", "bench_wrench",
