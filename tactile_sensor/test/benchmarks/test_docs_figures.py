@@ -67,3 +67,18 @@ def test_a_result_without_its_series_gives_one_sentence_and_no_image(tmp_path):
     assert "bench_array_shear.py" in shear[0]
     # a page whose result is not published at all says that
     assert "is not published yet" in (out / "gripper-workflow.md").read_text()
+
+
+def test_a_column_of_names_draws_beside_columns_of_numbers(tmp_path):
+    """The rate page's errors come per speed and phase: the phase column is text."""
+    published, out = tmp_path / "results", tmp_path / "generated"
+    results.write_results("rate_calibration", [], argv=["benchmarks/bench_rate_calibration.py"],
+                          directory=published,
+                          series={"speed_mm_s": [0.3, 0.3, 20.0], "phase": ["loading", "hold",
+                                                                            "unloading"],
+                                  "static_model_rmse_n": [0.2, 0.1, 0.4],
+                                  "rate_model_rmse_n": [0.05, 0.04, 0.08],
+                                  "full_scale_n": [7.0, 7.0, 7.0]})
+    docs_figures.write_pages(published, out)
+    assert (out / "rate_errors.png").stat().st_size > 0
+    assert "benchmark rate_calibration" in (out / "rate-calibration.md").read_text()
