@@ -21,8 +21,9 @@ test:  ## setup if needed, ruff, the whole suite with ROS isolated per run (what
 test-fast:  ## ruff and every test that starts no process (a few minutes; before each commit)
 	@TACTILE_TEST_FAST=1 bash scripts/test.sh -m "not slow"
 
-docs: setup  ## the ROS interface reference from the code, then docs/ to HTML (build/docs/html), warnings as errors
+docs: setup  ## the ROS interface reference from the code, the pages' figures from benchmarks/results, then docs/ to HTML (build/docs/html), warnings as errors
 	@. scripts/env.sh && python -m tactile_sensor.nodes.interface_reference docs/reference >/dev/null \
+		&& MPLBACKEND=Agg python benchmarks/docs_figures.py \
 		&& sphinx-build -W --keep-going -q -b html docs build/docs/html \
 		&& echo "docs: build/docs/html/index.html"
 

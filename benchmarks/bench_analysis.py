@@ -16,12 +16,16 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
 from results import Figure, write_results
 from rosbags.rosbag2 import Reader
 
 from tactile_sensor.analysis import cli
+from tactile_sensor.analysis.characterise import Options, analyse_bag
+from tactile_sensor.analysis.plots import compression_ramps
 from tactile_sensor.analysis.synthetic import (
     BagTopics,
     PressProtocol,
@@ -57,6 +61,16 @@ def analysis_s(bag: Path, out: Path) -> float:
     return time.perf_counter() - start
 
 
+def compression_series(bag: Path) -> dict[str, np.ndarray]:
+    """The compression curve the analysis draws (Fig. 7a), for the bench page's figure:
+    both ramps in one set of columns, ``unloading`` telling them apart."""
+    ramps = compression_ramps(analyse_bag(str(bag), Options()))
+    (load_m, load_n), (unload_m, unload_n) = ramps["load"], ramps["unload"]
+    return {"indentation_m": np.concatenate([load_m, unload_m]),
+            "force_n": np.concatenate([load_n, unload_n]),
+            "unloading": np.concatenate([np.zeros(load_m.size), np.ones(unload_m.size)])}
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cycles", type=int, default=100)
@@ -88,9 +102,11 @@ def main() -> None:
                         Figure(f"{storage}: full analysis", full, "s"),
                         Figure(f"{storage}: analysis / baseline", full / base, "x", "<= 1.5",
                                full / base <= 1.5)]
-    write_results("analysis", figures, notes=f"{args.cycles} cycles at 1 mm/s to 3 mm, "
-                  f"{args.rate:g} Hz, three topics; the baseline reads the same topics with "
-                  "rosbags and deserializes every message.")
+        series = compression_series(bag)
+    write_results("analysis", figures, series=series,
+                  notes=f"{args.cycles} cycles at 1 mm/s to 3 mm, {args.rate:g} Hz, three "
+                  "topics; the baseline reads the same topics with rosbags and deserializes "
+                  "every message.")
 
 
 if __name__ == "__main__":

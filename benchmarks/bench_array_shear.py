@@ -20,6 +20,7 @@ from node_processes import isolate_ros
 from recorded_run import (
     add_keep_argument,
     add_protocol_argument,
+    array_series,
     bring_up_and_analyse,
     goals_line,
     share_of_range,
@@ -46,7 +47,8 @@ def main() -> int:
                                "N", GOALS_PCT[axis]) for axis in "xyz"]
     figures += shear_figures(array)
     goals_line(figures, run.out)
-    write_results("array_shear", figures, notes=run.notes(f", {array['samples']} samples"))
+    write_results("array_shear", figures, series=array_series(run),
+                  notes=run.notes(f", {array['samples']} samples"))
     return 0
 
 

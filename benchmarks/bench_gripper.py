@@ -44,6 +44,8 @@ from tactile_sensor.sim.xm430_emulator import Xm430Emulator  # noqa: E402
 TRANSPORT_DELAY_S = 0.005
 AVERAGE_POINTS = 9
 TARGET_FORCE_N = 3.0
+#: The grasp whose force and opening the results keep (with slow-down, as configured).
+TRACE_SPEED_M_S = 0.010
 
 
 def skin() -> tuple[TabulatedSkin, str]:
@@ -116,8 +118,12 @@ def open_fully(client: Xm430Client, config: GraspConfig) -> None:
 
 
 def grasp_once(client: Xm430Client, world: GripperWorld, emulator_t0: float,
-               config: GraspConfig, speed_m_s: float) -> tuple[float, float, float]:
+               config: GraspConfig, speed_m_s: float
+               ) -> tuple[float, float, float, dict[str, list[float]]]:
+    """Overshoot, held force and loop rate of one grasp, and its trace as the controller
+    saw it (time from the goal, sensed force, opening) for the docs' figure."""
     sensed = SensedForce(world, emulator_t0)
+    trace: dict[str, list[float]] = {"t_s": [], "force_n": [], "opening_m": []}
     controller = GraspController(config)
     start = time.monotonic()
     state = client.read_state()
@@ -138,6 +144,9 @@ def grasp_once(client: Xm430Client, world: GripperWorld, emulator_t0: float,
         force, stamp = sensed(now)
         step = controller.tick(now, force, stamp, state)
         ticks += 1
+        trace["t_s"].append(now - start)
+        trace["force_n"].append(force)
+        trace["opening_m"].append(config.geometry.opening_m(state.position_rad))
     end = time.monotonic()
     time.sleep(0.3)  # hold and let everything settle
     t_start, t_end = start - emulator_t0, time.monotonic() - emulator_t0
@@ -145,7 +154,7 @@ def grasp_once(client: Xm430Client, world: GripperWorld, emulator_t0: float,
     if step.outcome is None or step.outcome.value != "contact":
         raise RuntimeError(f"grasp at {speed_m_s} m/s ended with {step.outcome}: "
                            f"{step.message}")
-    return max(forces) - TARGET_FORCE_N, forces[-1], ticks / (end - start)
+    return max(forces) - TARGET_FORCE_N, forces[-1], ticks / (end - start), trace
 
 
 def main() -> int:
@@ -170,6 +179,7 @@ def main() -> int:
           f"{AVERAGE_POINTS}-point moving average at 1 kHz + {TRANSPORT_DELAY_S * 1e3:.0f} ms"
           " transport; one process, 1 Mbps, Return Delay 0)")
     world = GripperWorld(skin_model, rod_diameter_m=0.020)
+    traces: dict[float, dict[str, list[float]]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         link = Path(tmp) / "xm430"
         with Xm430Emulator(link, baudrate=1_000_000, world=world) as emulator:
@@ -184,13 +194,16 @@ def main() -> int:
                     print(f"  {label}:")
                     for speed in (0.005, 0.010, 0.020):
                         open_fully(client, config)
-                        over, final, rate = grasp_once(client, world, t0, config, speed)
+                        over, final, rate, trace = grasp_once(client, world, t0, config,
+                                                              speed)
+                        traces.setdefault(speed, trace)  # the first: with slow-down
                         print(f"    {speed * 1e3:4.0f} mm/s: overshoot {over:+.2f} N "
                               f"(held {final:.2f} N), loop {rate:.0f} Hz")
                         figures.append(Figure(f"overshoot at {speed * 1e3:.0f} mm/s, {label}",
                                               over, "N"))
-    write_results("gripper", figures, notes=f"Grasp to {TARGET_FORCE_N:g} N on the XM430 "
-                  f"emulator (skin: {source}); tactile force through a {AVERAGE_POINTS}-point "
+    write_results("gripper", figures, series=traces[TRACE_SPEED_M_S],
+                  notes=f"Grasp to {TARGET_FORCE_N:g} N on the XM430 emulator"
+                  f" (skin: {source}); tactile force through a {AVERAGE_POINTS}-point "
                   f"moving average at 1 kHz and {TRANSPORT_DELAY_S * 1e3:.0f} ms transport.")
     return 0
 

@@ -249,8 +249,13 @@ def report(fit_run: Characterisation, fit: RateFit, check: Characterisation, fit
                            bool(r.meets_goal(full_scale_n, True)))]
     figures += [Figure("every row, per-sample RMSE", verdict(sample_ok), "", goal, sample_ok),
                 Figure("every row, model error", verdict(model_ok), "", goal, model_ok)]
-    write_results("rate_calibration", figures, notes=f"Fitted on {fit_run.recording.path.name}"
-                  f", scored on {check.recording.path.name} against a static curve fitted on "
+    series = {"speed_mm_s": [r.speed_mm_s for r in rows], "phase": [r.phase for r in rows],
+              "static_model_rmse_n": [r.static_model_rmse_n for r in rows],
+              "rate_model_rmse_n": [r.rate_model_rmse_n for r in rows],
+              "full_scale_n": [full_scale_n] * len(rows)}
+    write_results("rate_calibration", figures, series=series,
+                  notes=f"Fitted on {fit_run.recording.path.name}, scored on "
+                  f"{check.recording.path.name} against a static curve fitted on "
                   f"its own ramps; full scale {full_scale_n:.3f} N; {MODEL_ERROR_TEXT}.")
     return 0
 

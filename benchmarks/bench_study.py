@@ -27,7 +27,7 @@ sys.path.insert(0, str(SOURCE))
 from results import Figure, write_results  # noqa: E402
 
 from tactile_sensor.studies.cluster import loopback_cluster  # noqa: E402
-from tactile_sensor.studies.run import DesignRow, run_study  # noqa: E402
+from tactile_sensor.studies.run import DesignRow, metric_value, run_study  # noqa: E402
 from tactile_sensor.studies.spec import StudySpecError, load_spec  # noqa: E402
 
 DEFAULT_SPEC = SOURCE / "config" / "studies" / "window_placement.yaml"
@@ -48,6 +48,16 @@ def same(a: list[DesignRow], b: list[DesignRow]) -> bool:
     return all(x.values == y.values and x.error == y.error and all(
         math.isclose(x.metrics[k], v, rel_tol=1e-9) for k, v in y.metrics.items())
         for x, y in zip(a, b, strict=True))
+
+
+def study_series(rows: list[DesignRow], columns: tuple[str, ...]) -> dict[str, list[object]]:
+    """Each design's name, error and metrics (the paper's first): the study's Pareto plot
+    is drawn from them again on the design-studies page."""
+    series: dict[str, list[object]] = {"design": [r.design for r in rows],
+                                       "error": [r.error for r in rows]}
+    for column in columns:
+        series[column] = [metric_value(r, column) for r in rows]
+    return series
 
 
 def main() -> int:
@@ -77,7 +87,8 @@ def main() -> int:
         Figure("rows agree on every path", agree, "", "yes", agree),
         Figure("loopback workers used", len(workers), "", "2", len(workers) == 2)],
         notes=f"Study '{spec.name}', {len(one)} designs, each run from an empty cache; load "
-              f"average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at the end.")
+              f"average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at the end.",
+        series=study_series(one, spec.columns))
     return 0 if agree and len(workers) == 2 else 1
 
 

@@ -25,6 +25,7 @@ from node_processes import isolate_ros
 from recorded_run import (
     add_keep_argument,
     add_protocol_argument,
+    array_series,
     bring_up_and_analyse,
     goals_line,
     share_of_range,
@@ -81,7 +82,7 @@ def main() -> int:
           f"{BANDWIDTH_GOAL_HZ:g} Hz: {'met' if ok else 'NOT met'})")
     figures.append(Figure("torque bandwidth", cutoff, "Hz", f">= {BANDWIDTH_GOAL_HZ:g}", ok))
     goals_line(figures, run.out)
-    write_results("bench_wrench", figures, notes=run.notes())
+    write_results("bench_wrench", figures, series=array_series(run), notes=run.notes())
     return 0
 
 

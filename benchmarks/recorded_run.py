@@ -83,6 +83,23 @@ def bring_up_and_analyse(configuration: str, protocol: str, keep: Path | None,
     return RecordedRun(configuration, protocol, metrics, out, t1 - t0, time.monotonic() - t1)
 
 
+def array_series(run: RecordedRun) -> dict[str, Any]:
+    """The aligned signals the analysis's array figures are drawn from, read again from the
+    run's bag: the results file keeps them (decimated) for the docs' figures."""
+    from tactile_sensor.analysis.array.analysis import analyse_array, detect
+    from tactile_sensor.analysis.bag_reader import read_recording
+    from tactile_sensor.analysis.characterise import Topics
+
+    recording = read_recording(str(run.out.parent / "bag"), Topics().specs())
+    sig = analyse_array(recording, detect(recording) or "an array configuration").signals
+    series: dict[str, Any] = {"t_s": sig.t_s, "estimate_n": sig.estimate_n,
+                              "reference_n": sig.reference_n}
+    if sig.estimate_torque_nm is not None and sig.reference_torque_nm is not None:
+        series |= {"estimate_torque_nm": sig.estimate_torque_nm,
+                   "reference_torque_nm": sig.reference_torque_nm}
+    return series
+
+
 def share_of_range(name: str, rmse: float | None, span: float | None, unit: str,
                    goal_pct: float) -> Figure:
     """An error as a share of the range it was measured over, judged against its goal and

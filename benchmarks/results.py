@@ -5,8 +5,11 @@ measures). ``make bench-publish`` copies the results of a clean commit into the 
 ``make bench-report`` renders every figure with the command, commit, machine and date.
 
 A figure is a name, a value, its unit and, where one exists, the goal it is judged
-against. Absolute times carry from one machine to another poorly, so each file names the
-machine (cores, CPU model) it was measured on.
+against. A benchmark that runs a workflow also keeps the series the workflow's own plot is
+drawn from (``series``: columns of equal length, decimated to at most ``SERIES_POINTS``
+rows), so the docs draw that plot from the committed result (``benchmarks/docs_figures.py``).
+Absolute times carry from one machine to another poorly, so each file names the machine
+(cores, CPU model) it was measured on.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import platform
 import shlex
 import subprocess
 import sys
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -29,6 +33,10 @@ RESULTS = ROOT / "build" / "benchmarks" / "results"
 #: The committed figures the page shows; only ``make bench-publish`` writes here.
 PUBLISHED = ROOT / "benchmarks" / "results"
 DIRTY = "-dirty"
+#: The most rows a kept series has: enough for a page's figure, small enough for git.
+SERIES_POINTS = 1_000
+#: Significant digits a kept series value has: finer than any figure draws.
+SERIES_DIGITS = 5
 
 
 @dataclass(frozen=True)
@@ -111,9 +119,11 @@ STARTED_ON = commit()
 
 
 def write_results(name: str, figures: list[Figure], *, notes: str = "",
-                  argv: list[str] | None = None, directory: Path | None = None) -> Path:
+                  argv: list[str] | None = None, directory: Path | None = None,
+                  series: dict[str, Sequence[object]] | None = None) -> Path:
     """Write ``<name>.json`` to ``directory`` (default ``build/benchmarks/results/``,
-    replacing the last run's), say where, and return it."""
+    replacing the last run's), say where, and return it. ``series`` (columns of equal
+    length, numpy arrays or lists) is kept decimated."""
     argv = sys.argv if argv is None else argv
     script = Path(argv[0])
     with contextlib.suppress(ValueError):
@@ -127,9 +137,11 @@ def write_results(name: str, figures: list[Figure], *, notes: str = "",
         "notes": notes,
         "figures": [{**asdict(f), "value": _finite(f.value)} for f in figures],
     }
+    if series:
+        record["series"] = decimated(series)
     out = (directory or RESULTS) / f"{name}.json"
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(record, indent=2, allow_nan=False, default=_plain) + "\n")
+    out.write_text(record_text(record))
     print(f"figures: {out}", flush=True)
     return out
 
@@ -145,3 +157,36 @@ def _plain(value: object) -> object:
     """numpy scalars as Python numbers (their ``item()``), anything else as text."""
     item = getattr(value, "item", None)
     return item() if callable(item) else str(value)
+
+
+def decimated(series: dict[str, Sequence[object]], points: int = SERIES_POINTS
+              ) -> dict[str, object]:
+    """Every column thinned by one stride to at most ``points`` rows (rows stay aligned),
+    as plain lists with NaN as ``null``."""
+    rows = max((len(column) for column in series.values()), default=0)
+    stride = max(1, -(-rows // points))
+    return {name: _finite_rows(column[::stride]) for name, column in series.items()}
+
+
+def _finite_rows(column: object) -> object:
+    """A column (or a row of one) as lists of numbers, a non-finite number as ``null``."""
+    tolist = getattr(column, "tolist", None)
+    values = tolist() if callable(tolist) else column
+    if isinstance(values, (list, tuple)):
+        return [_finite_rows(v) for v in values]
+    value = _finite(values)
+    return float(f"{value:.{SERIES_DIGITS}g}") if isinstance(value, float) else value
+
+
+def record_text(record: dict[str, object]) -> str:
+    """The record as indented JSON, each series column on one line: a figure per line
+    diffs well, a thousand rows per column would not."""
+    series = record.get("series")
+    head = {key: value for key, value in record.items() if key != "series"}
+    text = json.dumps(head, indent=2, allow_nan=False, default=_plain)
+    if not isinstance(series, dict):
+        return text + "\n"
+    columns = ",\n".join(f"    {json.dumps(name)}: "
+                         f"{json.dumps(values, allow_nan=False, separators=(',', ':'))}"
+                         for name, values in series.items())
+    return text[:-2] + ',\n  "series": {\n' + columns + "\n  }\n}\n"

@@ -12,7 +12,9 @@ copyright = "tactile_sensor maintainers"
 extensions = ["myst_parser"]
 source_suffix = {".md": "markdown"}
 root_doc = "index"
-exclude_patterns = ["_build"]
+# _generated: the figures and their captions make docs draws (benchmarks/docs_figures.py),
+# included by the workflow pages, not pages of their own
+exclude_patterns = ["_build", "_generated"]
 
 # Section links such as [text](gripper.md#cancel-stopping-in-one-write).
 myst_heading_anchors = 3

@@ -42,15 +42,31 @@ def _ref_cycles(ch: Characterisation) -> list:
     return [seg.cycles[i] for i in seg.speed_groups[seg.reference_key]]
 
 
-def force_vs_indentation(ch: Characterisation, path: Path) -> Path:
+def compression_ramps(ch: Characterisation) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Indentation [m] and force [N] of the reference speed's loading and unloading ramps,
+    thinned as drawn: what the compression curve (Fig. 7a) shows."""
     sig, cycles = ch.signals, _ref_cycles(ch)
+    ramps = {}
+    for which in ("load", "unload"):
+        idx = _thin(ramp_indices(cycles, which))
+        ramps[which] = (sig.indentation_m[idx], sig.force_n[idx])
+    return ramps
+
+
+def force_vs_indentation(ch: Characterisation, path: Path) -> Path:
+    return compression_curve(compression_ramps(ch), ch.segmentation.reference_key, path)
+
+
+def compression_curve(ramps: dict[str, tuple[np.ndarray, np.ndarray]], speed: str,
+                      path: Path) -> Path:
+    """Force against indentation, loading and unloading, at ``speed`` [mm/s] (Fig. 7a)."""
     fig, ax = plt.subplots(figsize=(5, 4))
     for which, colour in (("load", "tab:red"), ("unload", "tab:blue")):
-        idx = _thin(ramp_indices(cycles, which))
-        ax.plot(sig.indentation_m[idx] * 1e3, sig.force_n[idx], ".", ms=1, color=colour,
+        indentation_m, force_n = ramps[which]
+        ax.plot(indentation_m * 1e3, force_n, ".", ms=1, color=colour,
                 label="loading" if which == "load" else "unloading")
     ax.set(xlabel="indentation [mm]", ylabel="force [N]",
-           title=f"Force vs indentation ({ch.segmentation.reference_key} mm/s; cf. Fig. 7a)")
+           title=f"Force vs indentation ({speed} mm/s; cf. Fig. 7a)")
     ax.legend(markerscale=8)
     return _save(fig, path)
 

@@ -363,6 +363,14 @@ def analyse_array(recording: Recording, reason: str) -> ArrayAnalysis:
     notes = [f"analysed as a module array: {reason}."]
     if torque_note:
         notes.append(torque_note)
+    topics = {r: recording.series[r].topic for r in ("reading", "estimate", "reference")}
+    return analyse_signals(sig, reason, topics, notes)
+
+
+def analyse_signals(sig: ArraySignals, reason: str, topics: dict[str, str],
+                    notes: list[str]) -> ArrayAnalysis:
+    """The array's metrics from aligned signals: a recording's, or the decimated ones a
+    benchmark keeps so the docs can draw the analysis's figures again."""
     if sig.reference_flipped:
         notes.append("the gauge's force.z was mostly negative (the skin's force on the probe); "
                      "its whole force vector was negated to the sensor's convention.")
@@ -390,8 +398,7 @@ def analyse_array(recording: Recording, reason: str) -> ArrayAnalysis:
         "array": {
             "detected_by": reason,
             "faces": list(sig.faces),
-            "topics": {r: recording.series[r].topic for r in ("reading", "estimate",
-                                                               "reference")},
+            "topics": topics,
             "samples": int(sig.t_s.size),
             "duration_s": _num(float(sig.t_s[-1])),
             "sample_rate_hz": _num(sig.rate_hz),

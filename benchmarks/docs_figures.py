@@ -1,0 +1,231 @@
+"""The workflow pages' figures, drawn from the committed benchmark results with the
+package's own plot functions: ``make docs`` runs this before Sphinx.
+
+Each figure comes from the series a benchmark keeps in its results file
+(``benchmarks/results/<name>.json``, written by ``make bench-publish``), never from a file
+copied by hand. For every page this writes ``docs/_generated/<page>.md`` (ignored by git),
+which the page includes: the figures with a caption naming the benchmark, its commit and
+date, or, where the result or its series is missing, one sentence saying so and how to
+measure it.
+
+    python benchmarks/docs_figures.py [--results DIR] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from results import PUBLISHED, ROOT, ResultsError, read_results
+
+sys.path.insert(0, str(ROOT / "tactile_sensor"))
+
+OUT = ROOT / "docs" / "_generated"
+Series = dict[str, np.ndarray]
+
+
+def array_analysis(series: Series) -> Any:
+    """The array analysis of a benchmark's kept (decimated) signals, as the command's own
+    analysis computes it from the recording."""
+    from tactile_sensor.analysis.array.analysis import ArraySignals, analyse_signals
+
+    t_s = series["t_s"]
+    torque = "estimate_torque_nm" in series
+    signals = ArraySignals(
+        t_s=t_s, estimate_n=series["estimate_n"], reference_n=series["reference_n"],
+        outputs_v=np.zeros((t_s.size, 0)), faces=(),
+        rate_hz=float((t_s.size - 1) / (t_s[-1] - t_s[0])) if t_s.size > 1 else 0.0,
+        start_ns=0, reference_flipped=False,
+        estimate_torque_nm=series["estimate_torque_nm"] if torque else None,
+        reference_torque_nm=series["reference_torque_nm"] if torque else None)
+    return analyse_signals(signals, "a benchmark's kept signals", {}, [])
+
+
+def shear_direction(series: Series, path: Path) -> Path:
+    from tactile_sensor.analysis.plots import array_shear_direction
+
+    return array_shear_direction(array_analysis(series), path)
+
+
+def torque_time(series: Series, path: Path) -> Path:
+    from tactile_sensor.analysis.plots import array_torque_time
+
+    return array_torque_time(array_analysis(series), path)
+
+
+#: The study the design-studies page runs, whose Pareto front the page shows.
+STUDY_SPEC = ROOT / "tactile_sensor" / "config" / "studies" / "window_placement.yaml"
+
+
+def study_name() -> str:
+    """The results file of bench_study's default study (``study_<spec name>``)."""
+    import yaml
+
+    return f"study_{yaml.safe_load(STUDY_SPEC.read_text())['name']}"
+
+
+def pareto(series: Series, path: Path) -> Path:
+    """The study's own Pareto plot of the designs the benchmark solved (paper's first)."""
+    from tactile_sensor.studies.report import write_pareto_plot
+    from tactile_sensor.studies.run import DesignRow
+    from tactile_sensor.studies.spec import load_spec
+
+    spec = load_spec(STUDY_SPEC)
+    rows = [DesignRow(design=str(name), values={}, error=str(series["error"][k]),
+                      metrics={c: float(series[c][k]) for c in spec.columns if c in series})
+            for k, name in enumerate(series["design"])]
+    write_pareto_plot(rows, spec, path)
+    return path
+
+
+def compression(series: Series, path: Path) -> Path:
+    """The analysis's own compression curve (Fig. 7a) of the benchmark's 1 mm/s presses."""
+    from tactile_sensor.analysis.plots import compression_curve
+
+    unloading = series["unloading"] > 0.5
+    ramps = {"load": (series["indentation_m"][~unloading], series["force_n"][~unloading]),
+             "unload": (series["indentation_m"][unloading], series["force_n"][unloading])}
+    return compression_curve(ramps, "1.0", path)
+
+
+def pyplot() -> Any:
+    """Matplotlib's pyplot on the Agg backend: the figure step draws files, no windows."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def saved(fig: Any, path: Path) -> Path:
+    fig.savefig(path, dpi=100)
+    pyplot().close(fig)
+    return path
+
+
+def grasp_trace(series: Series, path: Path) -> Path:
+    """One grasp as its controller saw it: the sensed force closing on the target while the
+    opening narrows (the package draws no plot of a grasp; the demo prints a summary)."""
+    plt = pyplot()
+    fig, (force, opening) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
+    force.plot(series["t_s"], series["force_n"], lw=0.9, color="tab:red")
+    force.set(ylabel="sensed force [N]", title="Grasp: force and opening from the goal on")
+    opening.plot(series["t_s"], series["opening_m"] * 1e3, lw=0.9, color="tab:blue")
+    opening.set(xlabel="time from the goal [s]", ylabel="opening [mm]")
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.92, hspace=0.15)
+    return saved(fig, path)
+
+
+def rate_errors(series: Series, path: Path) -> Path:
+    """Static against rate-aware model error for each speed and phase of the held-out
+    recording, beside the goal's share of full scale (the package draws the force traces,
+    not this table)."""
+    from rate_goal import GOAL_SHARE_FS
+
+    plt = pyplot()
+    labels = [f"{v:g} mm/s\n{p}" for v, p in zip(series["speed_mm_s"], series["phase"],
+                                                 strict=True)]
+    x = np.arange(len(labels))
+    fig, ax = plt.subplots(figsize=(9, 4))
+    ax.bar(x - 0.2, series["static_model_rmse_n"], 0.4, color="tab:blue", label="static curve")
+    ax.bar(x + 0.2, series["rate_model_rmse_n"], 0.4, color="tab:red", label="rate-aware")
+    ax.axhline(GOAL_SHARE_FS * float(series["full_scale_n"][0]), color="k", ls="--", lw=0.8,
+               label=f"goal: {GOAL_SHARE_FS:.1%} of full scale")
+    ax.set_xticks(x, labels, fontsize=8)
+    ax.set(ylabel="model error rmse [N]", title="Held-out force error per speed and phase")
+    ax.legend(fontsize=8)
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.2, top=0.9)
+    return saved(fig, path)
+
+
+@dataclass(frozen=True)
+class PageFigure:
+    """One figure of a docs page: the benchmark result it is drawn from, what it shows, and
+    the plot that draws it (None: the benchmark keeps no series for it yet)."""
+
+    page: str
+    name: str
+    result: str
+    shows: str
+    draw: Callable[[Series, Path], Path] | None = None
+
+
+FIGURES = (
+    PageFigure("bench-calibration", "compression", "analysis",
+               "the compression curve beside the paper's", compression),
+    PageFigure("array", "array_shear_direction", "array_shear",
+               "the shear direction, estimated against applied", shear_direction),
+    PageFigure("array", "array_torque_time", "bench_wrench",
+               "the torque, estimated against the gauge", torque_time),
+    PageFigure("design-studies", "pareto", study_name(), "the Pareto front", pareto),
+    PageFigure("rate-calibration", "rate_errors", "rate_calibration",
+               "the rate errors per speed", rate_errors),
+    PageFigure("gripper-workflow", "grasp", "gripper",
+               "a grasp's force and opening over time", grasp_trace),
+)
+
+
+def column(values: list[object]) -> np.ndarray:
+    """A kept column as numbers (``null`` as NaN), or as text where it names things."""
+    if any(isinstance(v, str) for v in values):
+        return np.asarray(values, dtype=str)
+    return np.asarray(values, dtype=float)
+
+
+def figure_lines(figure: PageFigure, results: Path, out: Path) -> list[str]:
+    """The Markdown of one figure: the image and its caption, or the sentence why not."""
+    path = results / f"{figure.result}.json"
+    if not path.exists():
+        return [f"*No figure of {figure.shows}: the result {figure.result} is not published "
+                "yet; run its benchmark at a clean commit, then `make bench-publish`.*", ""]
+    try:
+        record = read_results(path)
+    except ResultsError as exc:
+        return [f"*No figure of {figure.shows}: {exc}*", ""]
+    series = record.get("series")
+    if figure.draw is None or not isinstance(series, dict) or not series:
+        return [f"*No figure of {figure.shows}: the result {figure.result} (commit "
+                f"`{record['commit']}`) keeps no series to draw it from; rerun "
+                f"`{record['command']}` at a clean commit, then `make bench-publish`.*", ""]
+    columns = {k: column(v) for k, v in series.items()}
+    image = figure.draw(columns, out / f"{figure.name}.png")
+    return [f":::{{figure}} _generated/{image.name}", f":alt: {figure.shows}", "",
+            f"{figure.shows[0].upper()}{figure.shows[1:]}: benchmark {record['benchmark']} "
+            f"(`{record['command']}`), commit `{record['commit']}`, {record['date']}.",
+            ":::", ""]
+
+
+def write_pages(results: Path, out: Path) -> list[Path]:
+    """``<page>.md`` for every page with a figure; returns the files written."""
+    out.mkdir(parents=True, exist_ok=True)
+    pages: dict[str, list[str]] = {}
+    for figure in FIGURES:
+        pages.setdefault(figure.page, []).extend(figure_lines(figure, results, out))
+    written = []
+    for page, lines in pages.items():
+        target = out / f"{page}.md"
+        target.write_text("\n".join(lines).rstrip("\n") + "\n")
+        written.append(target)
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--results", type=Path, default=PUBLISHED,
+                        help="folder of results files (default: benchmarks/results)")
+    parser.add_argument("--out", type=Path, default=OUT,
+                        help="folder the pages include (default: docs/_generated)")
+    args = parser.parse_args(argv)
+    written = write_pages(args.results, args.out)
+    print(f"docs figures: {len(written)} page(s) -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

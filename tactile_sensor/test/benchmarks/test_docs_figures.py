@@ -1,0 +1,84 @@
+"""benchmarks/docs_figures.py: a published result with its series gives a page a PNG and a
+caption naming the benchmark, commit and date; one without gives one sentence instead."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+# The scripts in benchmarks/ import each other by file name, as `python benchmarks/x.py` does.
+BENCHMARKS = Path(__file__).resolve().parents[3] / "benchmarks"
+sys.path.insert(0, str(BENCHMARKS))
+docs_figures = importlib.import_module("docs_figures")
+results = importlib.import_module("results")
+
+
+@pytest.fixture(autouse=True)
+def measured_at_a_commit(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(results, "STARTED_ON", "0123abc")
+
+
+def shear_series(samples: int = 5_000) -> dict[str, np.ndarray]:
+    """A press held while the probe sweeps sideways: the lateral force turns a full circle
+    and the estimate follows it with a little noise."""
+    t = np.linspace(0.0, 100.0, samples)
+    angle = 2 * np.pi * t / 100.0
+    reference = np.column_stack([0.4 * np.cos(angle), 0.4 * np.sin(angle), np.full(samples, 3.0)])
+    estimate = reference + np.random.default_rng(0).normal(0.0, 0.01, reference.shape)
+    return {"t_s": t, "estimate_n": estimate, "reference_n": reference}
+
+
+def test_series_are_kept_decimated_with_nan_as_null(tmp_path):
+    series = shear_series()
+    series["estimate_torque_nm"] = np.full((5_000, 3), np.nan)
+    path = results.write_results("array_shear", [], argv=["benchmarks/bench_array_shear.py"],
+                                 directory=tmp_path, series=series)
+    kept = results.read_results(path)["series"]
+    assert len(kept["t_s"]) <= results.SERIES_POINTS
+    assert len({len(column) for column in kept.values()}) == 1
+    assert kept["estimate_torque_nm"][0] == [None, None, None]
+
+
+def test_a_result_with_its_series_draws_a_png_with_its_caption(tmp_path):
+    published, out = tmp_path / "results", tmp_path / "generated"
+    results.write_results("array_shear", [], argv=["benchmarks/bench_array_shear.py"],
+                          directory=published, series=shear_series())
+    docs_figures.write_pages(published, out)
+    png = out / "array_shear_direction.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    page = (out / "array.md").read_text()
+    assert ":::{figure} _generated/array_shear_direction.png" in page
+    assert "benchmark array_shear" in page and "commit `0123abc`" in page
+
+
+def test_a_result_without_its_series_gives_one_sentence_and_no_image(tmp_path):
+    published, out = tmp_path / "results", tmp_path / "generated"
+    results.write_results("array_shear", [results.Figure("bringup", 1.0, "s")],
+                          argv=["benchmarks/bench_array_shear.py"], directory=published)
+    docs_figures.write_pages(published, out)
+    page = (out / "array.md").read_text()
+    assert "figure}" not in page and not list(out.glob("*.png"))
+    shear = [line for line in page.splitlines() if "shear direction" in line]
+    assert len(shear) == 1 and "keeps no series" in shear[0]
+    assert "bench_array_shear.py" in shear[0]
+    # a page whose result is not published at all says that
+    assert "is not published yet" in (out / "gripper-workflow.md").read_text()
+
+
+def test_a_column_of_names_draws_beside_columns_of_numbers(tmp_path):
+    """The rate page's errors come per speed and phase: the phase column is text."""
+    published, out = tmp_path / "results", tmp_path / "generated"
+    results.write_results("rate_calibration", [], argv=["benchmarks/bench_rate_calibration.py"],
+                          directory=published,
+                          series={"speed_mm_s": [0.3, 0.3, 20.0], "phase": ["loading", "hold",
+                                                                            "unloading"],
+                                  "static_model_rmse_n": [0.2, 0.1, 0.4],
+                                  "rate_model_rmse_n": [0.05, 0.04, 0.08],
+                                  "full_scale_n": [7.0, 7.0, 7.0]})
+    docs_figures.write_pages(published, out)
+    assert (out / "rate_errors.png").stat().st_size > 0
+    assert "benchmark rate_calibration" in (out / "rate-calibration.md").read_text()
