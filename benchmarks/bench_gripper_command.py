@@ -37,13 +37,13 @@ import numpy as np
 import yaml
 from results import Figure, write_results
 
+from tactile_sensor.analysis.finger_rest import rest_onset
 from tactile_sensor.nodes.background_spin import BackgroundSpin
 from tactile_sensor.nodes.ros_session import ros_session
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tactile_sensor"))
 
-REST_TOLERANCE_M = 5e-5
 CONDITIONS = (1.0, 2.0, 4.0, 0.0)  # max_effort [N]; 0 = position only
 
 
@@ -134,15 +134,6 @@ def _sample(msg) -> tuple[float, float]:  # type: ignore[no-untyped-def]
     return _stamp(msg), msg.wrench.force.z
 
 
-def at_rest(opening: list[tuple[float, float]], start: float, end: float) -> float:
-    """Time of the first joint state from which on the opening stays where it ends."""
-    window = [(t, o) for t, o in opening if start <= t <= end]
-    final = window[-1][1]
-    last_off = max((i for i, (_, o) in enumerate(window) if abs(o - final) >= REST_TOLERANCE_M),
-                   default=-1)
-    return window[min(last_off + 1, len(window) - 1)][0]
-
-
 def trial(rec: Recorder, max_effort: float, closed: float, open_: float) -> dict[str, float]:
     rec.run(open_, 0.0)
     time.sleep(0.3)
@@ -154,7 +145,7 @@ def trial(rec: Recorder, max_effort: float, closed: float, open_: float) -> dict
     truth = [(t, f) for t, f in rec.truth if sent <= t <= end]
     held = [f for t, f in truth if t >= answered + 0.2]
     peak = max(f for _, f in truth)
-    return {"rest": at_rest(rec.opening, sent, end) - sent,
+    return {"rest": rest_onset(rec.opening, sent, end) - sent,
             "result": answered - sent, "peak": peak,
             "overshoot": peak - max_effort if max_effort else float("nan"),
             "held": float(np.mean(held)) if held else float("nan"),

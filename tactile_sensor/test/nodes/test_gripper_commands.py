@@ -30,6 +30,7 @@ from lifecycle_msgs.srv import ChangeState
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from tactile_sensor.analysis.finger_rest import rest_onset
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.control.goal_runner import PREEMPTED
 from tactile_sensor.nodes.action_client import RaceFreeActionClient
@@ -352,22 +353,8 @@ def test_one_goal_policy_across_all_four_servers(gripper):
     assert ms.max() < 2000.0, ms
 
 
-def rested_since(opening: list[tuple[float, float]], since: float) -> float | None:
-    """Stamp of the first joint state from ``since`` on from which the fingers stay within
-    0.05 mm of where they came to rest, once they have stayed there for 0.3 s of samples;
-    None until then (as test_gripper_node's Grasp cancel)."""
-    after = [(t, o) for t, o in list(opening) if t >= since]
-    if not after:
-        return None
-    final = after[-1][1]
-    last_off = max((i for i, (_, o) in enumerate(after) if abs(o - final) >= 5e-5),
-                   default=-1)
-    rest = after[last_off + 1][0]
-    return rest if after[-1][0] - rest >= 0.3 else None
-
-
 def cancel_latency(client: Client, goal, trial: int) -> float:
-    """Cancel request sent -> the fingers at rest (``rested_since``), by stamp, for a goal
+    """Cancel request sent -> the fingers at rest (``rest_onset``), by stamp, for a goal
     canceled while the fingers move."""
     handle = client.send_moving("gripper_cmd", goal)
     time.sleep(0.015 * trial)  # different phases of the 100 Hz loop
@@ -376,10 +363,10 @@ def cancel_latency(client: Client, goal, trial: int) -> float:
     assert _wait(handle.cancel_goal_async()).goals_canceling
     answer = _wait(handle.get_result_async())
     assert answer.status == GoalStatus.STATUS_CANCELED
-    _until(lambda: rested_since(client.opening, canceled_at) is not None, PATIENCE_S,
+    _until(lambda: rest_onset(client.opening, canceled_at, hold_s=0.3) is not None, PATIENCE_S,
            "the fingers did not come to rest after the cancel")
     assert client.opening[-1][1] < moving_before  # it was closing
-    return rested_since(client.opening, canceled_at) - canceled_at
+    return rest_onset(client.opening, canceled_at, hold_s=0.3) - canceled_at
 
 
 def test_an_overload_mid_move_aborts_with_the_decoded_bits_and_torque_off(gripper):

@@ -22,6 +22,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
+from tactile_sensor.analysis.finger_rest import rest_onset
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.control.back_off import SATURATION_BAND
 from tactile_sensor.nodes.action_client import RaceFreeActionClient
@@ -239,25 +240,10 @@ def test_a_target_beyond_the_ceiling_is_refused_one_within_is_reached_and_report
     assert released.opening == pytest.approx(0.060, abs=0.001)
 
 
-def rested_since(opening: list[tuple[float, float]], since: float) -> float | None:
-    """Stamp of the first ~/joint_states sample from ``since`` on from which the opening
-    stays within 0.05 mm of where it came to rest, once it has stayed there for 0.3 s of
-    samples (a finger passing that point and coming back, or closing again after the
-    stop, counts as still moving); None until then."""
-    after = [(t, o) for t, o in list(opening) if t >= since]
-    if not after:
-        return None
-    final = after[-1][1]
-    last_off = max((i for i, (_, o) in enumerate(after) if abs(o - final) >= 5e-5),
-                   default=-1)
-    rest = after[last_off + 1][0]
-    return rest if after[-1][0] - rest >= 0.3 else None
-
-
 def cancel_latency(client, send, trial: int):
     """(result, seconds) of one goal sent by ``send()`` (it closes the fingers) and
     canceled while the fingers move: cancel request sent -> fingers at rest, by the stamps
-    of ~/joint_states (``rested_since``)."""
+    of ~/joint_states (``rest_onset``)."""
     rest = client.opening[-1][1]
     handle = send()
     client.wait_moving_from(rest)  # under way, not only accepted
@@ -267,10 +253,10 @@ def cancel_latency(client, send, trial: int):
     cancel = _wait(handle.cancel_goal_async())
     answer = _wait(handle.get_result_async())
     assert cancel.goals_canceling, answer
-    _until(lambda: rested_since(client.opening, canceled_at) is not None,
+    _until(lambda: rest_onset(client.opening, canceled_at, hold_s=0.3) is not None,
            "the fingers did not come to rest after the cancel")
     assert client.opening[-1][1] < moving_before  # it was closing
-    return answer, rested_since(client.opening, canceled_at) - canceled_at
+    return answer, rest_onset(client.opening, canceled_at, hold_s=0.3) - canceled_at
 
 
 def check_latencies(latencies: list[float]) -> None:
