@@ -64,8 +64,9 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("spec", nargs="?", type=Path, default=DEFAULT_SPEC,
                         help="study spec (default: config/studies/window_placement.yaml)")
+    path = parser.parse_args().spec
     try:
-        spec = load_spec(parser.parse_args().spec)
+        spec = load_spec(path)
     except StudySpecError as exc:
         print(exc, file=sys.stderr)
         return 2
@@ -81,7 +82,8 @@ def main() -> int:
     workers = {r.worker for r in remote if r.ok}
     agree = same(one, two) and same(one, remote)
     print(f"rows agree on every path: {agree}; loopback workers used: {len(workers)}")
-    write_results(f"study_{spec.name}", [
+    # the spec file's name: a study's own name is prose (spaces, commas), not a file name
+    write_results(f"study_{path.stem}", [
         Figure("1 local worker", s1, "s"), Figure("2 local workers", s2, "s"),
         Figure("loopback cluster (2 workers)", s3, "s"),
         Figure("rows agree on every path", agree, "", "yes", agree),

@@ -63,10 +63,8 @@ STUDY_SPEC = ROOT / "tactile_sensor" / "config" / "studies" / "window_placement.
 
 
 def study_name() -> str:
-    """The results file of bench_study's default study (``study_<spec name>``)."""
-    import yaml
-
-    return f"study_{yaml.safe_load(STUDY_SPEC.read_text())['name']}"
+    """The results file of bench_study's default study (``study_<spec file's stem>``)."""
+    return f"study_{STUDY_SPEC.stem}"
 
 
 def pareto(series: Series, path: Path) -> Path:
@@ -144,10 +142,56 @@ def rate_errors(series: Series, path: Path) -> Path:
     return saved(fig, path)
 
 
+#: The module layouts the array page describes: (configuration file, title).
+LAYOUTS = (("array.yaml", "array"), ("wrench.yaml", "six-axis wrench"))
+
+
+def module_layouts(_series: Series, path: Path) -> Path:
+    """The skin block seen from above with each layout's modules, as the configurations
+    place them (``modules`` of the bench) on the model's default block: a short run of the
+    package's own layout parsing, no benchmark needed."""
+    import yaml
+
+    from tactile_sensor.configurations import config_dir
+    from tactile_sensor.physics.params import FACES, PhysicsParams
+
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(LAYOUTS), figsize=(9, 4.2))
+    for ax, (name, title) in zip(axes, LAYOUTS, strict=True):
+        modules = yaml.safe_load((config_dir() / name).read_text())["/**/bench"][
+            "ros__parameters"]["modules"]
+        params = PhysicsParams().replace(modules=modules)
+        w, d, ww = params.width * 1e3, params.depth * 1e3, params.window_width * 1e3
+        ax.add_patch(plt.Rectangle((-w / 2, -d / 2), w, d, color="0.85", label="skin block"))
+        for channel, (face, offset) in enumerate(params.module_windows):
+            axis, sign = FACES[face]
+            along = offset * 1e3 - ww / 2  # the window's extent along its face
+            if axis == 1:  # front/back: a face of constant y, running along x
+                xy, size = (along, sign * d / 2 - (ww / 4 if sign < 0 else 0)), (ww, ww / 4)
+            else:  # left/right: a face of constant x, running along y
+                xy, size = (sign * w / 2 - (ww / 4 if sign < 0 else 0), along), (ww / 4, ww)
+            ax.add_patch(plt.Rectangle(xy, *size, color="tab:red"))
+            centre = np.array([xy[0] + size[0] / 2, xy[1] + size[1] / 2])
+            outward = np.array([0.0, sign]) if axis == 1 else np.array([sign, 0.0])
+            ax.annotate(f"{channel}", centre + outward * 2.5, ha="center", va="center",
+                        fontsize=8)
+        ax.annotate("", (w / 2 * 0.6, 0), (0, 0), arrowprops={"arrowstyle": "->"})
+        ax.annotate("", (0, d / 2 * 0.6), (0, 0), arrowprops={"arrowstyle": "->"})
+        ax.text(w / 2 * 0.62, 0.5, "x", fontsize=9)
+        ax.text(0.5, d / 2 * 0.62, "y", fontsize=9)
+        ax.set(xlim=(-w / 2 - 5, w / 2 + 5), ylim=(-d / 2 - 5, d / 2 + 5), aspect="equal",
+               xlabel="x [mm]", ylabel="y [mm]", title=f"{title} ({name})")
+    fig.suptitle("Modules on the skin block, seen from above (numbers: ADC channel)",
+                 fontsize=10)
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.85, wspace=0.3)
+    return saved(fig, path)
+
+
 @dataclass(frozen=True)
 class PageFigure:
-    """One figure of a docs page: the benchmark result it is drawn from, what it shows, and
-    the plot that draws it (None: the benchmark keeps no series for it yet)."""
+    """One figure of a docs page: the benchmark result it is drawn from (empty: drawn from
+    the package's configuration alone), what it shows, and the plot that draws it (None:
+    the benchmark keeps no series for it yet)."""
 
     page: str
     name: str
@@ -157,6 +201,7 @@ class PageFigure:
 
 
 FIGURES = (
+    PageFigure("array", "module_layouts", "", "the module layouts", module_layouts),
     PageFigure("bench-calibration", "compression", "analysis",
                "the compression curve beside the paper's", compression),
     PageFigure("array", "array_shear_direction", "array_shear",
@@ -180,6 +225,11 @@ def column(values: list[object]) -> np.ndarray:
 
 def figure_lines(figure: PageFigure, results: Path, out: Path) -> list[str]:
     """The Markdown of one figure: the image and its caption, or the sentence why not."""
+    if not figure.result and figure.draw is not None:
+        image = figure.draw({}, out / f"{figure.name}.png")
+        return [f":::{{figure}} _generated/{image.name}", f":alt: {figure.shows}", "",
+                f"{figure.shows[0].upper()}{figure.shows[1:]}: drawn by `make docs` from the "
+                "package's configuration files.", ":::", ""]
     path = results / f"{figure.result}.json"
     if not path.exists():
         return [f"*No figure of {figure.shows}: the result {figure.result} is not published "

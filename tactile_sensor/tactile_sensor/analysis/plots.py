@@ -18,10 +18,14 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from .array.analysis import AXES, ArrayAnalysis
-from .characterise import Characterisation
+from .characterise import PAPER, Characterisation
 from .metrics import ramp_indices
 
 MAX_POINTS = 4_000
+#: The paper's compression, as its text gives it (Sec. IV-A; Fig. 7a has no table): about
+#: 7 N at 3 mm of indentation at 1 mm/s, nonlinear up to about 0.5 mm and linear beyond.
+PAPER_FULL_SCALE_INDENTATION_M = 0.003
+PAPER_NONLINEAR_UP_TO_M = 0.0005
 
 
 def _thin(idx: np.ndarray) -> np.ndarray:
@@ -65,10 +69,22 @@ def compression_curve(ramps: dict[str, tuple[np.ndarray, np.ndarray]], speed: st
         indentation_m, force_n = ramps[which]
         ax.plot(indentation_m * 1e3, force_n, ".", ms=1, color=colour,
                 label="loading" if which == "load" else "unloading")
+    _paper_compression(ax)
     ax.set(xlabel="indentation [mm]", ylabel="force [N]",
            title=f"Force vs indentation ({speed} mm/s; cf. Fig. 7a)")
-    ax.legend(markerscale=8)
+    for handle in ax.legend(loc="upper left", fontsize=8).legend_handles[:2]:
+        handle.set_markersize(8)  # the ramps' dots, not the paper's star
     return _save(fig, path)
+
+
+def _paper_compression(ax: Axes) -> None:
+    """The paper's curve as far as its text states it: the full-scale point and the
+    nonlinear toe, beside the measured ramps."""
+    ax.axvspan(0.0, PAPER_NONLINEAR_UP_TO_M * 1e3, color="0.9", zorder=0,
+               label="paper: nonlinear toe (< 0.5 mm)")
+    ax.plot(PAPER_FULL_SCALE_INDENTATION_M * 1e3, PAPER["full_scale_n"], "k*", ms=10,
+            label=f"paper: ≈{PAPER['full_scale_n']:g} N at "
+                  f"{PAPER_FULL_SCALE_INDENTATION_M * 1e3:g} mm")
 
 
 def output_vs_indentation(ch: Characterisation, path: Path) -> Path:

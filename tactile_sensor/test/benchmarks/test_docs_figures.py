@@ -61,7 +61,8 @@ def test_a_result_without_its_series_gives_one_sentence_and_no_image(tmp_path):
                           argv=["benchmarks/bench_array_shear.py"], directory=published)
     docs_figures.write_pages(published, out)
     page = (out / "array.md").read_text()
-    assert "figure}" not in page and not list(out.glob("*.png"))
+    assert "array_shear_direction" not in page
+    assert not (out / "array_shear_direction.png").exists()
     shear = [line for line in page.splitlines() if "shear direction" in line]
     assert len(shear) == 1 and "keeps no series" in shear[0]
     assert "bench_array_shear.py" in shear[0]
@@ -82,3 +83,11 @@ def test_a_column_of_names_draws_beside_columns_of_numbers(tmp_path):
     docs_figures.write_pages(published, out)
     assert (out / "rate_errors.png").stat().st_size > 0
     assert "benchmark rate_calibration" in (out / "rate-calibration.md").read_text()
+
+
+def test_the_module_layouts_are_drawn_from_the_configurations_without_a_result(tmp_path):
+    published, out = tmp_path / "results", tmp_path / "generated"
+    docs_figures.write_pages(published, out)
+    assert (out / "module_layouts.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "drawn by `make docs` from the package's configuration" in (
+        out / "array.md").read_text()
