@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -35,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 import yaml
-from results import Figure, write_results
+from results import Figure, without_ros2, write_results
 
 from tactile_sensor.analysis.finger_rest import rest_onset
 from tactile_sensor.nodes.background_spin import BackgroundSpin
@@ -189,11 +188,10 @@ def main() -> int:
     ap.add_argument("--trials", type=int, default=3, help="closes per condition")
     ap.add_argument("--plot", type=Path, default=None, help="PNG of one close per condition")
     args = ap.parse_args()
-    if shutil.which("ros2") is None:
-        print("bench_gripper_command needs `ros2 launch`, which the PyPI-wheels setup lacks; "
-              "run it where a ROS 2 installation is sourced (or use "
-              "benchmarks/bench_gripper_cancel.py, which runs without it).", file=sys.stderr)
-        return 2
+    cannot = without_ros2("bench_gripper_command", " (or use benchmarks/bench_gripper_cancel.py, "
+                                                   "which runs without it)")
+    if cannot is not None:
+        return cannot
 
     import rclpy
 

@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from results import Figure, write_results
+from results import Figure, without_ros2, write_results
 
 FAULTS = ("Traceback", "never retrieved", "context is invalid")
 LIFECYCLE_NODES = {"array": 2, "bench": 2, "gripper": 3}
@@ -83,6 +83,9 @@ def main() -> int:
     parser.add_argument("--group", action="store_true",
                         help="SIGINT to the whole process group (Ctrl-C in a terminal)")
     args = parser.parse_args()
+    cannot = without_ros2("bench_shutdown")
+    if cannot is not None:
+        return cannot
     os.environ.setdefault("ROS_DOMAIN_ID", "215")
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     target = "process group" if args.group else "ros2 launch"

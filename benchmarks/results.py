@@ -59,6 +59,23 @@ FIELDS = {"benchmark": str, "command": str, "commit": str, "date": str, "machine
           "figures": list}
 
 
+#: A benchmark's exit status when this installation cannot run it (automake's "skipped"):
+#: ``make bench`` goes on with the others and says which it skipped.
+CANNOT_RUN_HERE = 77
+
+
+def without_ros2(benchmark: str, instead: str = "") -> int | None:
+    """``CANNOT_RUN_HERE``, after one sentence saying why, where ``ros2`` is not on PATH
+    (the PyPI-wheels setup has no ``ros2 launch``); None where it is."""
+    import shutil
+
+    if shutil.which("ros2") is not None:
+        return None
+    print(f"{benchmark} needs `ros2 launch`, which the PyPI-wheels setup lacks; run it where a "
+          f"ROS 2 installation is sourced{instead}.", file=sys.stderr)
+    return CANNOT_RUN_HERE
+
+
 def read_results(path: Path) -> dict[str, object]:
     """One results file, checked: a hand-edited or truncated file names itself and the fix
     instead of failing somewhere in the page it would feed."""

@@ -118,3 +118,14 @@ def test_the_committed_page_is_what_the_committed_results_render():
                                  report.benchmark_scripts(report.BENCHMARKS)), (
         "docs/benchmarks.md differs from what benchmarks/results renders: run "
         "`make bench-report` and commit the page")
+
+
+def test_a_benchmark_that_needs_ros2_says_so_and_is_skipped_not_failed(monkeypatch, capsys):
+    import shutil
+
+    monkeypatch.setattr(shutil, "which", lambda name: None)
+    assert results.without_ros2("bench_x", " (or use bench_y)") == results.CANNOT_RUN_HERE == 77
+    said = capsys.readouterr().err.strip()
+    assert said.count(".") == 1 and "bench_x needs `ros2 launch`" in said and "bench_y" in said
+    monkeypatch.setattr(shutil, "which", lambda name: f"/usr/bin/{name}")
+    assert results.without_ros2("bench_x") is None
