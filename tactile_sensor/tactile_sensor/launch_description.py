@@ -29,6 +29,7 @@ from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
 from tactile_sensor.configurations import PACKAGE, Configuration, config_dir, config_files
+from tactile_sensor.nodes.parameter_files import ParameterFileError, check_parameter_file
 
 DEVICE_POLL_S = 0.05  # how often the launch looks for the mock rig's device links
 
@@ -80,6 +81,11 @@ def _nodes(context: LaunchContext, configuration: Configuration,
     if extra and not Path(extra).is_file():  # launch_ros would only warn and go on without it
         raise LaunchArgumentError(f"config:={extra} does not exist; give the path of a ROS "
                                   "parameter YAML file.")
+    if extra:  # rclpy would ignore a parameter no node declares without a word
+        try:
+            check_parameter_file(Path(extra), configuration)
+        except ParameterFileError as exc:
+            raise LaunchArgumentError(f"config:={exc}") from None
     protocol_parameters = ({"protocol.name": protocol, **(protocols[protocol] or {})}
                            if protocol else {})
     actions: list[Any] = []

@@ -123,6 +123,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BringupError as exc:
         print(f"tactile-sensor bringup: {exc}", file=sys.stderr)
         return 2
+    if options.config is not None:
+        from tactile_sensor.nodes.parameter_files import ParameterFileError, check_parameter_file
+
+        try:
+            check_parameter_file(options.config, configuration)
+        except ParameterFileError as exc:
+            print(f"tactile-sensor bringup: {exc}", file=sys.stderr)
+            return 2
     if not options.no_mock:
         for path in ports.values():
             Path(path).parent.mkdir(parents=True, exist_ok=True)
