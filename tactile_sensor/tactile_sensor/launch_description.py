@@ -60,6 +60,9 @@ def build(configuration: Configuration) -> LaunchDescription:
                               description="rosbag2 (MCAP) folder to record into; empty = none"),
         DeclareLaunchArgument("protocol", default_value=next(iter(protocols), ""),
                               description="protocol of the mock rig: " + ", ".join(protocols)),
+        DeclareLaunchArgument("scenario", default_value="",
+                              description="light of the ambient protocol: dark, office, "
+                                          "sunlight or shadow; empty = the protocol's"),
     ]
     arguments += [DeclareLaunchArgument(name, default_value=default, description=text)
                   for name, (default, text) in configuration.ports.items()]
@@ -74,6 +77,7 @@ def _nodes(context: LaunchContext, configuration: Configuration,
     namespace = LaunchConfiguration("namespace").perform(context)
     record = LaunchConfiguration("record").perform(context)
     protocol = LaunchConfiguration("protocol").perform(context)
+    scenario = LaunchConfiguration("scenario").perform(context)
     ports = {name: LaunchConfiguration(name).perform(context) for name in configuration.ports}
     if protocol and protocol not in protocols:
         raise LaunchArgumentError(f"Unknown protocol '{protocol}'; choose one of "
@@ -88,6 +92,8 @@ def _nodes(context: LaunchContext, configuration: Configuration,
             raise LaunchArgumentError(f"config:={exc}") from None
     protocol_parameters = ({"protocol.name": protocol, **(protocols[protocol] or {})}
                            if protocol else {})
+    if scenario:  # the mock refuses a name it does not know, in one sentence
+        protocol_parameters["protocol.scenario"] = scenario
     actions: list[Any] = []
     mock: Node | None = None
     if record:

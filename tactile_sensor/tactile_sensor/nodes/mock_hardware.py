@@ -46,12 +46,19 @@ from tactile_sensor.nodes.parameters import (
 )
 from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
 from tactile_sensor.nodes.ros_session import ros_session
-from tactile_sensor.physics.detector import DetectorState
+from tactile_sensor.physics.detector import DetectorState, headroom_ratio
 from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.prediction import load_or_compute_curve
 from tactile_sensor.physics.viscoelastic import RateDependentForce
+from tactile_sensor.sensing.blind import SATURATION_V
 from tactile_sensor.sim.adc_device import AdcNoise, MockAdcDevice
-from tactile_sensor.sim.ambient_light import LightScene, LitSource, parse_steps
+from tactile_sensor.sim.ambient_light import (
+    SCENARIOS,
+    LightScene,
+    LitSource,
+    parse_steps,
+    scenario_scene,
+)
 from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin
 from tactile_sensor.sim.bench_world import BenchRun, BenchWorld
 from tactile_sensor.sim.errors import SimError
@@ -118,6 +125,9 @@ SPECS = [
               minimum=0.0, maximum=MAX_ROTATION_RAD),
     ParamSpec("protocol.angular_speed", 0.05, "tilt and twist speed of the wrench protocol "
               "[rad/s]", minimum=1e-4, maximum=1.0),
+    ParamSpec("protocol.scenario", "", "light of the ambient protocol: dark, office, "
+              "sunlight or shadow (sim/ambient_light.py, docs/ambient.md); '' = the ambient.* "
+              "parameters alone", choices=("", *SCENARIOS)),
     ParamSpec("protocol.start_delay", 5.0, "start the protocol this long after start-up "
               "[s] (time for the driver to tare); < 0 = wait for ~/start"),
     # gripper
@@ -237,6 +247,10 @@ class MockHardwareNode(Node):
                                     sample_rate_hz=values["adc_rate"])
             self.detector = DetectorState(values["temperature.delta_k"],
                                           values["emitter.output_ratio"])
+            if values["protocol.scenario"] and not self.scene.is_dark:
+                raise SimError(f"protocol.scenario '{values['protocol.scenario']}' sets the "
+                               "light itself; leave the ambient.* parameters at 0 or the "
+                               "scenario empty.")
         except (ParameterError, PhysicsError, SimError) as exc:
             raise MockHardwareError(str(exc)) from None
         self.values = values
@@ -300,8 +314,15 @@ class MockHardwareNode(Node):
     def _lit(self, source: Any, physics: Any) -> LitSource:
         """The world's voltages as the module outputs them under the scene's light, at its
         temperature and with its emitter's age."""
+        v, supply = self.values, physics.supply_voltage
         rest = np.asarray(self.world.module_voltages(np.zeros(1)), dtype=float)[0]
-        return LitSource(source, self.scene, self.detector, rest, physics.supply_voltage)
+        if v["protocol.scenario"]:
+            room = min(headroom_ratio(float(r), supply, self.detector, SATURATION_V)
+                       for r in rest)
+            self.scene = scenario_scene(v["protocol.scenario"], room,
+                                        max(0.0, v["protocol.start_delay"]), v["adc_rate"])
+            self.get_logger().info(f"ambient scenario '{v['protocol.scenario']}': {self.scene}")
+        return LitSource(source, self.scene, self.detector, rest, supply)
 
     def _links(self) -> list[str]:
         return [self.values["adc_link"]] + (

@@ -132,3 +132,30 @@ class LitSource:
         ratio = self.scene.ratio(t)
         ratio = np.asarray(ratio)[..., None] if np.ndim(v) > np.ndim(ratio) else ratio
         return module_output_v(v, ratio, self.rest_drop_v, self.state, self.supply_v)
+
+
+#: The ``ambient`` protocol's scenarios (``protocol.scenario``), in protocol seconds; the
+#: protocol (config/protocols.yaml) rests 1 s, then presses 3 mm at 1 mm/s and releases
+#: (3 s each way, 1 s rest) four times: loading 1-4 s, 8-11 s, 15-18 s, 22-25 s.
+SCENARIOS = ("dark", "office", "sunlight", "shadow")
+#: Office light: a lamp flickering at 100 Hz (0.2 of the emitter's light), another
+#: switched on while the first press loads and off while the second unloads.
+OFFICE = {"flicker_ratio": 0.2, "flicker_hz": 100.0, "steps": ((2.5, 0.3), (12.5, -0.3))}
+#: Sunlight using this share of the detector's headroom at rest, there from the start.
+SUNLIGHT_HEADROOM = 0.6
+#: A hand's shadow takes this share of the office's steady light during the third press.
+SHADOW = {"dc_ratio": 0.3, "steps": ((16.0, -0.2), (16.8, 0.2))}
+
+
+def scenario_scene(name: str, headroom: float, start_s: float, sample_rate_hz: float
+                   ) -> LightScene:
+    """The named scenario's scene on the device's clock (protocol time + ``start_s``);
+    ``headroom`` is the ambient ratio that saturates the detector at rest."""
+    if name not in SCENARIOS:
+        raise SimError(f"Unknown ambient scenario '{name}'; choose one of "
+                       f"{', '.join(SCENARIOS)}.")
+    values: dict[str, Any] = {"dark": {}, "office": OFFICE, "shadow": SHADOW,
+                              "sunlight": {"dc_ratio": SUNLIGHT_HEADROOM * headroom}}[name]
+    steps = tuple((t + start_s, r) for t, r in values.get("steps", ()))
+    return LightScene(values.get("dc_ratio", 0.0), values.get("flicker_ratio", 0.0),
+                      values.get("flicker_hz", 100.0), steps, sample_rate_hz)

@@ -45,6 +45,26 @@ def test_the_scene_reaches_the_adcs_source_and_the_dark_room_is_untouched(ros, t
         node.destroy_node()
 
 
+def test_a_scenario_is_stated_against_the_detectors_headroom_after_the_start_delay(
+        ros, tmp_path):
+    node = start(tmp_path, **{"protocol.scenario": "sunlight", "protocol.start_delay": 2.0})
+    try:
+        rest = float(np.asarray(node.world.module_voltages(np.zeros(1)))[0, 0])
+        lit = float(np.asarray(node.adc._source(np.zeros(1)))[0, 0])
+        # 60 % of the room between the rest output and the 0.3 V saturation
+        assert lit == pytest.approx(rest - 0.6 * (rest - 0.3), abs=1e-3)
+        office = start(tmp_path / "office", **{"protocol.scenario": "office",
+                                                "protocol.start_delay": 2.0})
+        try:
+            assert office.scene.steps == ((4.5, 0.3), (14.5, -0.3))
+        finally:
+            office.close_devices()
+            office.destroy_node()
+    finally:
+        node.close_devices()
+        node.destroy_node()
+
+
 @pytest.mark.parametrize(("values", "sentence"), [
     ({"ambient.flicker_ratio": 0.2, "ambient.flicker_hz": 600.0}, "Nyquist rate 500 Hz"),
     ({"ambient.steps": ["5:-0.3"]}, "negative ratio (-0.3) at 5 s"),
@@ -54,6 +74,9 @@ def test_the_scene_reaches_the_adcs_source_and_the_dark_room_is_untouched(ros, t
     ({"emitter.output_ratio": 2.0}, "'emitter.output_ratio' = 2.0 is invalid"),
     ({"modules": "front,back,left,right", "skin.stiffness_ratio": 1.2},
      "applies to a single-module skin"),
+    ({"protocol.scenario": "fog"}, "'protocol.scenario' = 'fog' is invalid"),
+    ({"protocol.scenario": "office", "ambient.dc_ratio": 0.1},
+     "protocol.scenario 'office' sets the light itself"),
 ])
 def test_an_impossible_scene_is_refused_in_one_sentence(ros, tmp_path, values, sentence):
     with pytest.raises(MockHardwareError) as error:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tactile_sensor.physics.detector import DetectorState, response_tau_s
-from tactile_sensor.sim.ambient_light import LightScene, LitSource, parse_steps
+from tactile_sensor.sim.ambient_light import LightScene, LitSource, parse_steps, scenario_scene
 from tactile_sensor.sim.errors import SimError
 
 
@@ -71,3 +71,15 @@ def test_an_impossible_scene_is_refused_in_one_sentence(kwargs, sentence):
 def test_a_step_that_is_not_time_ratio_is_refused(item):
     with pytest.raises(SimError, match="is not 'time:ratio'"):
         parse_steps([item])
+
+
+def test_the_scenarios_of_the_ambient_protocol_on_the_devices_clock():
+    office = scenario_scene("office", 0.56, 5.0, 1000.0)
+    assert office.steps == ((7.5, 0.3), (17.5, -0.3)) and office.flicker_ratio == 0.2
+    assert scenario_scene("sunlight", 0.56, 5.0, 1000.0).dc_ratio == pytest.approx(0.336)
+    assert scenario_scene("dark", 0.56, 5.0, 1000.0).is_dark
+    shadow = scenario_scene("shadow", 0.56, 0.0, 1000.0)
+    assert shadow.ratio(np.array([15.0, 16.5, 17.5])) == pytest.approx([0.3, 0.1, 0.3],
+                                                                       abs=1e-6)
+    with pytest.raises(SimError, match="Unknown ambient scenario 'fog'; choose one of dark"):
+        scenario_scene("fog", 0.56, 0.0, 1000.0)
