@@ -68,9 +68,10 @@ def run(scenario: str, seed: int) -> dict[str, object]:
     protocol_t = np.maximum(t - START_DELAY_S, 0.0)
     rest_v = float(world.module_voltages(np.zeros(1))[0, 0])
     room = headroom_ratio(rest_v, physics.supply_voltage, floor_v=SATURATION_V)
-    scene = scenario_scene(scenario, room, START_DELAY_S, RATE_HZ)
+    scene = scenario_scene(scenario, room, RATE_HZ)
     lit = LitSource(lambda times: world.module_voltages(np.maximum(times - START_DELAY_S, 0.0)),
-                    scene, DetectorState(), [rest_v], physics.supply_voltage)
+                    scene, DetectorState(), [rest_v], physics.supply_voltage,
+                    origin_s=START_DELAY_S)
     counts = AdcSampler(RATE_HZ, AdcNoise(), rng=seed).counts(lit(t))
     chain = SignalChain(ChainConfig(rate_hz=RATE_HZ), Calibration.from_prediction_curve(curve))
     us = np.rint(t * 1e6).astype(np.int64).tolist()

@@ -87,8 +87,9 @@ SPECS = [
               "100 or 120; below the ADC's Nyquist rate", exclusive_minimum=True,
               minimum=0.0),
     ParamSpec("ambient.steps", [], "ambient light switching: 'time:ratio' entries, from "
-              "time [s] after start-up on the level changes by ratio [1] (a shadow or a "
-              "slow daylight change is a series of them)"),
+              "time [s] on the level changes by ratio [1]; seconds after the protocol starts "
+              "(bench) or start-up (gripper); a shadow or a slow daylight change is a "
+              "series of them"),
     ParamSpec("temperature.delta_k", 0.0, "module temperature above the calibration's [K]: "
               "the emitter's intensity, the detector's gain and dark current follow",
               minimum=-60.0, maximum=60.0),
@@ -319,8 +320,7 @@ class MockHardwareNode(Node):
         if v["protocol.scenario"]:
             room = min(headroom_ratio(float(r), supply, self.detector, SATURATION_V)
                        for r in rest)
-            self.scene = scenario_scene(v["protocol.scenario"], room,
-                                        max(0.0, v["protocol.start_delay"]), v["adc_rate"])
+            self.scene = scenario_scene(v["protocol.scenario"], room, v["adc_rate"])
             self.get_logger().info(f"ambient scenario '{v['protocol.scenario']}': {self.scene}")
         return LitSource(source, self.scene, self.detector, rest, supply)
 

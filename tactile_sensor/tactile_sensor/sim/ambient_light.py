@@ -87,14 +87,15 @@ class LightScene:
     def is_dark(self) -> bool:
         return self.dc_ratio == 0 and self.flicker_ratio == 0 and not self.steps
 
-    def ratio(self, t: npt.ArrayLike) -> np.ndarray:
+    def ratio(self, t: npt.ArrayLike, origin_s: float = 0.0) -> np.ndarray:
         """The ambient photocurrent the detector passes at times ``t`` [s], as a ratio of
-        the emitter's at rest."""
+        the emitter's at rest; step times count from ``origin_s`` (inf: none yet)."""
         t = np.asarray(t, dtype=float)
         out = np.full(t.shape, self.dc_ratio)
+        since = t - origin_s
         for start, ratio in self.steps:
-            after = np.maximum(t - start, 0.0)
-            out += np.where(t >= start, ratio * -np.expm1(-after / self.tau_s), 0.0)
+            after = np.maximum(since - start, 0.0)
+            out += np.where(since >= start, ratio * -np.expm1(-after / self.tau_s), 0.0)
         if self.flicker_ratio > 0:
             out += self.flicker_ratio * self._flicker(t)
         return out
@@ -112,11 +113,16 @@ class LightScene:
 
 class LitSource:
     """A world's voltage source as the module outputs it under ``scene`` and ``state``:
-    what the mock ADC samples. ``rest_v`` is each module's dark-room output at rest."""
+    what the mock ADC samples. ``rest_v`` is each module's dark-room output at rest. The
+    scene's steps count from ``origin_s`` [s of the source's clock]; by default from the
+    source's protocol start (``start_device_s``: none before it) when it has one, else
+    from 0."""
 
     def __init__(self, source: Callable[[Any], Any], scene: LightScene, state: DetectorState,
-                 rest_v: npt.ArrayLike, supply_v: float = 5.0) -> None:
+                 rest_v: npt.ArrayLike, supply_v: float = 5.0,
+                 origin_s: float | None = None) -> None:
         self.source = source
+        self.origin_s = origin_s
         self.scene = scene
         self.state = state
         self.rest_drop_v = supply_v - np.asarray(rest_v, dtype=float)
@@ -129,7 +135,11 @@ class LitSource:
         v = self.source(t)
         if self.scene.is_dark and self.state.is_calibration:
             return v
-        ratio = self.scene.ratio(t)
+        origin = self.origin_s
+        if origin is None:
+            start = getattr(self.source, "start_device_s", 0.0)
+            origin = math.inf if start is None else start
+        ratio = self.scene.ratio(t, origin)
         ratio = np.asarray(ratio)[..., None] if np.ndim(v) > np.ndim(ratio) else ratio
         return module_output_v(v, ratio, self.rest_drop_v, self.state, self.supply_v)
 
@@ -147,15 +157,13 @@ SUNLIGHT_HEADROOM = 0.6
 SHADOW = {"dc_ratio": 0.3, "steps": ((16.0, -0.2), (16.8, 0.2))}
 
 
-def scenario_scene(name: str, headroom: float, start_s: float, sample_rate_hz: float
-                   ) -> LightScene:
-    """The named scenario's scene on the device's clock (protocol time + ``start_s``);
-    ``headroom`` is the ambient ratio that saturates the detector at rest."""
+def scenario_scene(name: str, headroom: float, sample_rate_hz: float) -> LightScene:
+    """The named scenario's scene, its steps in protocol seconds; ``headroom`` is the
+    ambient ratio that saturates the detector at rest."""
     if name not in SCENARIOS:
         raise SimError(f"Unknown ambient scenario '{name}'; choose one of "
                        f"{', '.join(SCENARIOS)}.")
     values: dict[str, Any] = {"dark": {}, "office": OFFICE, "shadow": SHADOW,
                               "sunlight": {"dc_ratio": SUNLIGHT_HEADROOM * headroom}}[name]
-    steps = tuple((t + start_s, r) for t, r in values.get("steps", ()))
     return LightScene(values.get("dc_ratio", 0.0), values.get("flicker_ratio", 0.0),
-                      values.get("flicker_hz", 100.0), steps, sample_rate_hz)
+                      values.get("flicker_hz", 100.0), values.get("steps", ()), sample_rate_hz)

@@ -34,6 +34,7 @@ def test_the_scene_reaches_the_adcs_source_and_the_dark_room_is_untouched(ros, t
     node = start(tmp_path, **{"ambient.dc_ratio": 0.2, "ambient.steps": ["0.5:0.1"],
                               "skin.stiffness_ratio": 1.15})
     try:
+        node.source.start_device_s = 0.0  # steps count from the protocol's start
         t = np.array([0.0, 0.4, 1.0])
         dark = np.asarray(node.world.module_voltages(np.zeros(3)))[:, 0]
         lit = np.asarray(node.adc._source(t))[:, 0]
@@ -56,7 +57,7 @@ def test_a_scenario_is_stated_against_the_detectors_headroom_after_the_start_del
         office = start(tmp_path / "office", **{"protocol.scenario": "office",
                                                 "protocol.start_delay": 2.0})
         try:
-            assert office.scene.steps == ((4.5, 0.3), (14.5, -0.3))
+            assert office.scene.steps == ((2.5, 0.3), (12.5, -0.3))  # protocol seconds
         finally:
             office.close_devices()
             office.destroy_node()

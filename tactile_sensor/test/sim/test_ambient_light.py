@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from tactile_sensor.physics.detector import DetectorState, response_tau_s
-from tactile_sensor.sim.ambient_light import LightScene, LitSource, parse_steps, scenario_scene
+from tactile_sensor.sim.ambient_light import (
+    LightScene,
+    LitSource,
+    parse_steps,
+    scenario_scene,
+)
 from tactile_sensor.sim.errors import SimError
 
 
@@ -73,13 +78,30 @@ def test_a_step_that_is_not_time_ratio_is_refused(item):
         parse_steps([item])
 
 
-def test_the_scenarios_of_the_ambient_protocol_on_the_devices_clock():
-    office = scenario_scene("office", 0.56, 5.0, 1000.0)
-    assert office.steps == ((7.5, 0.3), (17.5, -0.3)) and office.flicker_ratio == 0.2
-    assert scenario_scene("sunlight", 0.56, 5.0, 1000.0).dc_ratio == pytest.approx(0.336)
-    assert scenario_scene("dark", 0.56, 5.0, 1000.0).is_dark
-    shadow = scenario_scene("shadow", 0.56, 0.0, 1000.0)
+def test_the_scenarios_of_the_ambient_protocol_in_protocol_seconds():
+    office = scenario_scene("office", 0.56, 1000.0)
+    assert office.steps == ((2.5, 0.3), (12.5, -0.3)) and office.flicker_ratio == 0.2
+    assert scenario_scene("sunlight", 0.56, 1000.0).dc_ratio == pytest.approx(0.336)
+    assert scenario_scene("dark", 0.56, 1000.0).is_dark
+    shadow = scenario_scene("shadow", 0.56, 1000.0)
     assert shadow.ratio(np.array([15.0, 16.5, 17.5])) == pytest.approx([0.3, 0.1, 0.3],
                                                                        abs=1e-6)
     with pytest.raises(SimError, match="Unknown ambient scenario 'fog'; choose one of dark"):
-        scenario_scene("fog", 0.56, 0.0, 1000.0)
+        scenario_scene("fog", 0.56, 1000.0)
+
+
+def test_steps_count_from_the_protocols_start_and_none_come_before_it():
+    class Protocol:
+        start_device_s: float | None = None
+
+        def __call__(self, t):
+            return np.full((len(t), 1), 2.0)
+
+    source = Protocol()
+    lit = LitSource(source, LightScene(steps=((1.0, 0.5),)), DetectorState(), [2.0])
+    assert lit(np.array([100.0]))[0, 0] == pytest.approx(2.0)  # not started: no step
+    source.start_device_s = 100.0
+    assert lit(np.array([100.5, 102.0]))[:, 0] == pytest.approx([2.0, 2.0 - 1.5], abs=1e-6)
+    fixed = LitSource(source, LightScene(steps=((1.0, 0.5),)), DetectorState(), [2.0],
+                      origin_s=5.0)
+    assert fixed(np.array([5.5, 7.0]))[:, 0] == pytest.approx([2.0, 0.5], abs=1e-6)
