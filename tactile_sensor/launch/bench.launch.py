@@ -2,7 +2,8 @@
 and the tactile driver.
 
     ros2 launch tactile_sensor bench.launch.py [use_mock_hardware:=true] [protocol:=compression]
-        [adc_port:=/dev/ttyACM0] [namespace:=...] [config:=extra.yaml] [record:=bag_folder]
+        [scenario:=office] [adc_port:=/dev/ttyACM0] [namespace:=...] [config:=extra.yaml]
+        [record:=bag_folder]
 """
 
 from tactile_sensor.configurations import BENCH

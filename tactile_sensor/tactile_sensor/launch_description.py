@@ -29,6 +29,7 @@ from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
 from tactile_sensor.configurations import PACKAGE, Configuration, config_dir, config_files
+from tactile_sensor.nodes.parameter_files import ParameterFileError, check_parameter_file
 
 DEVICE_POLL_S = 0.05  # how often the launch looks for the mock rig's device links
 
@@ -59,6 +60,9 @@ def build(configuration: Configuration) -> LaunchDescription:
                               description="rosbag2 (MCAP) folder to record into; empty = none"),
         DeclareLaunchArgument("protocol", default_value=next(iter(protocols), ""),
                               description="protocol of the mock rig: " + ", ".join(protocols)),
+        DeclareLaunchArgument("scenario", default_value="",
+                              description="light of the ambient protocol: dark, office, "
+                                          "sunlight or shadow; empty = the protocol's"),
     ]
     arguments += [DeclareLaunchArgument(name, default_value=default, description=text)
                   for name, (default, text) in configuration.ports.items()]
@@ -73,6 +77,7 @@ def _nodes(context: LaunchContext, configuration: Configuration,
     namespace = LaunchConfiguration("namespace").perform(context)
     record = LaunchConfiguration("record").perform(context)
     protocol = LaunchConfiguration("protocol").perform(context)
+    scenario = LaunchConfiguration("scenario").perform(context)
     ports = {name: LaunchConfiguration(name).perform(context) for name in configuration.ports}
     if protocol and protocol not in protocols:
         raise LaunchArgumentError(f"Unknown protocol '{protocol}'; choose one of "
@@ -80,8 +85,15 @@ def _nodes(context: LaunchContext, configuration: Configuration,
     if extra and not Path(extra).is_file():  # launch_ros would only warn and go on without it
         raise LaunchArgumentError(f"config:={extra} does not exist; give the path of a ROS "
                                   "parameter YAML file.")
+    if extra:  # rclpy would ignore a parameter no node declares without a word
+        try:
+            check_parameter_file(Path(extra), configuration)
+        except ParameterFileError as exc:
+            raise LaunchArgumentError(f"config:={exc}") from None
     protocol_parameters = ({"protocol.name": protocol, **(protocols[protocol] or {})}
                            if protocol else {})
+    if scenario:  # the mock refuses a name it does not know, in one sentence
+        protocol_parameters["protocol.scenario"] = scenario
     actions: list[Any] = []
     mock: Node | None = None
     if record:

@@ -55,3 +55,20 @@ class TactileForce:
             total, count = self._sum_n, self._count
             self._sum_n, self._count = 0.0, 0
         return total / count if count else None
+
+    def stale_refusal(self, now_s: float, stale_after_s: float) -> str | None:
+        """Why a grasp cannot start now, in one sentence (None: it may). The driver
+        publishes no force while its detector is blind (ambient light at the rail,
+        docs/ambient.md) or its stream is down; a grasp would close on nothing it can feel.
+        Before the first force none is refused: a grasp waits ``stale_after_s`` for it."""
+        latest = self.latest
+        if latest is None:
+            return None
+        force_n, stamp_s = latest
+        age = now_s - stamp_s
+        if age > stale_after_s or not math.isfinite(force_n):
+            return (f"the tactile force is {age:.2f} s old (tactile_timeout "
+                    f"{stale_after_s:g} s): the sensor is blind or its stream stopped; see "
+                    "the driver's /diagnostics ('ambient light saturates the detector': shade "
+                    "the module).")
+        return None

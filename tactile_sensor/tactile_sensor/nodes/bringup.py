@@ -36,12 +36,14 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--record", type=Path, default=None,
                         help="record the configuration's topics to this rosbag2 (MCAP) folder")
     parser.add_argument("--protocol", default=None,
-                        help="bench: compression | repeatability | speeds | rest; "
+                        help="bench: compression | repeatability | speeds | rate_check | "
+                             "ambient | rest; "
                              "gripper: grasp | idle; array: compression | shear; "
                              "wrench: wrench "
                              "(config/protocols.yaml); "
                              "NAME:key=value,... overrides its fields, e.g. "
-                             "repeatability:cycles=5 or speeds:cycles=1,rest=0.5")
+                             "repeatability:cycles=5 or speeds:cycles=1,rest=0.5; "
+                             "ambient:scenario=dark|office|sunlight|shadow sets its light")
     parser.add_argument("--namespace", default="", help="ROS namespace of every node")
     parser.add_argument("--no-mock", action="store_true",
                         help="use real devices at the given ports instead of mock hardware")
@@ -123,6 +125,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BringupError as exc:
         print(f"tactile-sensor bringup: {exc}", file=sys.stderr)
         return 2
+    if options.config is not None:
+        from tactile_sensor.nodes.parameter_files import ParameterFileError, check_parameter_file
+
+        try:
+            check_parameter_file(options.config, configuration)
+        except ParameterFileError as exc:
+            print(f"tactile-sensor bringup: {exc}", file=sys.stderr)
+            return 2
     if not options.no_mock:
         for path in ports.values():
             Path(path).parent.mkdir(parents=True, exist_ok=True)

@@ -44,8 +44,8 @@ SPECS = [
               "window are designed for", minimum=0.0, exclusive_minimum=True,
               maximum=100_000.0),
     ParamSpec("filter_type", "savgol", "filter on every sample", choices=tuple(FILTERS)),
-    ParamSpec("filter.window", 0, "window [samples] of savgol / moving_average; 0 = the "
-              "filter's default (40 / 9)", minimum=0, maximum=100_000),
+    ParamSpec("filter.window", 0, "window [samples] of savgol, savgol_mains or "
+              "moving_average; 0 = the filter's default (40, 40 or 9)", minimum=0, maximum=100_000),
     ParamSpec("filter.cutoff_hz", 50.0, "butterworth cutoff [Hz]", minimum=0.0,
               exclusive_minimum=True),
     ParamSpec("filter.order", 2, "butterworth order", minimum=1, maximum=8),

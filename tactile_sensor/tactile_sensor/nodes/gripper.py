@@ -307,6 +307,11 @@ class GripperNode(Node):
         except ControlError as exc:
             self.get_logger().error(f"{name} goal rejected: {exc}")
             return GoalResponse.REJECT
+        stale = (self._forces.stale_refusal(time.time(), self._settings.config.stale_after_s)
+                 if name == "grasp" else None)
+        if stale is not None:
+            self.get_logger().error(f"{name} goal rejected: {stale}")
+            return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
     def _on_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:

@@ -113,7 +113,11 @@ def _driver() -> NodeInterface:
                      "top; every larger output clamps there): the gripper's force ceiling"),
             Endpoint("/diagnostics", _DIAGNOSTICS, "the ADC's connection, frame rate, "
                      "lost frames, tare and calibration state, `full_scale_force_n`, "
-                     "`readings_published`, `reading_subscribers`, `wrench_subscribers`"),
+                     "`readings_published`, `reading_subscribers`, `wrench_subscribers`; "
+                     "one module: `blind` (ERROR 'ambient light saturates the detector' "
+                     "while the detector is at its rail: force NaN, no ~/wrench), "
+                     "`blind_samples`, `detector_headroom_v` and `detector_headroom_ratio` "
+                     "(room left before light saturates it; docs/ambient.md)"),
         ],
         subscriptions=[
             Endpoint("calibration_curve", "tactile_sensor_interfaces/msg/CalibrationCurve",

@@ -46,10 +46,19 @@ from tactile_sensor.nodes.parameters import (
 )
 from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
 from tactile_sensor.nodes.ros_session import ros_session
+from tactile_sensor.physics.detector import DetectorState, headroom_ratio
 from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.prediction import load_or_compute_curve
 from tactile_sensor.physics.viscoelastic import RateDependentForce
+from tactile_sensor.sensing.blind import SATURATION_V
 from tactile_sensor.sim.adc_device import AdcNoise, MockAdcDevice
+from tactile_sensor.sim.ambient_light import (
+    SCENARIOS,
+    LightScene,
+    LitSource,
+    parse_steps,
+    scenario_scene,
+)
 from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin
 from tactile_sensor.sim.bench_world import BenchRun, BenchWorld
 from tactile_sensor.sim.errors import SimError
@@ -68,6 +77,26 @@ SPECS = [
               maximum=10.0),
     ParamSpec("noise.drift_tau", 120.0, "ambient-light drift correlation time [s]",
               minimum=0.0, exclusive_minimum=True),
+    ParamSpec("ambient.dc_ratio", 0.0, "steady ambient photocurrent as a ratio of the "
+              "emitter's at rest [1] (0 = the paper's dark room; docs/ambient.md)",
+              minimum=0.0),
+    ParamSpec("ambient.flicker_ratio", 0.0, "mean photocurrent of a lamp on the mains, "
+              "flickering fully at ambient.flicker_hz, as a ratio of the emitter's at rest "
+              "[1]", minimum=0.0),
+    ParamSpec("ambient.flicker_hz", 100.0, "lamp flicker frequency [Hz]: twice the mains, "
+              "100 or 120; below the ADC's Nyquist rate", exclusive_minimum=True,
+              minimum=0.0),
+    ParamSpec("ambient.steps", [], "ambient light switching: 'time:ratio' entries, from "
+              "time [s] on the level changes by ratio [1]; seconds after the protocol starts "
+              "(bench) or start-up (gripper); a shadow or a slow daylight change is a "
+              "series of them"),
+    ParamSpec("temperature.delta_k", 0.0, "module temperature above the calibration's [K]: "
+              "the emitter's intensity, the detector's gain and dark current follow",
+              minimum=-60.0, maximum=60.0),
+    ParamSpec("emitter.output_ratio", 1.0, "emitter output as a fraction of a new one's [1] "
+              "(ageing)", minimum=0.0, maximum=1.5),
+    ParamSpec("skin.stiffness_ratio", 1.0, "skin stiffness against the FEM's [1] (all "
+              "Mooney-Rivlin moduli scaled; single-module skins)", minimum=0.2, maximum=5.0),
     ParamSpec("seed", -1, "random seed of the noise; < 0 = different every run"),
     ParamSpec("cache_dir", "", "prediction cache folder; empty = default"),
     # bench
@@ -97,6 +126,9 @@ SPECS = [
               minimum=0.0, maximum=MAX_ROTATION_RAD),
     ParamSpec("protocol.angular_speed", 0.05, "tilt and twist speed of the wrench protocol "
               "[rad/s]", minimum=1e-4, maximum=1.0),
+    ParamSpec("protocol.scenario", "", "light of the ambient protocol: dark, office, "
+              "sunlight or shadow (sim/ambient_light.py, docs/ambient.md); '' = the ambient.* "
+              "parameters alone", choices=("", *SCENARIOS)),
     ParamSpec("protocol.start_delay", 5.0, "start the protocol this long after start-up "
               "[s] (time for the driver to tare); < 0 = wait for ~/start"),
     # gripper
@@ -210,6 +242,16 @@ class MockHardwareNode(Node):
                              drift_tau_s=values["noise.drift_tau"],
                              **({"white_v": values["noise.white"]}
                                 if values["noise.white"] >= 0 else {}))
+            self.scene = LightScene(values["ambient.dc_ratio"], values["ambient.flicker_ratio"],
+                                    values["ambient.flicker_hz"],
+                                    parse_steps(values["ambient.steps"]),
+                                    sample_rate_hz=values["adc_rate"])
+            self.detector = DetectorState(values["temperature.delta_k"],
+                                          values["emitter.output_ratio"])
+            if values["protocol.scenario"] and not self.scene.is_dark:
+                raise SimError(f"protocol.scenario '{values['protocol.scenario']}' sets the "
+                               "light itself; leave the ambient.* parameters at 0 or the "
+                               "scenario empty.")
         except (ParameterError, PhysicsError, SimError) as exc:
             raise MockHardwareError(str(exc)) from None
         self.values = values
@@ -219,6 +261,10 @@ class MockHardwareNode(Node):
         refusal = wrench_refusal(values["world"], len(self.faces)) if wrench else None
         if refusal:
             raise MockHardwareError(refusal)
+        if array and values["skin.stiffness_ratio"] != 1.0:
+            raise MockHardwareError(
+                "skin.stiffness_ratio applies to a single-module skin (the bench or the "
+                "gripper); set it to 1.0 for a module array.")
         if values["world"] == "bench" and values["protocol.shear"] > 0 and not array:
             raise MockHardwareError(
                 "A shear protocol needs a module array; set the physics parameter modules "
@@ -252,7 +298,7 @@ class MockHardwareNode(Node):
             for path in self._links():
                 Path(path).parent.mkdir(parents=True, exist_ok=True)
             faces = self.world.faces  # the ADC samples every module the world has
-            self.adc = MockAdcDevice(values["adc_link"], self.source,
+            self.adc = MockAdcDevice(values["adc_link"], self._lit(self.source, physics),
                                      rate_hz=values["adc_rate"], noise=noise, seed=seed,
                                      channels=len(faces))
             self.adc.start()
@@ -265,6 +311,18 @@ class MockHardwareNode(Node):
             f"mock {values['world']} ready: ADC at {values['adc_link']}"
             + (f" ({len(faces)} channels: {', '.join(faces)})" if len(faces) > 1 else "")
             + (f", XM430 at {values['servo_link']}" if self.emulator is not None else ""))
+
+    def _lit(self, source: Any, physics: Any) -> LitSource:
+        """The world's voltages as the module outputs them under the scene's light, at its
+        temperature and with its emitter's age."""
+        v, supply = self.values, physics.supply_voltage
+        rest = np.asarray(self.world.module_voltages(np.zeros(1)), dtype=float)[0]
+        if v["protocol.scenario"]:
+            room = min(headroom_ratio(float(r), supply, self.detector, SATURATION_V)
+                       for r in rest)
+            self.scene = scenario_scene(v["protocol.scenario"], room, v["adc_rate"])
+            self.get_logger().info(f"ambient scenario '{v['protocol.scenario']}': {self.scene}")
+        return LitSource(source, self.scene, self.detector, rest, supply)
 
     def _links(self) -> list[str]:
         return [self.values["adc_link"]] + (
@@ -300,7 +358,8 @@ class MockHardwareNode(Node):
                                   cycles=v["protocol.cycles"], hold_s=v["protocol.hold"],
                                   rest_s=v["protocol.rest"])
             self.world = BenchWorld(profile, skin, rate, output_play_m=physics.output_play,
-                                    faces=physics.module_faces)
+                                    faces=physics.module_faces,
+                                    stiffness_ratio=v["skin.stiffness_ratio"])
         self.source = ProtocolSource(self.world)
         self._start_host_ns: int | None = None
         self.published_until_ns = 0  # host time of the last stage/gauge sample published
@@ -409,7 +468,8 @@ class MockHardwareNode(Node):
             raise MockHardwareError(f"Gripper geometry parameters are inconsistent: {exc}."
                                     ) from None
         self.world = GripperWorld(skin, geometry, rod_diameter_m=v["rod.diameter"] or None,
-                                  rod_offset_m=v["rod.offset"])
+                                  rod_offset_m=v["rod.offset"],
+                                  stiffness_ratio=v["skin.stiffness_ratio"])
         self.source = self.world.module_voltages
         self.emulator = Xm430Emulator(v["servo_link"], servo_id=v["servo_id"],
                                       baudrate=v["servo_baud_rate"], world=self.world,

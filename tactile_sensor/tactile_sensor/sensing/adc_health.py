@@ -1,7 +1,8 @@
 """What the driver's diagnostics say about its ADC stream, without ROS.
 
 Priority of the one-sentence message: the connection first, then the device's info frame
-and whether it contradicts the configuration, then tare and calibration, then frames lost
+and whether it contradicts the configuration, then a detector blinded by light, then tare
+and calibration, then frames lost
 since the last report. Lost frames are also counted here so they are never silent: each
 report names how many went missing since the previous one.
 """
@@ -16,6 +17,7 @@ from tactile_sensor.hardware.adc_reader import ConnectionState, ReaderStats
 from tactile_sensor.hardware.health import Health, Level
 from tactile_sensor.sensing.adc_settings import AdcSettings
 from tactile_sensor.sensing.array_chain import ArrayChain
+from tactile_sensor.sensing.blind import BLIND_MESSAGE
 from tactile_sensor.sensing.chain import SignalChain
 from tactile_sensor.sensing.rate_calibration import describe_model
 
@@ -70,6 +72,8 @@ def _level_message(stats: ReaderStats, adc: AdcSettings | None,
         return Level.WARN, message
     if not adc.usable:
         return Level.ERROR, adc.problem
+    if isinstance(chain, SignalChain) and chain.blind:
+        return Level.ERROR, BLIND_MESSAGE
     if not chain.tared:
         return Level.WARN, "not tared yet"
     if chain.calibration is None:
@@ -110,6 +114,15 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         "reference_voltage": f"{chain.conversion.vref_v:g}" if usable else "none",
     }
     values.update({f"{name}_subscribers": n for name, n in (subscribers or {}).items()})
+    if isinstance(chain, SignalChain):
+        left_v, left_ratio = chain.headroom()
+        values["blind"] = "yes" if chain.blind else "no"
+        values["blind_samples"] = chain.blind_samples
+        # room left before ambient light saturates the detector (docs/ambient.md)
+        values["detector_headroom_v"] = "none" if left_v != left_v else f"{left_v:.3f}"
+        values["detector_headroom_ratio"] = ("none" if left_ratio is None
+                                             or left_ratio != left_ratio
+                                             else f"{left_ratio:.3f}")
     if isinstance(chain, ArrayChain):
         baselines = chain.baselines_v or (None,) * len(chain.faces)
         values.update({f"baseline_v.{face}": "none" if b is None else f"{b:.4f}"

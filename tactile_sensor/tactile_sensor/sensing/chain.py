@@ -25,6 +25,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from typing import Any, Generic, NamedTuple, Protocol, TypeVar
 
+from tactile_sensor.sensing.blind import BLIND_MESSAGE, SATURATION_V, BlindDetector, headroom
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.contact import ContactDetector
 from tactile_sensor.sensing.conversion import AdcConversion
@@ -128,6 +129,7 @@ class Reading(NamedTuple):
     saturated: bool  # output beyond the calibration's last point (force clamped)
     device_time_us: int
     host_time_ns: int
+    blind: bool = False  # the detector at its rail (sensing/blind.py): force NaN
 
 
 @dataclass(frozen=True)
@@ -193,6 +195,10 @@ class _Parts:
         self.tare = TareWindow(config.rate_hz, config.tare_window_s, config.tare_max_spread_v)
         self.contact = ContactDetector(config.contact_on_n, config.contact_off_n,
                                        config.contact_debounce_s)
+        # blind until the filter holds no rail sample: its window, or 10 ms for a recursive one
+        window = getattr(self.filter, "window", None)
+        self.blind = BlindDetector(window if isinstance(window, int)
+                                   else max(1, round(config.rate_hz * 0.01)))
 
 
 class SignalChain(SampleSteps[float, Reading]):
@@ -208,6 +214,8 @@ class SignalChain(SampleSteps[float, Reading]):
         self._filter = parts.filter
         self._tare = parts.tare
         self._contact = parts.contact
+        self._blind = parts.blind
+        self._filtered_v = NAN
         self._calibration = calibration
         self._static, self._estimator = _force_parts(calibration)
         self._baseline_v: float | None = None
@@ -226,6 +234,22 @@ class SignalChain(SampleSteps[float, Reading]):
     @property
     def tared(self) -> bool:
         return self._baseline_v is not None
+
+    @property
+    def blind(self) -> bool:
+        """Whether the detector is at its rail now (force NaN; sensing/blind.py)."""
+        return self._blind.blind
+
+    @property
+    def blind_samples(self) -> int:
+        return self._blind.blind_samples
+
+    def headroom(self) -> tuple[float, float | None]:
+        """The filtered voltage's room above saturation [V] and as a ratio of the emitter's
+        drop at rest (None before a tare); the supply is taken as the ADC's reference
+        (the module and the ADC share VIN on the reference firmware)."""
+        volts = SATURATION_V if self._blind.blind else self._filtered_v  # none while blind
+        return headroom(volts, self._baseline_v, self._conversion.vref_v)
 
     @property
     def top_channel(self) -> int:
@@ -255,6 +279,8 @@ class SignalChain(SampleSteps[float, Reading]):
     def tare(self) -> TareResult:
         """Set the baseline from the last ``tare_window_s`` at rest, or raise ``TareError``."""
         with self._lock:
+            if self._blind.blind:
+                raise TareError(f"Cannot tare: {BLIND_MESSAGE}.")
             result = self._tare.evaluate()
             self._baseline_v = result.baseline_v
             self._contact.reset()
@@ -294,6 +320,7 @@ class SignalChain(SampleSteps[float, Reading]):
         with self._lock:
             if "filter" in changed:
                 self._filter = parts.filter
+                self._blind.settle_samples = parts.blind.settle_samples
             if "tare" in changed:
                 self._tare = parts.tare
                 self._auto_tare_every = max(1, self._tare.size // 10)
@@ -308,6 +335,7 @@ class SignalChain(SampleSteps[float, Reading]):
             self._filter.reset()
             self._tare.clear()
             self._contact.reset()
+            self._blind.reset()
             self._restart_rate_terms()
 
     def _restart_rate_terms(self) -> None:
@@ -329,8 +357,17 @@ class SignalChain(SampleSteps[float, Reading]):
     def _step(self, volts: float, t_us: int, host_ns: int) -> Reading:
         """One sample's filter, tare window, force and contact (call with the lock held)."""
         filtered = self._filter.update(volts)
+        self._filtered_v = filtered
         tare = self._tare
         tare.add(volts)
+        was_blind = self._blind.blind
+        if self._blind.update(volts):
+            if not was_blind:  # what the contact and rate terms knew is void
+                self._contact.reset()
+                self._restart_rate_terms()
+            baseline = self._baseline_v
+            output = NAN if baseline is None else baseline - filtered
+            return Reading(volts, output, NAN, False, False, t_us, host_ns, True)
         if self._baseline_v is None and self.config.auto_tare and tare.ready:
             self._auto_tare_countdown -= 1
             if self._auto_tare_countdown <= 0:

@@ -23,7 +23,7 @@ RUNTIME_PARAMETERS = frozenset({
     "frame_id"})
 
 #: The ``filter.*`` parameters each filter reads.
-FILTER_KEYS = {"savgol": ("window",), "moving_average": ("window",),
+FILTER_KEYS = {"savgol": ("window",), "savgol_mains": ("window",), "moving_average": ("window",),
                "butterworth": ("order", "cutoff_hz"),
                "one_euro": ("min_cutoff_hz", "beta", "d_cutoff_hz"), "none": ()}
 

@@ -14,6 +14,9 @@ publishes only a fraction of them.
   overshoot where the slope changes abruptly (≈ slope × window / 8).
 - ``butterworth`` (order 2, cutoff 50 Hz): classic IIR low-pass, SOS form.
 - ``one_euro`` (Casiez et al. 2012): adaptive EMA whose cutoff rises with speed.
+- ``savgol_mains``: ``savgol`` behind an average over one period of the lamps' flicker,
+  which it finds by itself (``sensing/mains_notch.py``): ambient light's 100 or 120 Hz and
+  their harmonics, for a module that sees the room (docs/ambient.md).
 - ``none``: pass-through.
 """
 
@@ -26,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol
 
 from tactile_sensor.sensing.errors import SensingError
+from tactile_sensor.sensing.mains_notch import MainsNotch
 
 DEFAULT_FILTER = "savgol"
 
@@ -206,6 +210,10 @@ FILTERS: dict[str, FilterSpec] = {
     "one_euro": FilterSpec(lambda rate_hz, **p: OneEuro(rate_hz, **p),
                            {"min_cutoff_hz": 10.0, "beta": 0.5, "d_cutoff_hz": 1.0},
                            "adaptive one-euro filter"),
+    "savgol_mains": FilterSpec(
+        lambda rate_hz, **p: MainsNotch(rate_hz, SavitzkyGolayLinear(**p)), {"window": 40},
+        "savgol behind a notch at the lamps' flicker (100 or 120 Hz, found by itself) and "
+        "its harmonics (sensing/mains_notch.py)"),
     "none": FilterSpec(lambda rate_hz, **p: PassThrough(), {}, "no filtering"),
 }
 

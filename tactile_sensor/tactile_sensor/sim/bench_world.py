@@ -111,8 +111,8 @@ class BenchWorld(BenchRun):
     def __init__(self, profile: LoadProfile, skin: SkinResponse,
                  viscoelastic: ViscoelasticModel | None = None, grid_hz: float = 1000.0,
                  loop: bool = False, output_play_m: float = 0.0,
-                 faces: tuple[str, ...] | None = None) -> None:
-        block = SkinBlock(skin, faces, viscoelastic)
+                 faces: tuple[str, ...] | None = None, stiffness_ratio: float = 1.0) -> None:
+        block = SkinBlock(skin, faces, viscoelastic, stiffness_ratio)
         super().__init__(profile, block, grid_hz, loop, output_play_m)
         self._d = np.asarray(profile.indentation(self._t), dtype=float)
         self._f_el = np.asarray(block.load(self._d), dtype=float)

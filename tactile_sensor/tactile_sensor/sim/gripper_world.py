@@ -52,13 +52,13 @@ class GripperWorld:
 
     def __init__(self, skin: SkinResponse, geometry: GripperGeometry | None = None,
                  rod_diameter_m: float | None = 0.020, rod_offset_m: float = 0.0,
-                 history_s: float = 5.0) -> None:
+                 history_s: float = 5.0, stiffness_ratio: float = 1.0) -> None:
         self.geometry = geometry or GripperGeometry()
         if rod_diameter_m is not None and rod_diameter_m <= 0:
             raise ValueError("rod_diameter_m must be positive (or None for no rod)")
         #: Finger A's fingertip (its modules are the world's) and finger B's, without one.
-        self.finger_a = SkinBlock(skin)
-        self.finger_b = SkinBlock(skin, faces=())
+        self.finger_a = SkinBlock(skin, stiffness_ratio=stiffness_ratio)
+        self.finger_b = SkinBlock(skin, faces=(), stiffness_ratio=stiffness_ratio)
         self.faces = self.finger_a.faces
         self._lock = threading.Lock()
         self._rod: tuple[float, float] | None = None

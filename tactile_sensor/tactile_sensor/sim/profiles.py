@@ -101,6 +101,10 @@ _KEYS = {"depth": "depth_m", "speed": "speeds_m_s", "speeds": "speeds_m_s", "cyc
          "hold": "hold_s", "rest": "rest_s", "preload": "preload_m"}
 
 
+#: Protocol keys that set the light (sim/ambient_light.py), not the stage's path.
+LIGHT_KEYS = ("protocol.scenario",)
+
+
 def _load_protocols(section: str = "bench", keys: Mapping[str, str] | None = None
                     ) -> dict[str, dict[str, Any]]:
     """A section's protocols of config/protocols.yaml (one definition for the mock CLI, the
@@ -111,7 +115,7 @@ def _load_protocols(section: str = "bench", keys: Mapping[str, str] | None = Non
     table = yaml.safe_load((config_dir() / "protocols.yaml").read_text())[section]
     return {name: {names[key.removeprefix("protocol.")]:
                    tuple(value) if isinstance(value, list) else value
-                   for key, value in (params or {}).items()}
+                   for key, value in (params or {}).items() if key not in LIGHT_KEYS}
             for name, params in table.items()}
 
 

@@ -80,7 +80,8 @@ class SkinBlock:
     components act on it) and its response to them."""
 
     def __init__(self, response: Any, faces: tuple[str, ...] | None = None,
-                 viscoelastic: ViscoelasticModel | None = None) -> None:
+                 viscoelastic: ViscoelasticModel | None = None,
+                 stiffness_ratio: float = 1.0) -> None:
         own = getattr(response, "faces", None)
         self.axes: int = int(getattr(response, "axes", 1))
         self.faces: tuple[str, ...] = tuple(
@@ -91,15 +92,26 @@ class SkinBlock:
         if own is not None and self.faces != tuple(own):
             raise SimError(f"The response reads modules {', '.join(own)}, not "
                            f"{', '.join(self.faces)}.")
+        if not math.isfinite(stiffness_ratio) or not 0.2 <= stiffness_ratio <= 5.0:
+            raise SimError(f"skin.stiffness_ratio = {stiffness_ratio!r} must be a finite "
+                           "number in [0.2, 5] (1.0 = the skin as the FEM gives it).")
+        if stiffness_ratio != 1.0 and self.axes > 1:
+            raise SimError("skin.stiffness_ratio applies to a single-module skin (the bench "
+                           "or the gripper); set it to 1.0 for a module array.")
         self.response = response
         self.viscoelastic = viscoelastic
+        #: A skin whose Mooney-Rivlin moduli all scale by this factor: under the same
+        #: indentation its displacement field, so its bulge and the module's voltage, are
+        #: the FEM's (the law is homogeneous in its moduli), and its force scales.
+        self.stiffness_ratio = float(stiffness_ratio)
 
     def load(self, *state: Any) -> Any:
         """The true load for ``state`` (indentation [m], then lateral x, y [m] and tilt x, y,
         twist z [rad] up to ``axes``): the normal force [N] (a float for a float) on a
         single-module response, (..., 3) forces or (..., 6) wrench on a grid."""
         if self.axes == 1:
-            return self.response.force_n(*state)
+            force = self.response.force_n(*state)
+            return force if self.stiffness_ratio == 1.0 else force * self.stiffness_ratio
         return self.response.state(*state)[..., len(self.faces):]
 
     def module_voltages(self, *state: Any) -> np.ndarray:

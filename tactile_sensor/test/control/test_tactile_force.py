@@ -58,3 +58,16 @@ def test_a_batch_straddling_the_gate_counts_its_newest_force_alone(batch):
     tactile.count_after(2.0)
     tactile.add(batch[-1], 3.0, sum(batch), len(batch), first_stamp_s=1.0)
     assert tactile.mean_since_last_call() == batch[-1]
+
+
+def test_a_grasp_is_refused_in_one_sentence_once_the_force_went_stale():
+    tactile = TactileForce()
+    assert tactile.stale_refusal(10.0, 0.2) is None  # a grasp waits for the first force
+    tactile.add(1.0, 10.0)
+    assert tactile.stale_refusal(10.1, 0.2) is None
+    blind = tactile.stale_refusal(10.5, 0.2)  # the driver went quiet: blind or stopped
+    assert blind == ("the tactile force is 0.50 s old (tactile_timeout 0.2 s): the sensor is "
+                     "blind or its stream stopped; see the driver's /diagnostics ('ambient "
+                     "light saturates the detector': shade the module).")
+    tactile.add(float("nan"), 10.5)
+    assert tactile.stale_refusal(10.5, 0.2) is not None

@@ -403,3 +403,44 @@ def test_without_control_msgs_the_gripper_starts_and_says_which_actions_are_miss
         finally:
             node.destroy_node()
 
+
+
+def test_a_grasp_on_a_stale_tactile_force_is_refused_in_one_sentence(
+        spawn, ros_domain, tmp_path):
+    """The driver went quiet, as it does while its detector is blind (no force then): a
+    grasp is rejected before anything moves, naming why."""
+    servo = tmp_path / "xm430"
+    emulator = spawn("mock", "xm430", "--link", str(servo), "--baud", "1000000", "--no-world",
+                     module="tactile_sensor.cli")
+    assert emulator.wait_for_output("xm430: id 1", PATIENCE_S), emulator.output()
+    gripper = spawn("--ros-args", "-r", "__node:=gripper", "-p", f"port:={servo}",
+                    "-p", "autostart:=true", "-p", "packet_timeout:=0.5",
+                    "-p", "comm_retries:=4", module="tactile_sensor.nodes.gripper")
+    assert gripper.wait_for_output("active", PATIENCE_S), gripper.output()
+    heard: list[JointState] = []
+    with ros_session():
+        node = rclpy.create_node("probe")
+        try:
+            force = node.create_publisher(WrenchStamped, "/tactile_wrench", 10)
+            node.create_subscription(JointState, "/gripper/joint_states", heard.append, 10)
+            grasp = RaceFreeActionClient(node, Grasp, "/gripper/grasp")
+            assert grasp.wait_for_server(timeout_sec=PATIENCE_S)
+            deadline = time.monotonic() + PATIENCE_S
+            while not (heard and math.isfinite(heard[-1].effort[0])):  # the gripper heard it
+                assert time.monotonic() < deadline, gripper.output()
+                msg = WrenchStamped()
+                msg.header.stamp = node.get_clock().now().to_msg()
+                force.publish(msg)
+                rclpy.spin_once(node, timeout_sec=0.05)
+            stale_since = time.monotonic()
+            while time.monotonic() - stale_since < 0.5:  # > tactile_timeout (0.2 s)
+                rclpy.spin_once(node, timeout_sec=0.05)
+            future = grasp.send_goal_async(Grasp.Goal(target_force=1.0))
+            rclpy.spin_until_future_complete(node, future, timeout_sec=PATIENCE_S)
+            assert future.done() and not future.result().accepted
+            grasp.destroy()
+        finally:
+            node.destroy_node()
+    assert gripper.wait_for_output("grasp goal rejected: the tactile force is ", PATIENCE_S), \
+        gripper.output()
+    assert "the sensor is blind or its stream stopped" in gripper.output()

@@ -18,6 +18,12 @@ def test_overrides_replace_the_protocols_fields_with_their_types():
     assert short["protocol.depth"] == base["protocol.depth"]
 
 
+def test_the_ambient_protocol_takes_its_scenario_as_an_override():
+    assert protocol_parameters("bench", "ambient")["protocol.scenario"] == "office"
+    sun = protocol_parameters("bench", "ambient:scenario=sunlight,cycles=1")
+    assert (sun["protocol.scenario"], sun["protocol.cycles"]) == ("sunlight", 1)
+
+
 @pytest.mark.parametrize("spec, fragment", [
     ("speeds:cycles", "Cannot read 'cycles'"),           # no '='
     ("speeds:colour=red", "keys depth, speeds, cycles"),  # unknown key names the known ones

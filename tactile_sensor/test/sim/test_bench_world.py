@@ -116,3 +116,15 @@ def test_output_play_delays_the_output_by_width_over_speed(speed):
 def test_bad_play_is_refused():
     with pytest.raises(SimError, match="output_play_m"):
         BenchWorld(parse_profile("compression"), SKIN, output_play_m=-1e-5)
+
+
+def test_a_stiffer_skin_pushes_back_harder_at_the_same_voltage():
+    stiff = BenchWorld(parse_profile("compression"), SKIN, stiffness_ratio=1.15)
+    assert stiff.force_n(4.0) == pytest.approx(1.15 * 7.0)
+    assert stiff.photoreflector_voltage(4.0) == pytest.approx(1.49)
+
+
+@pytest.mark.parametrize("ratio", [0.0, float("nan"), 6.0])
+def test_an_impossible_stiffness_is_refused(ratio):
+    with pytest.raises(SimError, match=r"skin\.stiffness_ratio"):
+        BenchWorld(parse_profile("compression"), SKIN, stiffness_ratio=ratio)
