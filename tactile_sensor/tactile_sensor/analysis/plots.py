@@ -262,18 +262,12 @@ def _excursions(an: ArrayAnalysis, kind: str) -> list[list[dict]]:
     return [found.get(f"{kind}{name}", []) for name in AXES]
 
 
-def _worst(excursions: list[dict]) -> str:
-    gains = [x["gain"] for x in excursions if x["gain"] is not None]
-    return f", worst excursion gain {max(gains, key=lambda g: abs(g - 1)):.2f}" if gains \
-        else ""
-
-
 def array_force_time(an: ArrayAnalysis, path: Path) -> Path:
     """Estimated (driver) and reference (gauge) force per axis over the recording."""
     sig = an.signals
     marks = _excursions(an, "f")
     titles = [f"F{name}: rmse {an.rmse_n[j]:.3g} N over a range of {an.range_n[j]:.3g} N"
-              f"{_worst(marks[j])}" for j, name in enumerate(AXES)]
+              for j, name in enumerate(AXES)]
     return _traces_per_axis(sig.t_s, sig.estimate_n, sig.reference_n, "F", "N", titles,
                             "force", path, excursions=marks)
 
@@ -321,7 +315,7 @@ def array_torque_time(an: ArrayAnalysis, path: Path) -> Path:
     unobserved = tuple(not np.isfinite(r) for r in rmse)
     marks = _excursions(an, "t")
     titles = [f"T{name}: rmse {rmse[j]:.3g} mN m over a range of {span[j]:.3g} mN m"
-              f"{_worst(marks[j])}" if not unobserved[j] else
+              if not unobserved[j] else
               f"T{name}: not observed (driver NaN); reference range {span[j]:.3g} mN m"
               for j, name in enumerate(AXES)]
     return _traces_per_axis(sig.t_s, est, ref, "T", "mN m", titles, "torque", path,
