@@ -74,11 +74,11 @@ TORQUE_FIT_NOISE_V = 0.0
 #: Degree of the torque polynomial (and the force's slow part): 1, so that noise cannot
 #: bias it. Fitted without noise, degree 2's cancelling quadratic terms turned 1 V of module
 #: noise into 10^6 N m; with 0.1 mV of noise in the fit (gains 0.99-1.01) they still turned
-#: the 13 mV the polynomial reads into a mean offset (noise squared) of up to 6.5 mN m of Tx:
-#: 12 % of range on the wrench protocol. A linear torque has no such term; it reads
-#: 0.97-1.07 of the FEM's torque on held-out wrench points in every load phase and 0.92-0.98
-#: along the wrench protocol (its curvature left out), at 0.63 N m/V (Tx, Ty) and 0.25 N m/V
-#: (Tz) of module noise.
+#: the 13 mV the polynomial reads into a mean offset (noise squared) of up to 6.5 mN m of Tx
+#: (Tx rmse 12 % of range on the wrench protocol). A linear torque has no such term; it reads
+#: 0.97-1.07 of the FEM's torque on held-out wrench points in every load phase and 0.93-0.98
+#: along the wrench protocol (its curvature left out; the force's slow part 0.91-0.93), at
+#: 0.63 N m/V (Tx, Ty) and 0.25 N m/V (Tz) of module noise.
 WRENCH_TORQUE_DEGREE = 1
 
 
