@@ -80,6 +80,24 @@ for kind, unit in (("force", "n"), ("torque", "nm")):
             name = "N" if unit == "n" else "N m"
             print(f"  {label}: rmse {r:.4g} {name} over a {s:.4g} {name} range = "
                   f"{100 * r / s:.1f} %")
+found = m.get("wrench_excursions") or {}
+print("== gains per excursion (estimate on gauge where |gauge| > 25 % of its peak; goal "
+      "0.85-1.15)")
+for name in ("fx", "fy", "fz", "tx", "ty", "tz"):
+    gains = [x["gain"] for x in found.get(name, [])]
+    if gains:
+        print(f"  {name.capitalize()}: " + ", ".join("NaN" if g is None else f"{g:.2f}"
+                                                    for g in gains))
+worst = found.get("worst_gain")
+print(f"  worst gain: {'none' if worst is None else f'{worst:.2f}'}")
+rest = found.get("rest_noise") or {}
+print(f"== noise at rest (standard deviation where the gauge reads no load, "
+      f"{rest.get('samples', 0)} samples)")
+for name in ("fx", "fy", "fz", "tx", "ty", "tz"):
+    value = rest.get(name)
+    if value is not None:
+        scale, unit = (1e3, "mN") if name[0] == "f" else (1e3, "mN m")
+        print(f"  {name.capitalize()}: {value * scale:.2f} {unit}")
 PY
     echo "== plots"
     ls -1 "$run"/analysis/*.png

@@ -234,9 +234,11 @@ def all_figures(ch: Characterisation, out_dir: Path) -> dict[str, Path]:
 
 def _traces_per_axis(t_s: np.ndarray, estimate: np.ndarray, reference: np.ndarray,
                      quantity: str, unit: str, titles: list[str], noun: str, path: Path,
-                     unobserved: tuple[bool, ...] = (False, False, False)) -> Path:
+                     unobserved: tuple[bool, ...] = (False, False, False),
+                     excursions: list[list[dict]] | None = None) -> Path:
     """Estimate (driver) and reference (gauge) per axis over the recording, one panel an
-    axis; a panel of an axis the driver does not observe says so."""
+    axis; a panel of an axis the driver does not observe says so; each excursion (metrics'
+    ``wrench_excursions``) shaded and labelled with its gain."""
     idx = _thin(np.arange(t_s.size))
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     for j, (ax, name) in enumerate(zip(axes, AXES, strict=True)):
@@ -248,6 +250,8 @@ def _traces_per_axis(t_s: np.ndarray, estimate: np.ndarray, reference: np.ndarra
         ax.set_ylabel(f"{quantity}{name} [{unit}]")
         if unobserved[j]:
             _unobserved(ax, name)
+        for x in (excursions or [[]] * 3)[j]:
+            _mark_excursion(ax, x)
         ax.set_title(titles[j], fontsize=9, loc="left")
     # above the first panel, right of its title: inside, it covers a stretch of the trace
     axes[0].legend(fontsize=8, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2,
@@ -257,13 +261,31 @@ def _traces_per_axis(t_s: np.ndarray, estimate: np.ndarray, reference: np.ndarra
     return _save(fig, path, top=0.9)
 
 
+def _mark_excursion(ax: Axes, excursion: dict) -> None:
+    """Shade one excursion and write its gain above it (red outside 0.85-1.15)."""
+    t0, t1, gain = excursion["start_s"], excursion["end_s"], excursion["gain"]
+    ax.axvspan(t0, t1, color="tab:orange", alpha=0.12, lw=0)
+    if gain is None:
+        return
+    ax.text(0.5 * (t0 + t1), 0.97, f"{gain:.2f}", transform=ax.get_xaxis_transform(),
+            ha="center", va="top", fontsize=7, zorder=6,
+            color="black" if 0.85 <= gain <= 1.15 else "tab:red")
+
+
+def _excursions(an: ArrayAnalysis, kind: str) -> list[list[dict]]:
+    """Per axis the excursions of the force (``kind`` f) or torque (t) in the metrics."""
+    found = an.metrics.get("wrench_excursions", {})
+    return [found.get(f"{kind}{name}", []) for name in AXES]
+
+
 def array_force_time(an: ArrayAnalysis, path: Path) -> Path:
     """Estimated (driver) and reference (gauge) force per axis over the recording."""
     sig = an.signals
+    marks = _excursions(an, "f")
     titles = [f"F{name}: rmse {an.rmse_n[j]:.3g} N over a range of {an.range_n[j]:.3g} N"
               for j, name in enumerate(AXES)]
     return _traces_per_axis(sig.t_s, sig.estimate_n, sig.reference_n, "F", "N", titles,
-                            "force", path)
+                            "force", path, excursions=marks)
 
 
 def array_force_scatter(an: ArrayAnalysis, path: Path) -> Path:
@@ -307,12 +329,13 @@ def array_torque_time(an: ArrayAnalysis, path: Path) -> Path:
     est, ref = sig.estimate_torque_nm * 1e3, sig.reference_torque_nm * 1e3
     rmse, span = np.asarray(an.torque_rmse_nm) * 1e3, np.asarray(an.torque_range_nm) * 1e3
     unobserved = tuple(not np.isfinite(r) for r in rmse)
+    marks = _excursions(an, "t")
     titles = [f"T{name}: rmse {rmse[j]:.3g} mN m over a range of {span[j]:.3g} mN m"
               if not unobserved[j] else
               f"T{name}: not observed (driver NaN); reference range {span[j]:.3g} mN m"
               for j, name in enumerate(AXES)]
     return _traces_per_axis(sig.t_s, est, ref, "T", "mN m", titles, "torque", path,
-                            unobserved)
+                            unobserved, marks)
 
 
 def array_torque_scatter(an: ArrayAnalysis, path: Path) -> Path:

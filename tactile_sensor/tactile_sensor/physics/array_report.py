@@ -10,8 +10,9 @@ twist, with their mirror images) and the grid's own torques (``ArrayCalibration.
 NaN where a set lacks a component). Forces stay off the wrench paths: on a coarse 8-module
 grid (degree 2) those paths cut Fx's error under tilt from 80 to 61 mN but tripled its
 noise at 13 mV (51 to 148 mN), separating shear from tilt on small output differences.
-The wrench set is small, so the torque is a low-degree polynomial (``TORQUE_DEGREE``) fitted
-with the noise it will meet, and checked twice: on wrench points held out (interior load
+The wrench set is small, so the torque is a linear polynomial (``WRENCH_TORQUE_DEGREE``)
+fitted on the FEM's outputs as they are (unbiased: the driver's torque low-pass narrows its
+noise), and checked twice: on wrench points held out (interior load
 steps), and on the grid's held-out points, whose shear directions lie between the wrench
 paths' and reach larger shear. Fitted on the wrench set alone, the torque read 12.7 mN m rms
 of Tx on a tiny grid where the FEM said far less: the tilt's output pattern is the shear's,
@@ -28,11 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_sensor.sensing.array_calibration import (
-    COMPONENTS,
-    TORQUE_DEGREE,
-    ArrayCalibration,
-)
+from tactile_sensor.sensing.array_calibration import COMPONENTS, ArrayCalibration
 
 from .array_grid import ArrayGrid
 from .errors import PhysicsError
@@ -58,20 +55,31 @@ PROBE_NOISE_V = 0.013
 #: 0.18 N); at 8 mV 4.0 %, at 13 mV 3.7 % (spread 0.13 N), the held-out grid error rising
 #: from 35 to 45 mN.
 WRENCH_FIT_NOISE_V = PROBE_NOISE_V
-#: The driver's default torque bandwidth [Hz] (its ``torque_cutoff_hz``).
-TORQUE_BANDWIDTH_HZ = 10.0
+#: The torque bandwidth [Hz] of the wrench configuration (its driver's ``torque_cutoff_hz``):
+#: where the unbiased torque's noise at rest is about 5 % of each torque's range on the
+#: wrench protocol (Tx, Ty 0.63 and Tz 0.25 N m per volt of module noise at rest, times the
+#: 3.2 mV that a 3 Hz low-pass leaves: 2.0 and 0.8 mN m). At 10 Hz the same torque carries
+#: 3.7 and 1.4 mN m: a bandwidth bought with that noise, never with a shrunken gain.
+TORQUE_BANDWIDTH_HZ = 3.0
 #: Module output noise [V] at which ``observed`` is decided unless told otherwise: what the
-#: driver's torque low-pass leaves of the module noise at its default bandwidth (5.8 mV;
+#: driver's torque low-pass leaves of the module noise at TORQUE_BANDWIDTH_HZ (3.2 mV;
 #: physics/output_noise.py). A driver run at a wider torque bandwidth sees more.
 OBSERVE_NOISE_V = noise_at_bandwidth(TORQUE_BANDWIDTH_HZ)
-#: Output noise [V] the torque fit (and the force's slow part) is made robust to. The
-#: torque polynomial reads the force filter's outputs (13 mV at the paper's 9-sample mean)
-#: and its low-pass then narrows the noise to OBSERVE_NOISE_V: fitting at the input's
-#: noise shrinks the torque more than the low-pass needs, fitting at the output's leaves
-#: terms that amplify the input's. Between them, on the wrench protocol (bench_wrench.py's
-#: recording, the same one refitted): Tz rmse 10.2 % of range at 5.8 mV, 9.1 % at 10 mV,
-#: 9.5 % at 13 mV, 11.3 % at 18 mV (Tx, Ty 7.4 / 7.7 / 8.4 / 9.2 %).
-TORQUE_FIT_NOISE_V = 0.010
+#: Output noise [V] the torque fit (and the force's slow part) is made robust to: none. A
+#: fit on noisy copies of the outputs is a ridge that pulls the weak directions toward zero
+#: (regression dilution): at 10 mV, degree 2, the tilts' torque read 0.29 and the twist's
+#: 0.36 of the FEM's on held-out wrench points, 0.89 and 0.96 even at 1 mV. The noise is
+#: traded in the driver's torque low-pass instead (TORQUE_BANDWIDTH_HZ).
+TORQUE_FIT_NOISE_V = 0.0
+#: Degree of the torque polynomial (and the force's slow part): 1, so that noise cannot
+#: bias it. Fitted without noise, degree 2's cancelling quadratic terms turned 1 V of module
+#: noise into 10^6 N m; with 0.1 mV of noise in the fit (gains 0.99-1.01) they still turned
+#: the 13 mV the polynomial reads into a mean offset (noise squared) of up to 6.5 mN m of Tx
+#: (Tx rmse 12 % of range on the wrench protocol). A linear torque has no such term; it reads
+#: 0.97-1.07 of the FEM's torque on held-out wrench points in every load phase and 0.93-0.98
+#: along the wrench protocol (its curvature left out; the force's slow part 0.91-0.93), at
+#: 0.63 N m/V (Tx, Ty) and 0.25 N m/V (Tz) of module noise.
+WRENCH_TORQUE_DEGREE = 1
 
 
 def noise_response(cal: ArrayCalibration, outputs: np.ndarray, forces: np.ndarray,
@@ -271,15 +279,15 @@ def _torque_noise(full: ArrayCalibration, data: WrenchSet, noise_v: float) -> np
 
 def fit_wrench(grid: ArrayGrid, data: WrenchSet, degree: int,
                noise_v: float = WRENCH_FIT_NOISE_V,
-               observe_noise_v: float = OBSERVE_NOISE_V, torque_degree: int = TORQUE_DEGREE,
+               observe_noise_v: float = OBSERVE_NOISE_V,
+               torque_degree: int = WRENCH_TORQUE_DEGREE,
                torque_noise_v: float | None = None) -> tuple[ArrayCalibration, dict[str, Any]]:
     """(six-column calibration fitted on every point, report): ``fit_grid``'s force report
     plus the torques' held-out errors, the torque read on the shear grid and ``observed``.
 
-    The torque fit sees ``torque_noise_v`` (default ``TORQUE_FIT_NOISE_V``, above): on a
-    coarse 8-module grid, degree 2 without noise held out 0.02 % of range but
-    turned 1 mV of module noise into 100 N m; with 1 mV it held out 1.5 % and turned that
-    noise into 0.54 mN m; 5 mV shrank the torque (6 % held out, regression dilution)."""
+    The torque fit sees ``torque_noise_v`` (default ``TORQUE_FIT_NOISE_V``: none) at
+    ``torque_degree`` (default ``WRENCH_TORQUE_DEGREE``: linear), so its gain is 1 in every
+    load phase; its noise is the driver's low-pass's to narrow (constants above)."""
     if data.modules != grid.faces:
         raise PhysicsError(f"The wrench set's modules ({', '.join(data.modules)}) are not the "
                            f"grid's ({', '.join(grid.faces)}); compute both for one layout.")

@@ -11,6 +11,7 @@ from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
 from tactile_sensor.analysis import cli, plots
+from tactile_sensor.analysis.array.excursions import excursion_metrics
 from tactile_sensor.analysis.synthetic import (
     PressProtocol,
     SensorTruth,
@@ -102,12 +103,18 @@ def test_force_time_legend_is_off_the_traces_and_the_reference_on_top(tmp_path, 
     drawn = _drawn(monkeypatch)
     t = np.linspace(0.0, 100.0, 2000)
     reference = np.stack([2 * np.sin(t / 10), 2 * np.cos(t / 10), 7.0 * (t > 5)], axis=1)
-    signals = SimpleNamespace(t_s=t, reference_n=reference, estimate_n=reference + 0.1)
-    plots.array_force_time(SimpleNamespace(signals=signals, rmse_n=[0.1] * 3,
+    estimate = reference * np.array([1.0, 0.5, 1.0])
+    signals = SimpleNamespace(t_s=t, reference_n=reference, estimate_n=estimate)
+    metrics = {"wrench_excursions": excursion_metrics(("fx", "fy", "fz"), estimate,
+                                                      reference, t)}
+    plots.array_force_time(SimpleNamespace(signals=signals, rmse_n=[0.1] * 3, metrics=metrics,
                                            range_n=[4.0, 4.0, 7.0]), tmp_path / "f.png")
     (fig, renderer), = drawn
+    gains = [[t.get_text() for t in ax.texts] for ax in fig.axes]
+    assert gains[1] and set(gains[1]) == {"0.50"} and set(gains[0]) == {"1.00"}
     top = fig.axes[0]
     legend = top.get_legend().get_window_extent(renderer)
+    assert not legend.overlaps(top._left_title.get_window_extent(renderer))
     assert not legend.overlaps(top.get_window_extent(renderer))
     assert not legend.overlaps(top.title.get_window_extent(renderer))
     assert legend.x1 <= fig.bbox.x1 + 1
@@ -126,8 +133,10 @@ def test_torque_figures_say_which_axis_is_not_observed_and_titles_fit(tmp_path, 
     estimate[:, :2] = np.nan  # a layout that observes only the twist
     signals = SimpleNamespace(t_s=t, reference_torque_nm=reference,
                               estimate_torque_nm=estimate)
+    metrics = {"wrench_excursions": excursion_metrics(("tx", "ty", "tz"), estimate,
+                                                      reference, t)}
     an = SimpleNamespace(signals=signals, torque_rmse_nm=[np.nan, np.nan, 0.001],
-                         torque_range_nm=[0.04, 0.04, 0.01])
+                         torque_range_nm=[0.04, 0.04, 0.01], metrics=metrics)
     plots.array_torque_time(an, tmp_path / "t.png")
     plots.array_torque_scatter(an, tmp_path / "s.png")
     for fig, renderer in drawn:

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..bag_reader import Recording, Series
 from ..errors import SegmentError, TopicError
+from .excursions import excursion_metrics
 
 AXES = ("x", "y", "z")
 # an axis is excited (its column of the sensitivity matrix and of the cross-talk can be
@@ -411,10 +412,22 @@ def analyse_signals(sig: ArraySignals, reason: str, topics: dict[str, str],
         },
     }
     torque_rmse, torque_span, unobserved = _torque_errors(sig, metrics, notes)
+    metrics["wrench_excursions"] = excursion_metrics(*wrench_columns(sig), sig.t_s)
     return ArrayAnalysis(metrics=metrics, notes=notes, signals=sig, rmse_n=rmse, range_n=span,
                          sensitivity=sens, cross_talk=talk, shear=shear, detected_by=reason,
                          torque_rmse_nm=torque_rmse, torque_range_nm=torque_span,
                          torque_unobserved=unobserved)
+
+
+def wrench_columns(sig: ArraySignals) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """(component names, estimate, reference): the forces, and the torques where the
+    recording compares them."""
+    names = tuple(f"f{a}" for a in AXES)
+    if sig.estimate_torque_nm is None or sig.reference_torque_nm is None:
+        return names, sig.estimate_n, sig.reference_n
+    return (names + tuple(f"t{a}" for a in AXES),
+            np.column_stack([sig.estimate_n, sig.estimate_torque_nm]),
+            np.column_stack([sig.reference_n, sig.reference_torque_nm]))
 
 
 def _sensitivity_dict(sens: Sensitivity | None) -> dict[str, Any] | None:
