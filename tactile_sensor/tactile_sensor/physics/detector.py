@@ -13,8 +13,9 @@ Sources (docs/ambient.md):
 - pull-up 47 kOhm to VIN: Pololu QTR-1A product page and schematic;
 - dark current <= 100 nA at VCE = 20 V, 25 C; rise and fall 20 us at RL = 1 kOhm,
   IC = 100 uA; VCE(sat) <= 0.3 V: onsemi QRE1113 datasheet (Rev. 7, 2020);
-- emitter -0.6 %/K: radiant-intensity coefficient of 940 nm GaAs IR emitters (Vishay
-  TSAL6100 datasheet), inside the -0.3 to -0.7 %/K range IR LED datasheets give;
+- emitter -0.6 %/K: an assumption inside the -0.3 to -0.7 %/K that IR LED datasheets give
+  for their radiant power (e.g. Vishay VSMY1850ITX01, 850 nm: -0.35 %/K); the QRE1113
+  datasheet states none for its 940 nm emitter;
 - assumptions, stated as such: a phototransistor's response time grows in proportion to its
   load resistance (the switching-time-against-load curves of phototransistor datasheets);
   its gain rises +0.5 %/K (a silicon transistor's current gain); its dark current doubles
@@ -35,7 +36,7 @@ PULL_UP_OHM = 47e3  # QTR-1A output pull-up to VIN (Pololu)
 DATASHEET_RISE_S = 20e-6  # QRE1113 tr = tf at the test load below
 DATASHEET_LOAD_OHM = 1e3
 DARK_CURRENT_A = 100e-9  # QRE1113 ICEO, maximum at 25 C
-EMITTER_TEMPCO_PER_K = -0.006  # 940 nm GaAs emitter (Vishay TSAL6100)
+EMITTER_TEMPCO_PER_K = -0.006  # assumption inside IR LEDs' -0.3 to -0.7 %/K
 DETECTOR_TEMPCO_PER_K = 0.005  # assumption: silicon transistor gain
 DARK_DOUBLING_K = 10.0  # assumption: silicon leakage doubles every 10 K
 #: 10 % to 90 % of a first-order step is 2.2 time constants.

@@ -173,6 +173,7 @@ def closing(rig: Rig):
     feedback (the closing loop runs)."""
     thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(speed=0.005)))
     while not rig.feedback:
+        assert thread.is_alive(), out
         rig.servo.await_sample(1.0)
     return thread, out
 
@@ -538,9 +539,11 @@ def settling(rig: Rig):
     it has made a few corrections."""
     thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(force_n=2.0)))
     while not (rig.forces.latest and rig.forces.latest[0] >= 2.0):
+        assert thread.is_alive(), f"the grasp ended before the force: {out}"
         rig.servo.await_sample(1.0)
     corrections = len(rig.client.commands) + 3
     while len(rig.client.commands) < corrections:
+        assert thread.is_alive(), f"the grasp ended while settling: {out}"
         rig.servo.await_sample(1.0)
     return thread, out
 
