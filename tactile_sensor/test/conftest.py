@@ -20,6 +20,9 @@ from pathlib import Path
 
 import pytest
 
+# The tests' own helper modules (waiting.py), importable in every import mode.
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
 SOURCE = Path(__file__).resolve().parents[1]
 #: The highest ROS domain id: Fast DDS derives its ports from the id and refuses any above
 #: ("Calculated port number is too high. Probably the domainId is over 232"), and every

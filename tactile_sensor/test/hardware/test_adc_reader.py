@@ -5,10 +5,10 @@ from __future__ import annotations
 import errno
 import threading
 import time
-from collections.abc import Callable
 
 import numpy as np
 import pytest
+from waiting import wait_until
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo, crc16, encode_frame, encode_info
 from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
@@ -49,15 +49,6 @@ class Recorder:
     def first_state_after(self, t0: float, state: ConnectionState) -> float | None:
         with self.lock:
             return next((t for t, s, _ in self.states if t >= t0 and s is state), None)
-
-
-def wait_until(predicate: Callable[[], object], timeout_s: float = PATIENCE_S) -> bool:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return bool(predicate())
 
 
 def reader_for(path, rec: Recorder, **kw) -> AdcStreamReader:

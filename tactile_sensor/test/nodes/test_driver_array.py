@@ -23,6 +23,7 @@ from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
+from waiting import wait_until
 
 from tactile_sensor.nodes import array_calibration_msg
 from tactile_sensor.nodes.background_spin import BackgroundSpin
@@ -104,12 +105,8 @@ class Listener:
 
     @staticmethod
     def wait_for(predicate, timeout_s: float) -> bool:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            time.sleep(0.02)
-        return predicate()
+        return wait_until(predicate, timeout_s)
+
 
     def call_tare(self) -> Trigger.Response:
         client = self.node.create_client(Trigger, "/driver/tare")

@@ -22,6 +22,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
+from waiting import wait_until
 
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.hardware.adc_frame import crc16, encode_frame
@@ -100,13 +101,10 @@ class Listener:
             self.node.count_publishers(t) > 0 for t in ("/driver/reading", "/driver/wrench")),
             PATIENCE_S)
 
-    def wait_for(self, predicate, timeout_s: float) -> bool:
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if predicate():
-                return True
-            time.sleep(0.01)
-        return predicate()
+    @staticmethod
+    def wait_for(predicate, timeout_s: float) -> bool:
+        return wait_until(predicate, timeout_s)
+
 
     def call_tare(self) -> Trigger.Response:
         client = self.node.create_client(Trigger, "/driver/tare")

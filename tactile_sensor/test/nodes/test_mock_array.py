@@ -5,7 +5,6 @@ voltages quantised)."""
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +14,7 @@ import yaml
 from geometry_msgs.msg import WrenchStamped
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+from waiting import wait_until
 
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.hardware.adc_reader import AdcStreamReader
@@ -35,15 +35,6 @@ PROTOCOL = {"protocol.name": "shear", "protocol.depth": 0.002, "protocol.speeds"
 # Upper bound of every wait on a condition: generous, because a wait ends as soon as its
 # condition holds and a busy machine may be slow to get there (never a fixed sleep).
 PATIENCE_S = 60.0
-
-
-def wait_until(predicate, timeout_s: float = PATIENCE_S) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.05)
-    return bool(predicate())
 
 
 def overrides(tmp_path: Path, node: str, **values: object) -> str:

@@ -17,6 +17,7 @@ from rclpy.node import Node  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.interfaces import QosDurability  # noqa: E402
+from waiting import wait_until  # noqa: E402
 
 from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading  # noqa: E402
 
@@ -41,15 +42,6 @@ def node(ros_domain: int) -> Iterator[Node]:
 # Upper bound of every wait on a condition (a wait ends as soon as its condition holds; a
 # busy machine may take long to get there).
 PATIENCE_S = 60.0
-
-
-def wait_until(predicate, timeout_s: float = PATIENCE_S) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
 
 
 def test_records_every_message_published_at_1khz(node, spawn, tmp_path: Path):

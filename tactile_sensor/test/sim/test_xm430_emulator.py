@@ -8,7 +8,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import dynamixel_easy_sdk.connector
@@ -25,6 +25,7 @@ from dynamixel_sdk import (
     PacketHandler,
     PortHandler,
 )
+from waiting import wait_until
 
 from tactile_sensor.sim.dynamixel_packets import Instruction, build_instruction, parse_one
 from tactile_sensor.sim.errors import SimError
@@ -65,15 +66,6 @@ def listening_for_silence(handler: PatientPortHandler) -> Iterator[None]:
         yield
     finally:
         del handler.timeout_s  # back to the class's PATIENCE_S
-
-
-def wait_until(predicate: Callable[[], object], timeout_s: float = PATIENCE_S) -> bool:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.01)
-    return bool(predicate())
 
 
 def open_port(path: Path | str, baud: int = BAUD) -> PatientPortHandler:
