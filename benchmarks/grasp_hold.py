@@ -36,7 +36,7 @@ from tactile_sensor.control.actions import accept_grasp, settings_from_parameter
 from tactile_sensor.control.goal_runner import GoalLink, GoalRunner, GoalSlot, RunnerTiming
 from tactile_sensor.control.servo_link import ServoLink
 from tactile_sensor.control.tactile_force import TactileForce
-from tactile_sensor.hardware.errors import CommunicationTimeout
+from tactile_sensor.hardware.errors import CommunicationTimeout, CorruptPacket
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.nodes.gripper_parameters import SPECS
 from tactile_sensor.sensing.filters import make_filter
@@ -165,7 +165,7 @@ class Bench:
         while time.monotonic() < deadline:
             try:
                 state = self.client.read_state()
-            except CommunicationTimeout:
+            except (CommunicationTimeout, CorruptPacket):
                 continue  # the busy loop can starve the emulator's thread; read again
             if abs(self.geometry.opening_m(state.position_rad) - opening_m) < 2e-4 and (
                     not state.moving):
