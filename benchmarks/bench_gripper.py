@@ -195,9 +195,12 @@ def contact_and_hold(grasps: int) -> list[Figure]:
             for label, grasp in (("tactile Grasp (node defaults)", bench.tactile_grasp),
                                  ("current-limited (current-based position mode)",
                                   lambda target, k: bench.current_limited_grasp(target))):
+                load = os.getloadavg()[0]
                 rows = [summarise(t, g) for t, g in
                         run_grasps(bench, grasp, TARGETS_N, grasps).items()]
-                print_table(f"{label}, {grasps} grasps per target; true force", rows)
+                print_table(f"{label}, {grasps} grasps per target; true force (load average "
+                            f"{load:.1f} -> {os.getloadavg()[0]:.1f} on {os.cpu_count()} "
+                            "cores)", rows)
                 for r in rows:
                     figures += [
                         Figure(f"{label}: peak true force at {r.target_n:g} N", r.peak_max_n,

@@ -139,7 +139,9 @@ class Rig:
             time.sleep(TICK_S)
 
     def true_force(self, position_rad: float) -> float:
-        return self.stiffness * max(self.rod_m - GEOMETRY.opening_m(position_rad), 0.0)
+        """Finger A's force: each finger's skin indents by half the gap closed on the rod
+        (as in the gripper world)."""
+        return self.stiffness * 0.5 * max(self.rod_m - GEOMETRY.opening_m(position_rad), 0.0)
 
     def __enter__(self) -> Rig:
         self.servo.poll()
