@@ -33,6 +33,7 @@ from grasp_hold import (  # noqa: E402
     Bench,
     contact_goal_n,
     open_bench,
+    print_misses,
     print_table,
     run_grasps,
     summarise,
@@ -196,11 +197,13 @@ def contact_and_hold(grasps: int) -> list[Figure]:
                                  ("current-limited (current-based position mode)",
                                   lambda target, k: bench.current_limited_grasp(target))):
                 load = os.getloadavg()[0]
-                rows = [summarise(t, g) for t, g in
-                        run_grasps(bench, grasp, TARGETS_N, grasps).items()]
+                runs = run_grasps(bench, grasp, TARGETS_N, grasps)
+                rows = [summarise(t, g) for t, g in runs.items()]
                 print_table(f"{label}, {grasps} grasps per target; true force (load average "
                             f"{load:.1f} -> {os.getloadavg()[0]:.1f} on {os.cpu_count()} "
                             "cores)", rows)
+                for target, run in runs.items():
+                    print_misses(target, run)
                 for r in rows:
                     figures += [
                         Figure(f"{label}: peak true force at {r.target_n:g} N", r.peak_max_n,

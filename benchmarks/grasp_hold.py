@@ -262,6 +262,14 @@ def summarise(target: float, grasps: list[Grasp]) -> Row:
                max(errors, key=abs), within, settled, len(grasps))
 
 
+def print_misses(target: float, grasps: list[Grasp]) -> None:
+    """The grasps that missed the hold, with their answers (what a user would read)."""
+    for g in grasps:
+        if not (abs(g.held_n - target) <= 0.05 * target and g.settled):
+            print(f"    {target:g} N: held {g.held_n:.3f} N at 0.5 s, peak {g.peak_n:.2f} N:"
+                  f" {g.message}")
+
+
 def print_table(title: str, rows: list[Row]) -> None:
     print(title)
     print("  target   peak max  (goal)     held mean  worst err  within±5%  settled&within")

@@ -133,6 +133,15 @@ class GraspConfig:
     #: From a tick's decision to the servo moving on it: one control period, the bus and
     #: the servo's own cycle [s] (docs/gripper.md, "Latency budget").
     command_latency_s: float = 0.012
+    #: A force this far over the noise counts as contact when predicting ahead: 2 σ of the
+    #: paper's resolution (0.186 N after a 9-point mean at 1 kHz) [N].
+    contact_noise_margin_n: float = 0.37
+    #: Closing pauses (holds where it is) while the newest force is older than this: a
+    #: guarded move does not move blind [s].
+    pause_after_s: float = 0.06
+    #: Each closing command reaches this much travel ahead of the fingers, renewed every
+    #: tick [s of travel at the present speed].
+    leash_s: float = 0.05
 
     def __post_init__(self) -> None:
         for name in ("closing_current_a", "hold_current_a", "stale_after_s",
@@ -140,6 +149,11 @@ class GraspConfig:
             if not getattr(self, name) > 0:
                 raise InvalidRequest(f"GraspConfig.{name} must be positive; fix the "
                                      "gripper configuration.")
+        if not (self.command_latency_s >= 0 and self.contact_noise_margin_n >= 0
+                and self.pause_after_s > 0 and self.leash_s > 0):
+            raise InvalidRequest("GraspConfig.command_latency_s and contact_noise_margin_n "
+                                 "must be >= 0, pause_after_s and leash_s > 0; fix the gripper "
+                                 "configuration.")
         if not self.command_latency_s >= 0:
             raise InvalidRequest("GraspConfig.command_latency_s must be >= 0; fix the "
                                  "gripper configuration.")
@@ -245,6 +259,7 @@ class GraspController(BaseController):
         self.request: GraspRequest | None = None
         self._speed_rad_s = 0.0
         self._trace = PositionTrace()
+        self._paused = False
 
     def start(self, request: GraspRequest, now_s: float, servo: ServoReading) -> Step:
         request.validate(self.max_speed_m_s)
@@ -254,11 +269,16 @@ class GraspController(BaseController):
         if servo.hardware_error:
             return self._finish(Outcome.HARDWARE_ERROR, hardware_error_detail(servo), servo)
         self._speed_rad_s = self.config.geometry.finger_speed_to_rad_s(request.speed_m_s)
-        return Step(self.phase, self._closing_command(), None, "closing", self._opening(servo))
+        return Step(self.phase, self._closing_command(servo.position_rad), None, "closing",
+                    self._opening(servo))
 
-    def _closing_command(self) -> ServoCommand:
-        return ServoCommand(self.config.geometry.closed_position_rad, self._speed_rad_s,
-                            self.config.closing_current_a)
+    def _closing_command(self, position_rad: float) -> ServoCommand:
+        """Close on, at most ``leash_s`` of travel past ``position_rad``: a loop that stops
+        ticking (a starved machine) leaves the fingers at the leash's end, not on the
+        object at full current."""
+        leash = self._speed_rad_s * self.config.leash_s
+        goal = min(self.config.geometry.closed_position_rad, position_rad + leash)
+        return ServoCommand(goal, self._speed_rad_s, self.config.closing_current_a)
 
     def tick(self, now_s: float, force_n: float | None, force_stamp_s: float | None,
              servo: ServoReading) -> Step:
@@ -278,6 +298,8 @@ class GraspController(BaseController):
             return Step(self.phase, None, None, "waiting for tactile force",
                         self._opening(servo), force_n)
         assert force_n is not None and force_stamp_s is not None
+        if age > cfg.pause_after_s:
+            return self._pause(servo, force_n)
         stop = self._contact_stop(force_n, force_stamp_s, servo)
         if stop is not None:
             return self._finish(Outcome.CONTACT, f"contact at {force_n:.2f} N", servo,
@@ -288,11 +310,21 @@ class GraspController(BaseController):
                                 f"closed to {opening * 1e3:.1f} mm",
                                 servo, force_n)
         speed = self._scheduled_speed(force_n)
+        if self._paused or abs(speed - self._speed_rad_s) > (cfg.resend_speed_change
+                                                              * self._speed_rad_s):
+            self._speed_rad_s, self._paused = speed, False
+        # every tick moves the leash on
+        return Step(self.phase, self._closing_command(servo.position_rad), None, "closing",
+                    opening, force_n)
+
+    def _pause(self, servo: ServoReading, force_n: float) -> Step:
+        """Hold where the fingers are until a fresh force comes (once per pause)."""
         command = None
-        if abs(speed - self._speed_rad_s) > cfg.resend_speed_change * self._speed_rad_s:
-            self._speed_rad_s = speed
-            command = self._closing_command()
-        return Step(self.phase, command, None, "closing", opening, force_n)
+        if not self._paused:
+            self._paused = True
+            command = self._stop_command(servo.position_rad, self.config.closing_current_a)
+        return Step(self.phase, command, None, "paused: waiting for a fresh tactile force",
+                    self._opening(servo), force_n)
 
     def _contact_stop(self, force_n: float, stamp_s: float,
                       servo: ServoReading) -> float | None:
@@ -308,8 +340,10 @@ class GraspController(BaseController):
         if force_n < self.config.slowdown_from_fraction * target:
             return None
         at_force = self._trace.at(stamp_s)
-        ahead = force_ahead_n(force_n, at_force, servo.position_rad, self._speed_rad_s,
-                              self.newton_per_rad, self.config.command_latency_s)
+        # the noise margin: a force that is noise in free air predicts no rise
+        ahead = force_ahead_n(force_n - self.config.contact_noise_margin_n, at_force,
+                              servo.position_rad, self._speed_rad_s, self.newton_per_rad,
+                              self.config.command_latency_s)
         if ahead < target:
             return None
         return stop_goal_rad(force_n, at_force, target, self.newton_per_rad)

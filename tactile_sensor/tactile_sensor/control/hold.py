@@ -7,7 +7,9 @@ control periods is a mean of a handful of independent values: today's settle onc
 ~30 ms means and held 2.33 N on a 2.0 N target. The regulator therefore gathers at least
 ``window_samples`` forces (stamped after its last correction took effect: the runner gates
 them with ``TactileForce.count_after``) for ``window_s`` before it judges the error; the
-mean's σ falls as 1/√samples (0.1 s of the 1 kHz stream: 0.56 N / √100 ≈ 0.06 N).
+mean's σ falls as 1/√samples (0.1 s of the 1 kHz stream: 0.56 N / √100 ≈ 0.06 N). Each
+correction is smaller than the one before, so it needs a finer mean: the window doubles
+after every correction, up to ``max_window_s`` (0.1, 0.2, 0.4 s: σ 0.06, 0.04, 0.03 N).
 
 Each correction moves the goal by ``gain`` × the error over the skin's stiffness at the
 pinion. One radian of the pinion moves each finger ``pitch_radius_m``, and each finger's
@@ -40,8 +42,10 @@ class ForceSettler:
     target_force_n: float
     skin_stiffness_n_per_m: float = 2500.0
     tolerance: float = 0.03
-    #: The span of forces each judged mean takes [s] (the goal's clock).
+    #: The span of forces the first judged mean takes [s] (the goal's clock); it doubles
+    #: after every correction up to ``max_window_s``.
     window_s: float = 0.1
+    max_window_s: float = 0.4
     gain: float = 0.8
     _sum_n: float = 0.0
     _count: int = 0
@@ -78,4 +82,5 @@ class ForceSettler:
                                         * self.geometry.pitch_radius_m)
         if abs(step_rad) < 0.5 * RAD_PER_PULSE:
             return None, True
+        self.window_s = min(2.0 * self.window_s, max(self.max_window_s, self.window_s))
         return ServoCommand(servo.position_rad - step_rad, velocity_rad_s, current_a), False

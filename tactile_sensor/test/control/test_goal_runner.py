@@ -468,15 +468,18 @@ def test_a_hardware_error_above_the_target_commands_nothing_more():
         rig.client.bits = frozenset({"overload"})
         thread.join()
     assert out["end"].message == "hardware_error: overload"
-    assert len(rig.client.commands) == sent
+    # at most the closing tick already under way when the error latched
+    assert len(rig.client.commands) <= sent + 1
 
 
 def test_an_abort_below_the_target_stays_where_it_stopped():
     with Rig(rod_m=0.0) as rig:
         end = rig.run(accept_grasp, grasp(speed=0.005, timeout=0.2))
-        sent = len(rig.client.commands)
+        commands = list(rig.client.commands)
     assert end.message == "timeout: no result within 0.2 s"
-    assert sent == 2  # the closing and the stop: no back-off
+    # closing on a leash, then the stop: nothing opens (no back-off)
+    assert commands == sorted(commands[:-1]) + commands[-1:]
+    assert commands[-1] <= commands[-2]
 
 
 def backing_off(rig: Rig):

@@ -41,9 +41,11 @@ def started(target=2.0, speed=0.01, timeout=5.0, config=None) -> GraspController
 
 
 @given(st.floats(0.001, 0.1), st.floats(0.1, 20.0))
-def test_start_commands_the_closed_limit_at_the_requested_finger_speed(speed, target):
+def test_start_closes_on_a_leash_at_the_requested_finger_speed(speed, target):
     step = GraspController().start(GraspRequest(target, speed, 5.0), 0.0, Servo())
-    assert step.command.goal_position_rad == pytest.approx(G.closed_position_rad)
+    leash_m = speed * GraspConfig().leash_s
+    assert G.opening_m(step.command.goal_position_rad) == pytest.approx(
+        max(G.closed_opening_m, G.open_opening_m - 2.0 * leash_m))
     assert step.command.profile_velocity_rad_s * G.pitch_radius_m == pytest.approx(speed)
     assert step.command.goal_current_a == GraspConfig().closing_current_a
 
@@ -80,6 +82,25 @@ def test_no_stop_ahead_in_free_air():
     assert controller.tick(0.45, 0.9, 0.40, at(0.025)).outcome is None
 
 
+def test_noise_in_free_air_does_not_stop_the_fingers():
+    """At full speed the travel since a force's stamp predicts 0.6 N more, in contact; a
+    3 σ noise reading in free air must not stop the grasp on it."""
+    controller = started(target=1.0)
+    controller.tick(0.40, 0.0, 0.39, at(0.03))
+    assert controller.tick(0.41, 0.56, 0.395, at(0.0298)).outcome is None
+
+
+def test_closing_pauses_while_the_force_is_late_and_resumes_on_a_fresh_one():
+    controller = started(target=2.0)
+    controller.tick(0.10, 0.0, 0.10, at(0.03))
+    paused = controller.tick(0.18, 0.0, 0.10, at(0.029))
+    assert paused.outcome is None and paused.message.startswith("paused")
+    assert paused.command.goal_position_rad == pytest.approx(G.position_rad(0.029))
+    assert controller.tick(0.19, 0.0, 0.10, at(0.029)).command is None  # once
+    resumed = controller.tick(0.20, 0.0, 0.195, at(0.029))
+    assert resumed.command.goal_position_rad > G.position_rad(0.029)  # closing on
+
+
 @given(st.floats(0.0, 2.5), st.floats(0.0, 0.03), st.floats(0.1, 5.0))
 def test_contact_stop_never_closes_past_the_target_position(force, lag_s, target):
     """Wherever the stop lands, the skin model the controller assumes reads at most the
@@ -104,12 +125,13 @@ def test_slowdown_never_speeds_up_with_more_force(f1, f2):
     assert s_high >= GraspConfig().min_speed_fraction * 0.01 / G.pitch_radius_m - 1e-12
 
 
-def test_slowdown_recommands_a_lower_speed_once():
+def test_each_tick_moves_the_leash_on_and_slows_down_in_contact():
     controller = started(target=2.0)
-    assert controller.tick(0.1, 0.5, 0.1, at(0.03)).command is None
+    free = controller.tick(0.1, 0.5, 0.1, at(0.03)).command
+    assert free.profile_velocity_rad_s == pytest.approx(0.01 / G.pitch_radius_m)
+    assert G.opening_m(free.goal_position_rad) == pytest.approx(0.03 - 2 * 0.01 * 0.05)
     step = controller.tick(0.2, 1.6, 0.2, at(0.019))
     assert step.command.profile_velocity_rad_s == pytest.approx(0.4 * 0.01 / G.pitch_radius_m)
-    assert controller.tick(0.21, 1.6, 0.21, at(0.019)).command is None
 
 
 @pytest.mark.parametrize(("tick", "outcome"), [
@@ -165,8 +187,10 @@ def test_invalid_config():
         GraspConfig(hold_current_a=-1.0)
     with pytest.raises(InvalidRequest, match="skin_stiffness"):
         GraspConfig(skin_stiffness_n_per_m=0.0)
-    with pytest.raises(InvalidRequest, match="command_latency_s"):
-        GraspConfig(command_latency_s=-0.001)
+    for bad in (dict(command_latency_s=-0.001), dict(contact_noise_margin_n=-1.0),
+                dict(pause_after_s=0.0), dict(leash_s=0.0)):
+        with pytest.raises(InvalidRequest, match="command_latency_s"):
+            GraspConfig(**bad)
 
 
 def test_release_opens_and_finishes_when_still_there():
