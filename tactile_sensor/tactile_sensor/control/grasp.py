@@ -142,6 +142,10 @@ class GraspConfig:
     #: Each closing command reaches this much travel ahead of the fingers, renewed every
     #: tick [s of travel at the present speed].
     leash_s: float = 0.05
+    #: In contact a grasp closes no faster than would build the missing force in this
+    #: time: four times the 12 ms command latency, so a late stop adds at most a quarter of
+    #: what is missing [s].
+    approach_time_s: float = 0.05
 
     def __post_init__(self) -> None:
         for name in ("closing_current_a", "hold_current_a", "stale_after_s",
@@ -150,10 +154,11 @@ class GraspConfig:
                 raise InvalidRequest(f"GraspConfig.{name} must be positive; fix the "
                                      "gripper configuration.")
         if not (self.command_latency_s >= 0 and self.contact_noise_margin_n >= 0
-                and self.pause_after_s > 0 and self.leash_s > 0):
+                and self.pause_after_s > 0 and self.leash_s > 0
+                and self.approach_time_s > 0):
             raise InvalidRequest("GraspConfig.command_latency_s and contact_noise_margin_n "
-                                 "must be >= 0, pause_after_s and leash_s > 0; fix the gripper "
-                                 "configuration.")
+                                 "must be >= 0, pause_after_s, leash_s and approach_time_s "
+                                 "> 0; fix the gripper configuration.")
         if not self.command_latency_s >= 0:
             raise InvalidRequest("GraspConfig.command_latency_s must be >= 0; fix the "
                                  "gripper configuration.")
@@ -349,9 +354,15 @@ class GraspController(BaseController):
         return stop_goal_rad(force_n, at_force, target, self.newton_per_rad)
 
     def _scheduled_speed(self, force_n: float) -> float:
+        """The requested speed, or slower: the speed at which the missing force would take
+        ``approach_time_s`` to build up on the assumed skin. The same time for every target,
+        so a 5 N grasp loads as fast as a 1 N one, and a 1 N one as gently."""
         assert self.request is not None
-        return slowed_speed(self.config, self.config.geometry.finger_speed_to_rad_s(
-            self.request.speed_m_s), force_n, self.request.target_force_n)
+        cfg = self.config
+        full = cfg.geometry.finger_speed_to_rad_s(self.request.speed_m_s)
+        missing = self.request.target_force_n - force_n
+        gentle = missing / (self.newton_per_rad * cfg.approach_time_s)
+        return max(cfg.min_speed_fraction * full, min(full, gentle))
 
 
 class ReleaseController(BaseController):

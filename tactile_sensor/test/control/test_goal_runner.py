@@ -343,17 +343,21 @@ def test_the_slot_frees_only_for_its_own_goal():
 
 
 def test_the_answered_opening_is_where_the_fingers_stay():
-    """A fast close on a stiffer skin than the settler assumes misses the force, and the
-    settle moves the fingers on after contact. The answer waits for the fingers to stop
-    and gives the opening they hold, not the opening at contact."""
-    with Rig(settle_time_s=0.5, stiffness=7000.0) as rig:
+    """A fast close on a softer skin than the grasp assumes (500 N/m a finger against
+    2500) stops short of the force, and the settle moves the fingers on after contact.
+    The answer waits for the fingers to stop and gives the opening they hold, not the
+    opening at contact."""
+    with Rig(settle_time_s=0.5, stiffness=1000.0) as rig:
         end = rig.run(accept_grasp, grasp(speed=0.05))
-        contact = rig.feedback[-1]["opening"]
+        stopped_at = GEOMETRY.opening_m(rig.client.commands[-1])
         while rig.client.velocity != 0.0:
             rig.servo.await_sample(1.0)
         held = GEOMETRY.opening_m(rig.client.position)
+        contact_stop = next(GEOMETRY.opening_m(c) for c in reversed(rig.client.commands)
+                            if GEOMETRY.opening_m(c) > held + 2e-5)
     assert end.status is GoalStatus.SUCCEEDED
-    assert abs(held - contact) > 2e-5  # the settle moved them (0.048 mm measured)
+    assert contact_stop > held + 2e-5  # the settle moved them on after an earlier stop
+    assert held == pytest.approx(stopped_at, abs=2e-5)
     assert end.result["opening"] == pytest.approx(held, abs=2e-5)
 
 

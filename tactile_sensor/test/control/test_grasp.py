@@ -127,11 +127,12 @@ def test_slowdown_never_speeds_up_with_more_force(f1, f2):
 
 def test_each_tick_moves_the_leash_on_and_slows_down_in_contact():
     controller = started(target=2.0)
-    free = controller.tick(0.1, 0.5, 0.1, at(0.03)).command
+    free = controller.tick(0.1, 0.0, 0.1, at(0.03)).command
     assert free.profile_velocity_rad_s == pytest.approx(0.01 / G.pitch_radius_m)
     assert G.opening_m(free.goal_position_rad) == pytest.approx(0.03 - 2 * 0.01 * 0.05)
     step = controller.tick(0.2, 1.6, 0.2, at(0.019))
-    assert step.command.profile_velocity_rad_s == pytest.approx(0.4 * 0.01 / G.pitch_radius_m)
+    # 0.4 N missing in 50 ms on 2500 N/m: 3.2 mm/s
+    assert step.command.profile_velocity_rad_s * G.pitch_radius_m == pytest.approx(0.0032)
 
 
 @pytest.mark.parametrize(("tick", "outcome"), [
@@ -188,7 +189,7 @@ def test_invalid_config():
     with pytest.raises(InvalidRequest, match="skin_stiffness"):
         GraspConfig(skin_stiffness_n_per_m=0.0)
     for bad in (dict(command_latency_s=-0.001), dict(contact_noise_margin_n=-1.0),
-                dict(pause_after_s=0.0), dict(leash_s=0.0)):
+                dict(pause_after_s=0.0), dict(leash_s=0.0), dict(approach_time_s=0.0)):
         with pytest.raises(InvalidRequest, match="command_latency_s"):
             GraspConfig(**bad)
 
