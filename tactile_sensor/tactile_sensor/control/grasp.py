@@ -10,10 +10,11 @@ benchmark and under hypothesis. The caller owns the loop:
    ``step.finished``; ``cancel()`` at any time stops the fingers where they are.
 
 Grasp: close at the requested finger speed (mapped to Profile Velocity through the pinion's
-pitch radius) toward the closed limit with ``closing_current_a`` as the torque budget; as
-the tactile force passes ``slowdown_from_fraction`` of the target the speed falls in
-proportion to the force still missing (limits overshoot from sensing delay); at the target,
-hold the present position with ``hold_current_a``. Abort with a reason on timeout, on
+pitch radius) toward the closed limit on a leash (each tick's goal ``leash_s`` of travel
+ahead) with ``closing_current_a`` as the torque budget; no faster than would build the
+missing force in ``approach_time_s``; stop where the force will reach the target, counted
+from the force's own stamp (control/guarded_contact.py), and hold there with
+``hold_current_a``; the hold itself is control/hold.py's. Abort with a reason on timeout, on
 reaching the closed limit without contact, on a hardware error, or when the tactile force
 goes stale.
 """
