@@ -76,18 +76,36 @@ class Grasp:
     message: str
 
 
-class TactileFeed:
+class Background:
+    """A daemon thread running ``_run`` while ``_running``, for the span of a ``with``."""
+
+    def __init__(self) -> None:
+        self._running = True
+        self.thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        raise NotImplementedError
+
+    def __enter__(self) -> Background:
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._running = False
+        self.thread.join()
+
+
+class TactileFeed(Background):
     """Finger A's true force → noise → the driver's filter → the node's TactileForce."""
 
     def __init__(self, world: GripperWorld, t0: float, forces: TactileForce,
                  seed: int) -> None:
+        super().__init__()
         self.world, self.t0, self.forces = world, t0, forces
         self.rng = np.random.default_rng(seed)
         self.filter = make_filter("savgol", SAMPLE_RATE_HZ)
         self._next = time.monotonic()
         self._pending: list[tuple[float, float]] = []
-        self._running = True
-        self.thread = threading.Thread(target=self._run, daemon=True)
 
     def _run(self) -> None:
         period = 1.0 / SAMPLE_RATE_HZ
@@ -107,21 +125,13 @@ class TactileFeed:
                                 len(values), due[0][0] + wall_offset)
             time.sleep(DELIVERY_PERIOD_S)
 
-    def __enter__(self) -> TactileFeed:
-        self.thread.start()
-        return self
 
-    def __exit__(self, *exc: object) -> None:
-        self._running = False
-        self.thread.join()
-
-
-class ControlLoop:
+class ControlLoop(Background):
     """The node's timer: sample the servo every control period."""
 
     def __init__(self, servo: ServoLink) -> None:
-        self.servo, self._running = servo, True
-        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.servo = servo
+        super().__init__()
 
     def _run(self) -> None:
         next_at = time.monotonic()
@@ -129,14 +139,6 @@ class ControlLoop:
             self.servo.poll()
             next_at += self.servo.period_s
             time.sleep(max(0.0, next_at - time.monotonic()))
-
-    def __enter__(self) -> ControlLoop:
-        self.thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._running = False
-        self.thread.join()
 
 
 def defaults() -> dict:
