@@ -14,11 +14,13 @@ Run: python benchmarks/bench_gripper.py [--quick]
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +28,16 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tactile_sensor"))
 
+from grasp_hold import (  # noqa: E402
+    TARGETS_N,
+    Bench,
+    contact_goal_n,
+    open_bench,
+    print_misses,
+    print_table,
+    run_grasps,
+    summarise,
+)
 from results import Figure, write_results  # noqa: E402
 
 from tactile_sensor.control.grasp import (  # noqa: E402
@@ -157,15 +169,76 @@ def grasp_once(client: Xm430Client, world: GripperWorld, emulator_t0: float,
     return max(forces) - TARGET_FORCE_N, forces[-1], ticks / (end - start), trace
 
 
+HOLD_NOTES = ("Contact and hold on the XM430 emulator and the gripper world with the gripper "
+              "node's default parameters; tactile force with the paper's noise through the "
+              "driver's default filter; a one-core busy loop beside the run.")
+
+
+@contextlib.contextmanager
+def busy_core() -> Iterator[None]:
+    """A one-core busy loop beside the run (the goal's load)."""
+    proc = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        yield
+    finally:
+        proc.terminate()
+        proc.wait(timeout=5)
+
+
+def contact_and_hold(grasps: int) -> list[Figure]:
+    """The contact and hold tables of the Grasp and of current-limited grasping."""
+    figures: list[Figure] = []
+    world = GripperWorld(skin()[0], rod_diameter_m=0.020)
+    with tempfile.TemporaryDirectory() as tmp:
+        emulator, client = open_bench(Path(tmp) / "xm430", world)
+        try:
+            bench = Bench(world, emulator, client)
+            for label, grasp in (("tactile Grasp (node defaults)", bench.tactile_grasp),
+                                 ("current-limited (current-based position mode)",
+                                  lambda target, k: bench.current_limited_grasp(target))):
+                load = os.getloadavg()[0]
+                runs = run_grasps(bench, grasp, TARGETS_N, grasps)
+                rows = [summarise(t, g) for t, g in runs.items()]
+                print_table(f"{label}, {grasps} grasps per target; true force (load average "
+                            f"{load:.1f} -> {os.getloadavg()[0]:.1f} on {os.cpu_count()} "
+                            "cores)", rows)
+                for target, run in runs.items():
+                    print_misses(target, run)
+                for r in rows:
+                    figures += [
+                        Figure(f"{label}: peak true force at {r.target_n:g} N", r.peak_max_n,
+                               "N", f"<= {contact_goal_n(r.target_n):.2f} N", r.contact_met),
+                        Figure(f"{label}: worst hold error 0.5 s after contact at "
+                               f"{r.target_n:g} N", r.held_worst_error * 100, "%"),
+                        Figure(f"{label}: grasps within 5 % and settled at {r.target_n:g} N",
+                               f"{r.settled}/{r.count}", "",
+                               ">= 19 of 20", r.hold_met)]
+        finally:
+            client.close()
+            emulator.stop()
+    return figures
+
+
 def main() -> int:
     sys.setswitchinterval(5e-4)  # emulator thread and control loop share the GIL
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="shorter rate measurement")
+    ap.add_argument("--quick", action="store_true",
+                    help="shorter rate measurement and 3 grasps per target")
+    ap.add_argument("--grasps", type=int, default=0,
+                    help="grasps per target force (default 20; 3 with --quick)")
+    ap.add_argument("--tables-only", action="store_true",
+                    help="only the contact and hold tables")
     args = ap.parse_args()
     seconds = 1.0 if args.quick else 3.0
-
-    print("control-loop rate, read_state() = one Sync Read, emulator in its own process")
+    grasps = args.grasps or (3 if args.quick else 20)
     figures: list[Figure] = []
+    with busy_core():
+        figures += contact_and_hold(grasps)
+    if args.tables_only:
+        write_results("gripper_hold", figures, notes=HOLD_NOTES)
+        return 0
+
+    print("\ncontrol-loop rate, read_state() = one Sync Read, emulator in its own process")
     for baud in (1_000_000, 4_000_000):
         for delay in (250, 0):
             rate, lost = loop_rate(baud, delay, seconds)

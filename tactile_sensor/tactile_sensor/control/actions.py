@@ -39,7 +39,6 @@ from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import (
     BaseController,
-    ForceSettler,
     GraspConfig,
     GraspController,
     GraspRequest,
@@ -48,6 +47,7 @@ from tactile_sensor.control.grasp import (
     ServoReading,
     Step,
 )
+from tactile_sensor.control.hold import ForceSettler
 from tactile_sensor.control.move import MoveController, MoveRequest
 
 Fields = dict[str, Any]
@@ -127,7 +127,8 @@ def settings_from_parameters(values: dict[str, Any]) -> GoalSettings:
                                closed_opening_m=values["geometry.closed_opening"])
     config = GraspConfig(geometry=geometry, closing_current_a=values["closing_current"],
                          hold_current_a=values["closing_current"],
-                         stale_after_s=values["tactile_timeout"])
+                         stale_after_s=values["tactile_timeout"],
+                         skin_stiffness_n_per_m=values["skin_stiffness"])
     return GoalSettings(
         config=config, joint_name=values["joint_name"],
         closing_speed_m_s=values["default_closing_speed"],

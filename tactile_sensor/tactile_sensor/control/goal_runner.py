@@ -28,7 +28,8 @@ from enum import StrEnum
 from tactile_sensor.control.actions import ActiveGoal, Fields, Snapshot
 from tactile_sensor.control.back_off import BackOff
 from tactile_sensor.control.errors import ControlError
-from tactile_sensor.control.grasp import ForceSettler, Outcome, Phase, Step
+from tactile_sensor.control.grasp import Outcome, Phase, Step
+from tactile_sensor.control.hold import ForceSettler
 from tactile_sensor.control.servo_link import ServoLink
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError, ServoHardwareError
@@ -386,10 +387,8 @@ class GoalRunner:
                     continue
                 self.forces.count_after(self._wall())
                 effective_s = None
-            force = self.forces.mean_since_last_call()
-            if force is None:
-                continue
-            command, settled = settler.command(force, state, config.hold_current_a,
+            settler.add(*self.forces.sum_since_last_call(), self._clock())
+            command, settled = settler.command(self._clock(), state, config.hold_current_a,
                                                config.stop_velocity_rad_s)
             if settled:
                 return None, True

@@ -10,10 +10,11 @@ benchmark and under hypothesis. The caller owns the loop:
    ``step.finished``; ``cancel()`` at any time stops the fingers where they are.
 
 Grasp: close at the requested finger speed (mapped to Profile Velocity through the pinion's
-pitch radius) toward the closed limit with ``closing_current_a`` as the torque budget; as
-the tactile force passes ``slowdown_from_fraction`` of the target the speed falls in
-proportion to the force still missing (limits overshoot from sensing delay); at the target,
-hold the present position with ``hold_current_a``. Abort with a reason on timeout, on
+pitch radius) toward the closed limit on a leash (each tick's goal ``leash_s`` of travel
+ahead) with ``closing_current_a`` as the torque budget; no faster than would build the
+missing force in ``approach_time_s``; stop where the force will reach the target, counted
+from the force's own stamp (control/guarded_contact.py), and hold there with
+``hold_current_a``; the hold itself is control/hold.py's. Abort with a reason on timeout, on
 reaching the closed limit without contact, on a hardware error, or when the tactile force
 goes stale.
 """
@@ -27,6 +28,7 @@ from typing import Protocol
 
 from tactile_sensor.control.errors import InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.control.guarded_contact import PositionTrace, force_ahead_n, stop_goal_rad
 
 
 class Outcome(StrEnum):
@@ -126,13 +128,41 @@ class GraspConfig:
     open_tolerance_m: float = 0.0005
     #: Speed used to stop and hold (a fast profile so the stop is immediate) [rad/s].
     stop_velocity_rad_s: float = 6.0
+    #: Fingertip skin stiffness the contact stop and the hold assume [N/m] (FEM: 1750 N/m
+    #: at touch to 2850 N/m at 3 mm).
+    skin_stiffness_n_per_m: float = 2500.0
+    #: From a tick's decision to the servo moving on it: one control period, the bus and
+    #: the servo's own cycle [s] (docs/gripper.md, "Latency budget").
+    command_latency_s: float = 0.012
+    #: A force this far over the noise counts as contact when predicting ahead: 2 σ of the
+    #: paper's resolution (0.186 N after a 9-point mean at 1 kHz) [N].
+    contact_noise_margin_n: float = 0.37
+    #: Closing pauses (holds where it is) while the newest force is older than this: a
+    #: guarded move does not move blind [s].
+    pause_after_s: float = 0.06
+    #: Each closing command reaches this much travel ahead of the fingers, renewed every
+    #: tick [s of travel at the present speed].
+    leash_s: float = 0.05
+    #: In contact a grasp closes no faster than would build the missing force in this
+    #: time: four times the 12 ms command latency, so a late stop adds at most a quarter of
+    #: what is missing [s].
+    approach_time_s: float = 0.05
 
     def __post_init__(self) -> None:
         for name in ("closing_current_a", "hold_current_a", "stale_after_s",
-                     "min_speed_fraction", "stop_velocity_rad_s"):
+                     "min_speed_fraction", "stop_velocity_rad_s", "skin_stiffness_n_per_m"):
             if not getattr(self, name) > 0:
                 raise InvalidRequest(f"GraspConfig.{name} must be positive; fix the "
                                      "gripper configuration.")
+        if not (self.command_latency_s >= 0 and self.contact_noise_margin_n >= 0
+                and self.pause_after_s > 0 and self.leash_s > 0
+                and self.approach_time_s > 0):
+            raise InvalidRequest("GraspConfig.command_latency_s and contact_noise_margin_n "
+                                 "must be >= 0, pause_after_s, leash_s and approach_time_s "
+                                 "> 0; fix the gripper configuration.")
+        if not self.command_latency_s >= 0:
+            raise InvalidRequest("GraspConfig.command_latency_s must be >= 0; fix the "
+                                 "gripper configuration.")
         if not 0 < self.slowdown_from_fraction <= 1:
             raise InvalidRequest("GraspConfig.slowdown_from_fraction must be in (0, 1]; "
                                  "use 1 to disable slowing down.")
@@ -190,14 +220,23 @@ class BaseController:
     def _opening(self, servo: ServoReading) -> float:
         return self.config.geometry.opening_m(servo.position_rad)
 
-    def _stop_command(self, servo: ServoReading, current_a: float) -> ServoCommand:
-        return ServoCommand(servo.position_rad, self.config.stop_velocity_rad_s, current_a)
+    def _stop_command(self, position_rad: float, current_a: float) -> ServoCommand:
+        return ServoCommand(position_rad, self.config.stop_velocity_rad_s, current_a)
+
+    @property
+    def newton_per_rad(self) -> float:
+        """Force change per radian of the pinion: each finger moves one pitch radius."""
+        return self.config.skin_stiffness_n_per_m * self.config.geometry.pitch_radius_m
 
     def _finish(self, outcome: Outcome, message: str, servo: ServoReading,
-                force_n: float | None = None, hold: bool = False) -> Step:
+                force_n: float | None = None, hold: bool = False,
+                stop_at_rad: float | None = None) -> Step:
+        """End with ``outcome``; the fingers stop at ``stop_at_rad`` (default: where the
+        servo last was)."""
         self.phase = Phase.DONE if outcome.succeeded else Phase.ABORTED
+        stop = servo.position_rad if stop_at_rad is None else stop_at_rad
         command = None if outcome is Outcome.HARDWARE_ERROR else self._stop_command(
-            servo, self.config.hold_current_a if hold else self.config.closing_current_a)
+            stop, self.config.hold_current_a if hold else self.config.closing_current_a)
         return Step(self.phase, command, outcome, message, self._opening(servo), force_n)
 
     def _check_common(self, now_s: float, servo: ServoReading,
@@ -225,6 +264,8 @@ class GraspController(BaseController):
         super().__init__(config or GraspConfig())
         self.request: GraspRequest | None = None
         self._speed_rad_s = 0.0
+        self._trace = PositionTrace()
+        self._paused = False
 
     def start(self, request: GraspRequest, now_s: float, servo: ServoReading) -> Step:
         request.validate(self.max_speed_m_s)
@@ -234,20 +275,26 @@ class GraspController(BaseController):
         if servo.hardware_error:
             return self._finish(Outcome.HARDWARE_ERROR, hardware_error_detail(servo), servo)
         self._speed_rad_s = self.config.geometry.finger_speed_to_rad_s(request.speed_m_s)
-        return Step(self.phase, self._closing_command(), None, "closing", self._opening(servo))
+        return Step(self.phase, self._closing_command(servo.position_rad), None, "closing",
+                    self._opening(servo))
 
-    def _closing_command(self) -> ServoCommand:
-        return ServoCommand(self.config.geometry.closed_position_rad, self._speed_rad_s,
-                            self.config.closing_current_a)
+    def _closing_command(self, position_rad: float) -> ServoCommand:
+        """Close on, at most ``leash_s`` of travel past ``position_rad``: a loop that stops
+        ticking (a starved machine) leaves the fingers at the leash's end, not on the
+        object at full current."""
+        leash = self._speed_rad_s * self.config.leash_s
+        goal = min(self.config.geometry.closed_position_rad, position_rad + leash)
+        return ServoCommand(goal, self._speed_rad_s, self.config.closing_current_a)
 
     def tick(self, now_s: float, force_n: float | None, force_stamp_s: float | None,
              servo: ServoReading) -> Step:
         if self.phase is not Phase.CLOSING or self.request is None:
             return Step(self.phase, None, None, "not closing", self._opening(servo), force_n)
-        cfg, request = self.config, self.request
+        cfg = self.config
         done = self._check_common(now_s, servo, force_n)
         if done is not None:
             return done
+        self._trace.add(now_s, servo.position_rad)
         fresh = force_n is not None and force_stamp_s is not None
         age = now_s - (force_stamp_s if fresh else self._started_s)  # type: ignore[operator]
         if age > cfg.stale_after_s:
@@ -256,26 +303,67 @@ class GraspController(BaseController):
         if not fresh:
             return Step(self.phase, None, None, "waiting for tactile force",
                         self._opening(servo), force_n)
-        assert force_n is not None
-        if force_n >= request.target_force_n:
+        assert force_n is not None and force_stamp_s is not None
+        if age > cfg.pause_after_s:
+            return self._pause(servo, force_n)
+        stop = self._contact_stop(force_n, force_stamp_s, servo)
+        if stop is not None:
             return self._finish(Outcome.CONTACT, f"contact at {force_n:.2f} N", servo,
-                                force_n, hold=True)
+                                force_n, hold=True, stop_at_rad=stop)
         opening = self._opening(servo)
         if opening <= cfg.geometry.closed_opening_m + cfg.limit_tolerance_m:
             return self._finish(Outcome.CLOSED_LIMIT_WITHOUT_CONTACT,
                                 f"closed to {opening * 1e3:.1f} mm",
                                 servo, force_n)
         speed = self._scheduled_speed(force_n)
+        if self._paused or abs(speed - self._speed_rad_s) > (cfg.resend_speed_change
+                                                              * self._speed_rad_s):
+            self._speed_rad_s, self._paused = speed, False
+        # every tick moves the leash on
+        return Step(self.phase, self._closing_command(servo.position_rad), None, "closing",
+                    opening, force_n)
+
+    def _pause(self, servo: ServoReading, force_n: float) -> Step:
+        """Hold where the fingers are until a fresh force comes (once per pause)."""
         command = None
-        if abs(speed - self._speed_rad_s) > cfg.resend_speed_change * self._speed_rad_s:
-            self._speed_rad_s = speed
-            command = self._closing_command()
-        return Step(self.phase, command, None, "closing", opening, force_n)
+        if not self._paused:
+            self._paused = True
+            command = self._stop_command(servo.position_rad, self.config.closing_current_a)
+        return Step(self.phase, command, None, "paused: waiting for a fresh tactile force",
+                    self._opening(servo), force_n)
+
+    def _contact_stop(self, force_n: float, stamp_s: float,
+                      servo: ServoReading) -> float | None:
+        """Where to stop once the force will reach the target before a stop sent now takes
+        effect (None: close on). Counted only in contact (from the slow-down on): in free
+        air the travel since a force was sampled adds no force."""
+        assert self.request is not None
+        target = self.request.target_force_n
+        if force_n >= target:
+            at_force = self._trace.at(stamp_s)
+            return min(servo.position_rad, stop_goal_rad(force_n, at_force, target,
+                                                         self.newton_per_rad))
+        if force_n < self.config.slowdown_from_fraction * target:
+            return None
+        at_force = self._trace.at(stamp_s)
+        # the noise margin: a force that is noise in free air predicts no rise
+        ahead = force_ahead_n(force_n - self.config.contact_noise_margin_n, at_force,
+                              servo.position_rad, self._speed_rad_s, self.newton_per_rad,
+                              self.config.command_latency_s)
+        if ahead < target:
+            return None
+        return stop_goal_rad(force_n, at_force, target, self.newton_per_rad)
 
     def _scheduled_speed(self, force_n: float) -> float:
+        """The requested speed, or slower: the speed at which the missing force would take
+        ``approach_time_s`` to build up on the assumed skin. The same time for every target,
+        so a 5 N grasp loads as fast as a 1 N one, and a 1 N one as gently."""
         assert self.request is not None
-        return slowed_speed(self.config, self.config.geometry.finger_speed_to_rad_s(
-            self.request.speed_m_s), force_n, self.request.target_force_n)
+        cfg = self.config
+        full = cfg.geometry.finger_speed_to_rad_s(self.request.speed_m_s)
+        missing = self.request.target_force_n - force_n
+        gentle = missing / (self.newton_per_rad * cfg.approach_time_s)
+        return max(cfg.min_speed_fraction * full, min(full, gentle))
 
 
 class ReleaseController(BaseController):
@@ -326,39 +414,3 @@ class ReleaseController(BaseController):
             return Step(self.phase, None, Outcome.OPENED, f"opened to {opening * 1e3:.1f} mm",
                         opening)
         return Step(self.phase, None, None, "opening", opening)
-
-
-@dataclass
-class ForceSettler:
-    """After contact, nudge the fingers until the tactile force sits at the target.
-
-    Sensing and bus delays let the fingers travel on after the force crossed the target
-    (a few tenths of a newton at 10 mm/s). Each correction moves the goal by the force
-    error divided by the skin's stiffness at the pinion; half of it, so a skin up to
-    twice as stiff as ``skin_stiffness_n_per_m`` still converges without ringing. The
-    runner judges each correction only on forces stamped after it took effect, so a late
-    tactile force cannot make the loop correct twice for one error. Settled once the
-    error stays within ``tolerance`` of the target for ``settled_ticks`` readings; inside
-    it the fingers hold still.
-    """
-
-    geometry: GripperGeometry
-    target_force_n: float
-    skin_stiffness_n_per_m: float = 2500.0
-    tolerance: float = 0.05
-    settled_ticks: int = 3
-    _inside: int = 0
-
-    def command(self, force_n: float, servo: ServoReading, current_a: float,
-                velocity_rad_s: float) -> tuple[ServoCommand | None, bool]:
-        """(goal for this tick, or None to hold still; settled?)."""
-        error = force_n - self.target_force_n
-        if abs(error) <= self.tolerance * self.target_force_n:
-            self._inside += 1
-            return None, self._inside >= self.settled_ticks
-        self._inside = 0
-        # both fingers press the object: the gap closes 2 r per radian
-        step_rad = 0.5 * error / (self.skin_stiffness_n_per_m * 2.0
-                                  * self.geometry.pitch_radius_m)
-        goal = servo.position_rad - step_rad
-        return ServoCommand(goal, velocity_rad_s, current_a), False

@@ -1,10 +1,10 @@
 """The tactile force as the gripper's goals read it: the newest value, and a running mean.
 
 Grasps and moves act on the newest force and its stamp (staleness is judged from it); the
-force settler acts on the mean of all forces since its previous tick, so it follows the
-force rather than its noise, and only on forces stamped after its last correction took
-effect (``count_after``): a force that arrives late still describes where the fingers
-were. The subscription thread adds, the goal's thread reads.
+hold (control/hold.py) acts on the sum and count of all forces since its previous tick,
+so it follows the force rather than its noise, and only on forces stamped after its last
+correction took effect (``count_after``): a force that arrives late still describes where
+the fingers were. The subscription thread adds, the goal's thread reads.
 
 ``full_scale_n`` is the sensor's full-scale force as the driver latched it (None until
 then): a reading there is saturated, and a goal that ends pressing there backs off
@@ -49,11 +49,16 @@ class TactileForce:
             self._after_s = stamp_s
             self._sum_n, self._count = 0.0, 0
 
-    def mean_since_last_call(self) -> float | None:
-        """Mean of the forces added since the previous call [N]; None when none came."""
+    def sum_since_last_call(self) -> tuple[float, int]:
+        """(sum [N], count) of the forces added since the previous call."""
         with self._lock:
             total, count = self._sum_n, self._count
             self._sum_n, self._count = 0.0, 0
+        return total, count
+
+    def mean_since_last_call(self) -> float | None:
+        """Mean of the forces added since the previous call [N]; None when none came."""
+        total, count = self.sum_since_last_call()
         return total / count if count else None
 
     def stale_refusal(self, now_s: float, stale_after_s: float) -> str | None:

@@ -33,11 +33,11 @@ SPECS = [
     ParamSpec("feedback_rate", 50.0, "action feedback rate [Hz]", minimum=1.0,
               maximum=1000.0),
     ParamSpec("auto_reboot", False, "reboot the servo by itself after a hardware error"),
-    ParamSpec("settle_time", 1.0, "after contact, regulate the force onto the target for "
+    ParamSpec("settle_time", 1.5, "after contact, regulate the force onto the target for "
               "at most this long [s] (0 = hold where contact was detected)", minimum=0.0,
               maximum=10.0),
-    ParamSpec("skin_stiffness", 2500.0, "fingertip skin stiffness the settling step assumes "
-              "[N/m] (FEM: ~7 N over 3 mm)", minimum=1.0),
+    ParamSpec("skin_stiffness", 2500.0, "fingertip skin stiffness the contact stop and the "
+              "hold assume [N/m] (FEM: 1750 N/m at touch to 2850 N/m at 3 mm)", minimum=1.0),
     ParamSpec("packet_timeout", 0.05, "wait this long for a status packet [s]", minimum=0.001,
               maximum=1.0),
     ParamSpec("comm_retries", 2, "retries of a transaction that timed out or arrived "

@@ -41,20 +41,78 @@ def started(target=2.0, speed=0.01, timeout=5.0, config=None) -> GraspController
 
 
 @given(st.floats(0.001, 0.1), st.floats(0.1, 20.0))
-def test_start_commands_the_closed_limit_at_the_requested_finger_speed(speed, target):
+def test_start_closes_on_a_leash_at_the_requested_finger_speed(speed, target):
     step = GraspController().start(GraspRequest(target, speed, 5.0), 0.0, Servo())
-    assert step.command.goal_position_rad == pytest.approx(G.closed_position_rad)
+    leash_m = speed * GraspConfig().leash_s
+    assert G.opening_m(step.command.goal_position_rad) == pytest.approx(
+        max(G.closed_opening_m, G.open_opening_m - 2.0 * leash_m))
     assert step.command.profile_velocity_rad_s * G.pitch_radius_m == pytest.approx(speed)
     assert step.command.goal_current_a == GraspConfig().closing_current_a
 
 
-def test_contact_holds_where_the_fingers_are():
+def test_contact_past_the_target_backs_off_the_excess():
     controller = started(target=2.0)
     step = controller.tick(0.5, 2.1, 0.49, at(0.018))
     assert step.outcome is Outcome.CONTACT and step.phase is Phase.DONE
-    assert step.command.goal_position_rad == pytest.approx(G.position_rad(0.018))
+    assert step.message == "contact at 2.10 N"
+    back_rad = 0.1 / controller.newton_per_rad
+    assert step.command.goal_position_rad == pytest.approx(G.position_rad(0.018) - back_rad)
     assert step.command.goal_current_a == GraspConfig().hold_current_a
     assert controller.tick(0.6, 2.1, 0.59, at(0.018)).command is None   # finished
+
+
+def test_contact_stops_ahead_when_the_force_in_flight_will_reach_the_target():
+    """The force was sampled 20 ms ago; the fingers closed on since: the stop is sent
+    before the force reads the target, aimed where the missing force will be."""
+    controller = started(target=2.0)
+    k_rad, speed = controller.newton_per_rad, controller._speed_rad_s
+    before = G.position_rad(0.0185)
+    assert controller.tick(0.48, 1.2, 0.47, Servo(before)).outcome is None
+    now = before + speed * 0.02
+    step = controller.tick(0.50, 1.9, 0.48, Servo(now))
+    assert step.outcome is Outcome.CONTACT
+    # aimed from where the fingers were when the force was sampled (0.48 s)
+    assert step.command.goal_position_rad == pytest.approx(before + 0.1 / k_rad)
+
+
+def test_no_stop_ahead_in_free_air():
+    """Below the slow-down the travel since a force was sampled adds no force."""
+    controller = started(target=2.0)
+    controller.tick(0.40, 0.0, 0.39, at(0.03))
+    assert controller.tick(0.45, 0.9, 0.40, at(0.025)).outcome is None
+
+
+def test_noise_in_free_air_does_not_stop_the_fingers():
+    """At full speed the travel since a force's stamp predicts 0.6 N more, in contact; a
+    3 σ noise reading in free air must not stop the grasp on it."""
+    controller = started(target=1.0)
+    controller.tick(0.40, 0.0, 0.39, at(0.03))
+    assert controller.tick(0.41, 0.56, 0.395, at(0.0298)).outcome is None
+
+
+def test_closing_pauses_while_the_force_is_late_and_resumes_on_a_fresh_one():
+    controller = started(target=2.0)
+    controller.tick(0.10, 0.0, 0.10, at(0.03))
+    paused = controller.tick(0.18, 0.0, 0.10, at(0.029))
+    assert paused.outcome is None and paused.message.startswith("paused")
+    assert paused.command.goal_position_rad == pytest.approx(G.position_rad(0.029))
+    assert controller.tick(0.19, 0.0, 0.10, at(0.029)).command is None  # once
+    resumed = controller.tick(0.20, 0.0, 0.195, at(0.029))
+    assert resumed.command.goal_position_rad > G.position_rad(0.029)  # closing on
+
+
+@given(st.floats(0.0, 2.5), st.floats(0.0, 0.03), st.floats(0.1, 5.0))
+def test_contact_stop_never_closes_past_the_target_position(force, lag_s, target):
+    """Wherever the stop lands, the skin model the controller assumes reads at most the
+    target there."""
+    controller = started(target=target)
+    k_rad, speed = controller.newton_per_rad, controller._speed_rad_s
+    start = G.position_rad(0.022)
+    controller.tick(0.5 - lag_s, force, 0.5 - lag_s, Servo(start))
+    now = start + speed * lag_s
+    step = controller.tick(0.5, force, 0.5 - lag_s, Servo(now))
+    if step.outcome is Outcome.CONTACT:
+        assert force + k_rad * (step.command.goal_position_rad - start) <= target + 1e-9
 
 
 @given(st.floats(0.0, 1.0), st.floats(0.0, 1.0))
@@ -67,12 +125,14 @@ def test_slowdown_never_speeds_up_with_more_force(f1, f2):
     assert s_high >= GraspConfig().min_speed_fraction * 0.01 / G.pitch_radius_m - 1e-12
 
 
-def test_slowdown_recommands_a_lower_speed_once():
+def test_each_tick_moves_the_leash_on_and_slows_down_in_contact():
     controller = started(target=2.0)
-    assert controller.tick(0.1, 0.5, 0.1, at(0.03)).command is None
+    free = controller.tick(0.1, 0.0, 0.1, at(0.03)).command
+    assert free.profile_velocity_rad_s == pytest.approx(0.01 / G.pitch_radius_m)
+    assert G.opening_m(free.goal_position_rad) == pytest.approx(0.03 - 2 * 0.01 * 0.05)
     step = controller.tick(0.2, 1.6, 0.2, at(0.019))
-    assert step.command.profile_velocity_rad_s == pytest.approx(0.4 * 0.01 / G.pitch_radius_m)
-    assert controller.tick(0.21, 1.6, 0.21, at(0.019)).command is None
+    # 0.4 N missing in 50 ms on 2500 N/m: 3.2 mm/s
+    assert step.command.profile_velocity_rad_s * G.pitch_radius_m == pytest.approx(0.0032)
 
 
 @pytest.mark.parametrize(("tick", "outcome"), [
@@ -126,6 +186,12 @@ def test_invalid_config():
         GraspConfig(slowdown_from_fraction=0.0)
     with pytest.raises(InvalidRequest, match="hold_current_a"):
         GraspConfig(hold_current_a=-1.0)
+    with pytest.raises(InvalidRequest, match="skin_stiffness"):
+        GraspConfig(skin_stiffness_n_per_m=0.0)
+    for bad in (dict(command_latency_s=-0.001), dict(contact_noise_margin_n=-1.0),
+                dict(pause_after_s=0.0), dict(leash_s=0.0), dict(approach_time_s=0.0)):
+        with pytest.raises(InvalidRequest, match="command_latency_s"):
+            GraspConfig(**bad)
 
 
 def test_release_opens_and_finishes_when_still_there():
@@ -148,34 +214,3 @@ def test_release_aborts_and_rejects_bad_requests():
     with pytest.raises(InvalidRequest, match="timeout"):
         ReleaseController().start(0.05, 0.02, 0.0, 0.0, at(0.02))
 
-
-def test_force_settler_converges_on_a_linear_skin():
-    from dataclasses import dataclass as _dc
-
-    from tactile_sensor.control.geometry import GripperGeometry
-    from tactile_sensor.control.grasp import ForceSettler
-
-    @_dc
-    class Servo:
-        position_rad: float
-        moving: bool = False
-        hardware_error: frozenset = frozenset()
-
-    geometry = GripperGeometry()
-    contact = geometry.position_rad(0.020)  # skin meets a 20 mm rod here
-    stiffness = 3000.0  # true skin stiffness differs from the settler's 2500 N/m guess
-
-    def force(position: float) -> float:
-        gap_closed = max(0.0, geometry.opening_m(contact) - geometry.opening_m(position))
-        return stiffness * gap_closed / 2.0
-
-    servo = Servo(contact + 0.08)  # overshot: about 3.4 N against a 1.5 N target
-    settler = ForceSettler(geometry, target_force_n=1.5)
-    for _ in range(40):
-        command, settled = settler.command(force(servo.position_rad), servo, 0.6, 6.0)
-        if settled:
-            break
-        if command is not None:
-            servo.position_rad = command.goal_position_rad
-    assert settled
-    assert force(servo.position_rad) == pytest.approx(1.5, rel=0.05)

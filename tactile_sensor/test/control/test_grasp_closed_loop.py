@@ -58,13 +58,14 @@ def test_closing_on_the_rod_reaches_the_target_force(tmp_path):
     forces: list[float] = []
     step, held = run_grasp(tmp_path, 0.020, forces)
     assert step.outcome is Outcome.CONTACT
-    # Contact at the first tick whose force reached the 2 N target, and held where the
-    # fingers were read then (0.088 deg position steps ~ 0.05 N on this skin). How far past
-    # 2 N that tick read depends on how long the loop was held up between two ticks (the
-    # world moves in real time: at 20 mm/s, 0.1 s is about 4 N): a quiet machine reads
-    # within a few tenths, a busy one further, so the bound is the force the tick saw.
-    assert forces[-2] < 2.0 <= forces[-1]
-    assert 1.8 <= held < max(2.6, forces[-1] + 0.1)
+    # Contact at the first tick whose force ahead (the force plus the travel until a stop
+    # lands) reached the 2 N target, sent to where the skin the controller assumes (2500
+    # N/m; this one is 2333 N/m) reads 2 N; a tick held up past the target backs off the
+    # excess. 0.088 deg position steps are ~0.05 N on this skin. The world's force can be
+    # newer than the position read with it (the stop then falls short: the runner's hold
+    # regulates from there).
+    assert forces[-2] < 2.0
+    assert 1.6 <= held <= 2.25
 
 
 def test_no_rod_ends_at_the_closed_limit(tmp_path):

@@ -31,6 +31,15 @@ def test_a_single_force_counts_alone():
     assert tactile.mean_since_last_call() == 3.0
 
 
+def test_the_sum_gives_how_many_forces_it_holds():
+    """The hold weighs its windows by count: a batch of 10 counts ten times."""
+    tactile = TactileForce()
+    tactile.add(1.0, 1.0, sum_n=10.0, count=10, first_stamp_s=0.99)
+    tactile.add(3.0, 2.0)
+    assert tactile.sum_since_last_call() == (13.0, 11)
+    assert tactile.sum_since_last_call() == (0.0, 0)
+
+
 def test_an_empty_batch_is_refused():
     with pytest.raises(ValueError, match="count"):
         TactileForce().add(1.0, 0.0, 0.0, 0)

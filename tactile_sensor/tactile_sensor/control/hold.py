@@ -1,0 +1,86 @@
+"""The hold after contact: regulate the tactile force onto the target, on windowed means.
+
+Why windows: the tactile force carries the sensor's noise (the paper's 31.5 dB: 0.19 N σ
+after a 9-point mean, so about 0.56 N σ per 1 kHz sample), and the driver's filter makes
+consecutive forces correlated over its window (40 samples by default). A mean over a few
+control periods is a mean of a handful of independent values: today's settle once judged
+~30 ms means and held 2.33 N on a 2.0 N target. The regulator therefore gathers at least
+``window_samples`` forces (stamped after its last correction took effect: the runner gates
+them with ``TactileForce.count_after``) for ``window_s`` before it judges the error; the
+mean's σ falls as 1/√samples (0.1 s of the 1 kHz stream: 0.56 N / √100 ≈ 0.06 N). Each
+correction is smaller than the one before, so it needs a finer mean: the window doubles
+after every correction, up to ``max_window_s`` (0.1, 0.2, 0.4 s: σ 0.06, 0.04, 0.03 N).
+
+Each correction moves the goal by ``gain`` × the error over the skin's stiffness at the
+pinion. One radian of the pinion moves each finger ``pitch_radius_m``, and each finger's
+skin indents by that much against the fixed object, so the force changes by
+``k × pitch_radius_m`` per radian. The FEM skin stiffens from ~1750 N/m at touch to
+~2850 N/m at 3 mm; with the 2500 N/m default a gain of 0.8 converges without ringing over
+that range (effective gain 0.56 to 0.91).
+
+Settled when a window's mean is within ``tolerance`` of the target, or when the correction
+is under half a position pulse (the servo cannot place the fingers finer).
+
+An adaptive hold (one that raises the grip on slip) is a different regulator with the same
+two calls: ``add`` the forces, ``command`` the next goal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.control.grasp import ServoCommand, ServoReading
+from tactile_sensor.hardware.xm430_table import RAD_PER_PULSE
+
+
+@dataclass
+class ForceSettler:
+    """Fixed-force hold: move the goal until a window's mean force sits at the target."""
+
+    geometry: GripperGeometry
+    target_force_n: float
+    skin_stiffness_n_per_m: float = 2500.0
+    tolerance: float = 0.03
+    #: The span of forces the first judged mean takes [s] (the goal's clock); it doubles
+    #: after every correction up to ``max_window_s``.
+    window_s: float = 0.1
+    max_window_s: float = 0.4
+    gain: float = 0.8
+    _sum_n: float = 0.0
+    _count: int = 0
+    _window_from_s: float | None = None
+
+    def __post_init__(self) -> None:
+        if not (self.target_force_n > 0 and self.skin_stiffness_n_per_m > 0
+                and self.window_s >= 0 and 0 < self.gain <= 1 and self.tolerance >= 0):
+            raise ValueError("ForceSettler needs a positive target and stiffness, a window "
+                             "of at least 0 s and a gain in (0, 1].")
+
+    def add(self, sum_n: float, count: int, now_s: float) -> None:
+        """Forces that arrived since the last call (their sum and how many); the window
+        opens with the first."""
+        if count and self._window_from_s is None:
+            self._window_from_s = now_s
+        self._sum_n += sum_n
+        self._count += count
+
+    def restart_window(self) -> None:
+        """Drop what the window held (a correction moved the fingers)."""
+        self._sum_n, self._count, self._window_from_s = 0.0, 0, None
+
+    def command(self, now_s: float, servo: ServoReading, current_a: float,
+                velocity_rad_s: float) -> tuple[ServoCommand | None, bool]:
+        """(goal for this tick, or None to hold still; settled?)."""
+        if self._window_from_s is None or now_s - self._window_from_s < self.window_s:
+            return None, False
+        error = self._sum_n / self._count - self.target_force_n
+        self.restart_window()
+        if abs(error) <= self.tolerance * self.target_force_n:
+            return None, True
+        step_rad = self.gain * error / (self.skin_stiffness_n_per_m
+                                        * self.geometry.pitch_radius_m)
+        if abs(step_rad) < 0.5 * RAD_PER_PULSE:
+            return None, True
+        self.window_s = min(2.0 * self.window_s, max(self.max_window_s, self.window_s))
+        return ServoCommand(servo.position_rad - step_rad, velocity_rad_s, current_a), False
