@@ -99,10 +99,12 @@ class Rig:
 
     def __init__(self, rod_m: float = 0.030, stiffness: float = 2500.0,
                  settle_time_s: float = 0.5, force_delay_s: float = 0.0,
-                 full_scale_n: float = math.inf, servo_time: bool = False) -> None:
+                 full_scale_n: float = math.inf) -> None:
         self.client = KinematicServo()
-        # servo_time: the runner's deadlines in the time the servo moves in, not wall time
-        clock = self.client.now if servo_time else time.monotonic
+        # The runner's deadlines, and the tactile force's stamps, in the time the servo moves
+        # in, not wall time: a busy machine that starves the rig's loop then slows the servo
+        # and the sensor alike, as it cannot slow the real ones.
+        clock = self._wall = self.client.now
         self.servo = ServoLink(self.client, CONFIG, period_s=TICK_S, retries=0, clock=clock)
         self.forces, self.slot = TactileForce(), GoalSlot()
         self.hardware_errors: list[frozenset[str]] = []
@@ -110,7 +112,8 @@ class Rig:
         self.runner = GoalRunner(self.servo, self.forces, self.slot,
                                  RunnerTiming(TICK_S, TICK_S, settle_time_s),
                                  on_hardware_error=self.hardware_errors.append,
-                                 log_error=self.errors.append, clock=clock)
+                                 log_error=self.errors.append, wall_clock=self._wall,
+                                 clock=clock)
         self.rod_m, self.stiffness = rod_m, stiffness
         #: The sensor reads the true force up to this and saturates there [N].
         self.full_scale_n = full_scale_n
@@ -128,7 +131,7 @@ class Rig:
     def _control_loop(self) -> None:
         while self._running:
             poll = self.servo.poll()
-            now = time.time()
+            now = self._wall()
             if poll.state is not None:
                 self._in_flight.append((now, min(self.true_force(poll.state.position_rad),
                                                  self.full_scale_n)))
@@ -439,7 +442,7 @@ def test_a_grasp_that_times_out_at_the_full_scale_backs_off_to_its_target():
     """A grasp timed out at the sensor's full scale once held 27.9 N on the mock, four
     times what the sensor reads. It now opens until the reading is below the full scale
     and at most the target, then holds: the true force is as low."""
-    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+    with Rig(full_scale_n=3.0) as rig:
         thread, out = saturated_grasp(rig, timeout_s=0.8)
         thread.join()
         held = held_force(rig)
@@ -452,7 +455,7 @@ def test_a_grasp_that_times_out_at_the_full_scale_backs_off_to_its_target():
 
 
 def test_a_cancel_above_the_target_backs_off_and_holds():
-    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+    with Rig(full_scale_n=3.0) as rig:
         thread, out = saturated_grasp(rig)
         rig.runner.stop("goal")  # the cancel callback's stop ...
         rig.cancel.set()  # ... then the goal's loop sees the cancel
@@ -467,7 +470,7 @@ def test_a_cancel_above_the_target_backs_off_and_holds():
 
 def test_a_hardware_error_above_the_target_commands_nothing_more():
     """Torque is off: the fingers rest where the error left them (docs/gripper.md)."""
-    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+    with Rig(full_scale_n=3.0) as rig:
         thread, out = saturated_grasp(rig)
         sent = len(rig.client.commands)
         rig.client.bits = frozenset({"overload"})
@@ -499,7 +502,7 @@ def backing_off(rig: Rig):
 
 
 def test_a_back_off_without_fresh_force_holds_and_says_so():
-    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+    with Rig(full_scale_n=3.0) as rig:
         thread, out = backing_off(rig)
         rig.sensing.clear()
         thread.join()
@@ -508,7 +511,7 @@ def test_a_back_off_without_fresh_force_holds_and_says_so():
 
 
 def test_a_back_off_stops_when_the_servo_fails():
-    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+    with Rig(full_scale_n=3.0) as rig:
         thread, out = backing_off(rig)
         rig.client.fail_reads = CommunicationTimeout("no status packet")
         thread.join()
@@ -516,7 +519,7 @@ def test_a_back_off_stops_when_the_servo_fails():
 
 
 def test_a_back_off_yields_to_a_newer_goal():
-    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+    with Rig(full_scale_n=3.0) as rig:
         thread, out = backing_off(rig)
         rig.slot.take_over("newer goal")
         thread.join()
@@ -524,7 +527,7 @@ def test_a_back_off_yields_to_a_newer_goal():
 
 
 def test_a_back_off_whose_first_command_fails_stops_there():
-    with Rig(full_scale_n=3.0, servo_time=True) as rig:
+    with Rig(full_scale_n=3.0) as rig:
         thread, out = saturated_grasp(rig, timeout_s=0.8)
         # every command after the closing's fails: the timeout's stop, then the back-off's
         rig.client.fail_commands = [PortLost("unplugged")] * 1000
