@@ -26,20 +26,13 @@ import math
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 from tactile_sensor.sensing.errors import SensingError
+from tactile_sensor.sensing.filter_protocol import Filter
 from tactile_sensor.sensing.mains_notch import MainsNotch
 
 DEFAULT_FILTER = "savgol"
-
-
-class Filter(Protocol):
-    """A causal scalar filter: one sample in, one sample out."""
-
-    def update(self, x: float) -> float: ...
-
-    def reset(self) -> None: ...
 
 
 class PassThrough:

@@ -14,12 +14,9 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import TYPE_CHECKING
 
 from tactile_sensor.sensing.errors import SensingError
-
-if TYPE_CHECKING:  # filters registers this notch: no import at run time
-    from tactile_sensor.sensing.filters import Filter
+from tactile_sensor.sensing.filter_protocol import Filter
 
 FLICKERS_HZ = (100.0, 120.0)
 BLOCK_S = 0.5
