@@ -24,7 +24,7 @@ moves end together. Order: rest, press to ``depth_m``, hold; shear +x, -x, +y, -
 -x, +y, -y; twist +z, -z; shear +x with twist +z, tilt +x with twist +z, tilt +x with tilt
 +y; release; rest. Rotations at 0.05 rad/s change the torque slowly enough for the wrench
 driver's 3 Hz torque filter (second order: 75 ms lag, 3.8 mrad; its per-excursion gains and
-those of the unfiltered torque agree within 0.01, docs/array.md).
+those of the unfiltered torque agree within 0.015, docs/array.md).
 
 Shear and wrench paths share their knots' form (``StagePath``): times and (n, axes) stage
 positions, column 0 the indentation and columns 1-2 the lateral displacement.
