@@ -11,7 +11,8 @@ NaN where a set lacks a component). Forces stay off the wrench paths: on a coars
 grid (degree 2) those paths cut Fx's error under tilt from 80 to 61 mN but tripled its
 noise at 13 mV (51 to 148 mN), separating shear from tilt on small output differences.
 The wrench set is small, so the torque is a linear polynomial (``WRENCH_TORQUE_DEGREE``)
-fitted on the FEM's outputs as they are (unbiased: the driver's torque low-pass narrows its
+whose gains follow the press (``WRENCH_TORQUE_PRESS_SCALED``), fitted on the FEM's outputs
+as they are (unbiased: the driver's torque low-pass narrows its
 noise), and checked twice: on wrench points held out (interior load
 steps), and on the grid's held-out points, whose shear directions lie between the wrench
 paths' and reach larger shear. Fitted on the wrench set alone, the torque read 12.7 mN m rms
@@ -80,6 +81,12 @@ TORQUE_FIT_NOISE_V = 0.0
 #: along the wrench protocol (its curvature left out; the force's slow part 0.91-0.93), at
 #: 0.63 N m/V (Tx, Ty) and 0.25 N m/V (Tz) of module noise.
 WRENCH_TORQUE_DEGREE = 1
+#: Each linear torque term's gain follows the press (``sensing.press_scaled_terms``): the
+#: linear torque left its curvature in depth out and read 0.93 of the shear's torque, 0.955
+#: of the twist's and 0.92 of the tilt's lateral force along the wrench protocol (noise-free
+#: mock outputs against the elastic gauge); with the press gains 0.97-1.03, and no mean
+#: offset from noise (its products pair orthogonal features).
+WRENCH_TORQUE_PRESS_SCALED = True
 
 
 def noise_response(cal: ArrayCalibration, outputs: np.ndarray, forces: np.ndarray,
@@ -300,7 +307,7 @@ def fit_wrench(grid: ArrayGrid, data: WrenchSet, degree: int,
     source = f"fem-array:{grid.digest}+wrench:{data.digest}"
     trial = ArrayCalibration.fit(grid.faces, outputs[~held], wrench[~held], degree, source,
                                  noise_v, torque_degree, observed, torque_noise_v,
-                                 slow[~held])
+                                 slow[~held], WRENCH_TORQUE_PRESS_SCALED)
     test = held[grid.force_n.size:]
     estimate = trial.wrenches(data.output_matrix()[test])
     rmse, worst, _ = _errors(estimate[:, 3:], data.wrench[test, 3:])
@@ -314,7 +321,8 @@ def fit_wrench(grid: ArrayGrid, data: WrenchSet, degree: int,
     on_grid = trial.wrenches(grid.output_matrix()[grid_held])[:, 3:] - (
         grid.torque_nm[grid_held] if grid.torque_nm is not None else 0.0)
     full = ArrayCalibration.fit(grid.faces, outputs, wrench, degree, source, noise_v,
-                                torque_degree, observed, torque_noise_v, slow)
+                                torque_degree, observed, torque_noise_v, slow,
+                                WRENCH_TORQUE_PRESS_SCALED)
     report["terms"] = dict(zip(AXIS_NAMES, np.count_nonzero(full.coefficients, axis=1)
                                .tolist(), strict=True))
     report["noise_rmse_n"] = {"sigma_v": PROBE_NOISE_V, **dict(zip(

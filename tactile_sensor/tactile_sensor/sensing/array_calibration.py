@@ -52,6 +52,7 @@ import numpy as np
 
 from tactile_sensor.sensing.calibration import file_source, read_json_file
 from tactile_sensor.sensing.errors import CalibrationError
+from tactile_sensor.sensing.press_scaled_terms import fit_press_scaled, press_groups
 
 FILE_FORMAT = "tactile_sensor/array_calibration"
 FILE_VERSION = 2
@@ -431,7 +432,8 @@ class ArrayCalibration:
     def fit(cls, faces: Sequence[str], outputs: np.ndarray, wrench: np.ndarray, degree: int,
             source: str, noise_v: float = 0.0, torque_degree: int = TORQUE_DEGREE,
             observed: Sequence[str] | None = None, torque_noise_v: float | None = None,
-            slow_forces: np.ndarray | None = None) -> ArrayCalibration:
+            slow_forces: np.ndarray | None = None, press_scaled: bool = False
+            ) -> ArrayCalibration:
         """Least squares of each component on the monomials of the features that the
         array's mirror symmetry allows it (module docstring): forces up to ``degree``,
         torques up to ``torque_degree``.
@@ -449,6 +451,9 @@ class ArrayCalibration:
         ``slow_forces`` (points, 3), with the torques: every point's force, also where
         ``wrench`` leaves it NaN (the wrench paths'); the force's slow part is fitted, like
         the torques, on what the force polynomial leaves of it (module docstring).
+
+        ``press_scaled``: the torques and the slow part add to their linear terms gains
+        that follow the press (``sensing.press_scaled_terms``: unbiased under noise).
 
         ``noise_v`` > 0 fits every point also as ``NOISE_COPIES`` copies with Gaussian output
         noise of that sigma [V] (fixed seed), so the fit cannot lean on terms that amplify a
@@ -473,6 +478,7 @@ class ArrayCalibration:
         bases = {sigma: _noisy_basis(probe, outputs, wrench, sigma)
                  for sigma in {noise_v, torque_noise_v}}
         allowed = _AllowedTerms(terms, parity, mirror_axes(faces), torque_degree)
+        groups = press_groups(terms, parity) if press_scaled else []
         coef = np.zeros((6, len(terms)))
         counts = np.isfinite(wrench).sum(axis=0)
         for k, name in enumerate(COMPONENTS):
@@ -487,13 +493,15 @@ class ArrayCalibration:
                     f"{len(faces)} modules has {int(keep.sum())} terms but only "
                     f"{int(counts[k])} points; lower the degree or add "
                     f"{'load paths' if k >= 3 else 'grid points'}.")
-            if keep.any():
+            if keep.any() and k >= 3 and groups:
+                coef[k] = fit_press_scaled(basis[rows], values[rows, k], keep, groups)
+            elif keep.any():
                 coef[k, keep] = np.linalg.lstsq(basis[rows][:, keep], values[rows, k],
                                                 rcond=None)[0]
         slow = None
         if slow_forces is not None and six:
             left = _checked_slow(slow_forces, outputs) - probe._basis(outputs) @ coef[:3].T
-            slow = _fit_slow(left, bases[torque_noise_v][0], allowed, wanted)
+            slow = _fit_slow(left, bases[torque_noise_v][0], allowed, wanted, groups)
         return cls(faces, matrix, terms, coef[:3], scale, outputs.max(axis=0), source,
                    coef[3:] if six else None, wanted, slow)
 
@@ -652,16 +660,20 @@ def _checked_slow(slow_forces: np.ndarray, outputs: np.ndarray) -> np.ndarray:
 
 
 def _fit_slow(left: np.ndarray, basis: np.ndarray, allowed: _AllowedTerms,
-              wanted: tuple[str, ...]) -> np.ndarray:
+              wanted: tuple[str, ...], groups: list[tuple[int, tuple[int, ...]]]
+              ) -> np.ndarray:
     """The force's slow part, fitted to what the force polynomial left of each point's
-    force (``left``) on the torques' basis: their degree, their noise copies."""
+    force (``left``) on the torques' basis: their degree, their noise copies, their press
+    gains (``groups``)."""
     copies = basis.shape[0] // left.shape[0]
     values = np.tile(left, (copies, 1))
     slow = np.zeros((3, basis.shape[1]))
     for k, name in enumerate(COMPONENTS[:3]):
         rows = np.isfinite(values[:, k])
         keep = allowed.of(name, torque=True)
-        if name in wanted and keep.any() and rows.sum() >= keep.sum():
+        if name in wanted and keep.any() and rows.sum() >= keep.sum() and groups:
+            slow[k] = fit_press_scaled(basis[rows], values[rows, k], keep, groups)
+        elif name in wanted and keep.any() and rows.sum() >= keep.sum():
             slow[k, keep] = np.linalg.lstsq(basis[rows][:, keep], values[rows, k],
                                             rcond=None)[0]
     return slow

@@ -22,8 +22,9 @@ Each move goes out and back; its duration is the longest of its axes' travel at 
 (lateral and indentation at ``speed_m_s``, rotations at ``angular_speed_rad_s``), so combined
 moves end together. Order: rest, press to ``depth_m``, hold; shear +x, -x, +y, -y; tilt +x,
 -x, +y, -y; twist +z, -z; shear +x with twist +z, tilt +x with twist +z, tilt +x with tilt
-+y; release; rest. Rotations at 0.05 rad/s change the torque slowly enough for a 1 kHz
-driver with a 10 Hz torque filter (its lag is 16 ms, 0.8 mrad).
++y; release; rest. Rotations at 0.05 rad/s change the torque slowly enough for the wrench
+driver's 3 Hz torque filter (second order: 75 ms lag, 3.8 mrad; its per-excursion gains and
+those of the unfiltered torque agree within 0.015, docs/array.md).
 
 Shear and wrench paths share their knots' form (``StagePath``): times and (n, axes) stage
 positions, column 0 the indentation and columns 1-2 the lateral displacement.

@@ -59,13 +59,15 @@ def gauge_torque(t_s: np.ndarray, tz_nm: float = 0.005) -> np.ndarray:
                             tz_nm * np.sin(2 * np.pi * t_s / 4.0)])
 
 
-def recording(tz_nm: float = 0.005, torque: bool = True, noise_v: float = 0.0):
-    """Shear signals whose modules read wrench_map() @ wrench (+ noise), with the gauge's
-    torque (and the driver's, equal) when ``torque``."""
+def recording(tz_nm: float = 0.005, torque: bool = True, noise_v: float = 0.0,
+              tz_scale: float = 1.0):
+    """Shear signals whose modules read wrench_map() @ wrench (+ noise; Tz's column times
+    ``tz_scale``), with the gauge's torque (and the driver's, equal) when ``torque``."""
     base = shear_signals(PROTOCOL, ArrayTruth(faces=FACES, sensitivity_v_per_n=((0, 0, 0),) * 8,
                                               output_offset_v=(0.0,) * 8))
     t = gauge_torque(base.t_s, tz_nm) if torque else np.zeros((base.t_s.size, 3))
-    outputs = np.column_stack([base.reference_n, t]) @ wrench_map().T
+    outputs = np.column_stack([base.reference_n, t]) @ (wrench_map() * np.r_[
+        np.ones(5), tz_scale]).T
     outputs += noise_v * np.random.default_rng(3).standard_normal(outputs.shape)
     signals = dataclasses.replace(base, outputs_v=outputs)
     return with_torque(signals, t) if torque else signals
@@ -98,6 +100,22 @@ def test_fitted_calibration_recovers_the_known_wrench(fitted):
         assert 0 < pct < 3.0, (c, pct)
     assert fit.metrics["held_out_samples"] > 0
     assert fit.metrics["force_slow_part"] is False and not fit.calibration.has_slow
+
+
+def test_a_weak_torque_is_fitted_without_shrinkage():
+    """A twist of a few millivolts (Tz's outputs at 3 % of the others') reads at gain 1; the
+    fit given 10 mV of torque noise (a ridge) shrinks it."""
+    sig = array_signals(recording(noise_v=0.002, tz_scale=0.03))
+    truth = sig.reference_torque_nm[:, 2]
+    clean = np.column_stack([sig.reference_n, sig.reference_torque_nm]) @ (
+        wrench_map() * np.r_[np.ones(5), 0.03]).T
+
+    def gain(fit: af.ArrayFit) -> float:
+        return float(np.dot(fit.calibration.wrenches(clean)[:, 5], truth) / np.dot(truth, truth))
+
+    assert af.fit_array_signals(sig, True, "test", DEGREE).metrics["torque_noise_v"] == 0.0
+    assert abs(gain(af.fit_array_signals(sig, True, "test", DEGREE)) - 1.0) < 0.03
+    assert gain(af.fit_array_signals(sig, True, "test", DEGREE, torque_noise_v=0.010)) < 0.85
 
 
 def test_held_out_blocks_are_contiguous_and_every_fifth():

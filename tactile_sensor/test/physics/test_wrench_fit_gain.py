@@ -19,6 +19,7 @@ from tactile_sensor.physics.array_report import (
     TORQUE_FIT_NOISE_V,
     WRENCH_FIT_NOISE_V,
     WRENCH_TORQUE_DEGREE,
+    WRENCH_TORQUE_PRESS_SCALED,
 )
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 
@@ -85,7 +86,7 @@ def held_out_gains(torque_degree: int, torque_noise_v: float) -> dict[str, np.nd
     fitted[np.isin(phase, ("tilt", "twist")), :3] = np.nan       # forces from press/shear
     cal = ArrayCalibration.fit(FACES, outputs[~held], fitted[~held], 3, "synthetic",
                                WRENCH_FIT_NOISE_V, torque_degree, None, torque_noise_v,
-                               wrench[~held, :3])
+                               wrench[~held, :3], WRENCH_TORQUE_PRESS_SCALED)
     estimate = cal.wrenches(outputs[held])
     gains = {}
     for name in PHASES:

@@ -14,9 +14,12 @@ filter's lag is a small share of a period; both are then decimated to five times
 the low-pass makes lossless and which keeps the noise-augmented least squares small.
 
 The calibration will meet the driver's force-filtered outputs with their noise, not the
-low-passed ones, so the fit adds noise as physics' FEM fit does (``FIT_NOISE_V`` for forces,
-``TORQUE_FIT_NOISE_V`` for torques): without it the fit may lean on terms that amplify a
-module's noise.
+low-passed ones, so the force fit adds noise as physics' FEM fit does (``FIT_NOISE_V``):
+without it the fit may lean on terms that amplify a module's noise. The torques are fitted
+as the FEM's are (``physics.array_report``): without noise, linear with gains that follow
+the press. Noise in their fit is a ridge that shrinks them (regression dilution: 10 mV read
+a twist at a fraction of its torque); the driver's torque low-pass narrows their noise
+instead.
 
 The force's slow part (what the FEM fit adds for tilt and twist, low-passed with the
 torque) is not fitted: the recording's forces already include the tilt's and the twist's,
@@ -35,7 +38,12 @@ from typing import Any
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-from tactile_sensor.sensing.array_calibration import COMPONENTS, TORQUE_DEGREE, ArrayCalibration
+from tactile_sensor.physics.array_report import (
+    TORQUE_FIT_NOISE_V,
+    WRENCH_TORQUE_DEGREE,
+    WRENCH_TORQUE_PRESS_SCALED,
+)
+from tactile_sensor.sensing.array_calibration import COMPONENTS, ArrayCalibration
 from tactile_sensor.sensing.errors import CalibrationError
 
 from ..bag_reader import Recording
@@ -53,7 +61,6 @@ HOLD_EVERY = 5  # every 5th block is held out
 EXCITED_FRACTION = 0.05
 DEGREE = 3  # the force polynomial's degree, as the FEM calibration's
 FIT_NOISE_V = 0.005  # physics.array_report.FIT_NOISE_V
-TORQUE_FIT_NOISE_V = 0.010  # physics.array_report.TORQUE_FIT_NOISE_V
 UNITS = {"f": "N", "t": "N m"}
 
 
@@ -109,7 +116,7 @@ def _num(x: float) -> float | None:
 
 
 def fit_array_signals(sig: ArraySignals, with_torque: bool, source: str,
-                      degree: int = DEGREE, torque_degree: int = TORQUE_DEGREE,
+                      degree: int = DEGREE, torque_degree: int = WRENCH_TORQUE_DEGREE,
                       cutoff_hz: float = QUASI_STATIC_HZ, noise_v: float = FIT_NOISE_V,
                       torque_noise_v: float = TORQUE_FIT_NOISE_V) -> ArrayFit:
     """The fit on aligned signals (module docstring), both sides low-passed at
@@ -141,10 +148,12 @@ def fit_array_signals(sig: ArraySignals, with_torque: bool, source: str,
     held = held_out_blocks(t)
     try:
         trial = ArrayCalibration.fit(sig.faces, outputs[~held], fitted[~held], degree, source,
-                                     noise_v, torque_degree, observed, torque_noise_v)
+                                     noise_v, torque_degree, observed, torque_noise_v,
+                                     press_scaled=WRENCH_TORQUE_PRESS_SCALED)
         estimate = trial.wrenches(outputs[held])[:, :wrench.shape[1]]
         cal = ArrayCalibration.fit(sig.faces, outputs, fitted, degree, source, noise_v,
-                                   torque_degree, observed, torque_noise_v)
+                                   torque_degree, observed, torque_noise_v,
+                                   press_scaled=WRENCH_TORQUE_PRESS_SCALED)
     except CalibrationError as err:
         why = str(err).replace("add grid points", "record longer").replace(
             "add load paths", "record longer")
@@ -180,13 +189,14 @@ def fit_array_signals(sig: ArraySignals, with_torque: bool, source: str,
         "block_s": BLOCK_S, "hold_every": HOLD_EVERY,
         "samples": int(t.size), "held_out_samples": int(held.sum()),
         "noise_v": noise_v, "torque_noise_v": torque_noise_v,
+        "torque_press_scaled": WRENCH_TORQUE_PRESS_SCALED,
         "force_slow_part": False,
     }
     return ArrayFit(cal, metrics, lines)
 
 
 def fit_array_recording(recording: Recording, source: str, degree: int = DEGREE,
-                        torque_degree: int = TORQUE_DEGREE) -> ArrayFit:
+                        torque_degree: int = WRENCH_TORQUE_DEGREE) -> ArrayFit:
     """Align the recording (with the gauge's torque where it measures one) and fit."""
     sig = align_array(recording, torque=True)
     torque = reference_has_torque(recording.series["reference"])
