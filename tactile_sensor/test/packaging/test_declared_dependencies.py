@@ -52,7 +52,7 @@ PROVIDER = {
     "xacro": "xacro",
     "urdf_parser_py": "urdfdom_py",
 }
-FIRST_PARTY = {"tactile_sensor", "conftest", "interface_servers"}
+FIRST_PARTY = {"tactile_sensor", "conftest", "interface_servers", "waiting"}
 
 
 def third_party_imports(*roots: Path) -> dict[str, Path]:
