@@ -145,6 +145,10 @@ class GoalRunner:
         finally:
             self.slot.abort_active(REBOOTED)
 
+    def _owner(self, token: object) -> Callable[[], bool]:
+        """Whether ``token``'s goal still has the fingers, asked as its command is written."""
+        return lambda: not self.slot.superseded(token)
+
     def stop(self, token: object) -> None:
         """A cancel's stop, unless the goal lost the fingers already; failures are logged."""
         if self.slot.superseded(token):
@@ -210,7 +214,7 @@ class GoalRunner:
             force = self.forces.latest
             step = goal.tick(self._wall(), force[0] if force else None,
                              force[1] if force else None, servo.state)
-            if (error := servo.send_safely(step.command, token)) is not None:
+            if (error := servo.send_safely(step.command, token, self._owner(token))) is not None:
                 return self._finish(goal, step, False, f"{Outcome.SERVO_UNREACHABLE}: {error}")
             now = self._clock()
             if now - last_feedback >= self.timing.feedback_period_s:
@@ -303,7 +307,8 @@ class GoalRunner:
         self.forces.count_after(started_wall)
         deadline = started + back_off.time_bound_s(state) + 1.0
         sent_at = last_fresh = started
-        if servo.send_safely(back_off.opening_command(), mover) is not None:
+        owns = self._owner(link.token)
+        if servo.send_safely(back_off.opening_command(), mover, owns) is not None:
             return f" (stopped: servo unreachable: {servo.comm_error})"
         while True:
             if self.slot.superseded(link.token):
@@ -317,17 +322,17 @@ class GoalRunner:
                 last_fresh = now
                 hold = back_off.tick(mean, state_now)
                 if hold is not None:
-                    servo.send_safely(hold, mover)
+                    servo.send_safely(hold, mover, owns)
                     self._await_rest()
                     return ""
             if now - last_fresh > servo.config.stale_after_s or now > deadline:
-                servo.send_safely(back_off.hold(state_now), mover)
+                servo.send_safely(back_off.hold(state_now), mover, owns)
                 self._await_rest()
                 return (" (stopped: no fresh tactile force)" if now <= deadline
                         else " (stopped: fully open)")
             if not state_now.moving and now - sent_at > 3 * period:
                 # a cancel's stop halted the opening: resume it
-                servo.send_safely(back_off.opening_command(), mover)
+                servo.send_safely(back_off.opening_command(), mover, owns)
                 sent_at = now
 
     def _await_rest(self) -> None:
@@ -394,7 +399,8 @@ class GoalRunner:
                 return None, True
             if command is None:
                 continue
-            if (error := servo.send_safely(command, link.token)) is not None:
+            if (error := servo.send_safely(command, link.token,
+                                           self._owner(link.token))) is not None:
                 return f"{Outcome.SERVO_UNREACHABLE}: {error}", False
             travel_s = abs(command.goal_position_rad - state.position_rad) / max(
                 command.profile_velocity_rad_s, 1e-9)

@@ -180,23 +180,29 @@ class ServoLink:
         self._heading_to_rad = goal_rad
         self._commanded_at = self._clock()
 
-    def send(self, command: ServoCommand | None, token: object | None = None) -> None:
-        """Write a goal's command, unless that goal has been stopped by a cancel."""
+    def send(self, command: ServoCommand | None, token: object | None = None,
+             owns: Callable[[], bool] | None = None) -> None:
+        """Write a goal's command, unless that goal has been stopped by a cancel or, asked
+        under the write's lock, ``owns()`` says a newer goal has the fingers now: a tick
+        under way when the newer goal took over would otherwise land after the newer
+        goal's first command and send the fingers back where the old goal wanted them."""
         if command is None:
             return
         with self._command_lock:
             if token is not None and self._halted is token:
                 return
+            if owns is not None and not owns():
+                return
             self.retrying(lambda: self._command(
                 command.goal_position_rad, command.profile_velocity_rad_s,
                 command.goal_current_a))
 
-    def send_safely(self, command: ServoCommand | None, token: object | None = None
-                    ) -> str | None:
+    def send_safely(self, command: ServoCommand | None, token: object | None = None,
+                    owns: Callable[[], bool] | None = None) -> str | None:
         """``send``; why the servo is unreachable (also left in ``comm_error``), or None. A
         hardware error is not a failure here: the loop reports it through the state."""
         try:
-            self.send(command, token)
+            self.send(command, token, owns)
         except ServoHardwareError:
             return None
         except DynamixelError as exc:

@@ -179,6 +179,25 @@ def test_a_stopped_goal_cannot_command_again_but_another_goal_can():
     assert client.commands()[-1] == ("command", 4.0, 0.7, 0.6)
 
 
+def test_a_goal_that_lost_the_fingers_cannot_command_and_the_question_is_asked_at_the_write():
+    """A tick under way when a newer goal took over: its command is dropped, so it cannot
+    land after the newer goal's (a release once stopped 0.9 mm short of open that way)."""
+    client = ScriptedServo()
+    servo = link(client)
+    servo.hold_here()
+    before = len(client.commands())
+    asked: list[bool] = []
+
+    def owns() -> bool:
+        asked.append(servo._command_lock.locked())
+        return False
+
+    servo.send(ServoCommand(4.0, 0.7, 0.6), "goal A", owns)
+    assert len(client.commands()) == before and asked == [True]
+    assert servo.send_safely(ServoCommand(4.0, 0.7, 0.6), "goal A", lambda: True) is None
+    assert client.commands()[-1] == ("command", 4.0, 0.7, 0.6)
+
+
 def test_stop_on_a_fresh_sample_is_one_write_carried_forward():
     clock = Clock()
     client = ScriptedServo(state(position=3.0, velocity=0.5))
