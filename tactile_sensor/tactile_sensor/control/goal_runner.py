@@ -126,12 +126,16 @@ class GoalRunner:
         self._on_hardware_error, self._log_error = on_hardware_error, log_error
         self._wall, self._clock = wall_clock, clock
 
-    def snapshot(self, step: Step) -> Snapshot:
+    def snapshot(self, step: Step, force_n: float | None = None) -> Snapshot:
+        """The goal's state now; ``force_n`` replaces the newest tactile force (a settled
+        hold reports the mean it settled on)."""
         force, state = self.forces.latest, self.servo.state
         geometry = self.servo.config.geometry
         velocity = (geometry.opening_rate_m_s(state.velocity_rad_s)
                     if state is not None else math.nan)
-        return Snapshot(step, force[0] if force else math.nan, velocity)
+        if force_n is None:
+            force_n = force[0] if force else math.nan
+        return Snapshot(step, force_n, velocity)
 
     def reboot(self, current_limit_a: float) -> None:
         """Reboot the servo (clears a latched hardware error) and hold where the fingers
@@ -226,7 +230,7 @@ class GoalRunner:
         """After the goal's last tick: settle the force it holds, if it holds one, and back
         off a force above its target if it failed."""
         servo, token = self.servo, link.token
-        tail = ""
+        tail, held_n = "", None
         settler = goal.settler(step)
         if settler is not None:
             aborted, settled = self._settle(link, settler, step,
@@ -236,6 +240,7 @@ class GoalRunner:
             if link.cancel_requested() and not self.slot.superseded(token):
                 return self._canceled(link, goal)
             step = self._at_rest(link, step)
+            held_n = settler.judged_n if settled else None
             # a hold that ran out of settle_time says so: its force may be off the target
             tail = (", settled at {force:.2f} N" if settled else
                     f", not settled within settle_time ({self.timing.settle_time_s:g} s): "
@@ -248,12 +253,14 @@ class GoalRunner:
             tail += backed_off
         self.slot.release(token)
         return self._finish(goal, step, failure is None,
-                            failure or f"{step.outcome}: {step.message}", tail)
+                            failure or f"{step.outcome}: {step.message}", tail,
+                            held_n if failure is None else None)
 
     def _finish(self, goal: ActiveGoal | None, step: Step | None, status: GoalStatus | bool,
-                message: str, tail: str = "") -> Finish:
+                message: str, tail: str = "", force_n: float | None = None) -> Finish:
         """``tail`` ends the message with the result's force: ``{force}`` in it is
-        formatted with the very value the result's field carries."""
+        formatted with the very value the result's field carries (``force_n`` when given,
+        else the newest tactile force)."""
         if isinstance(status, bool):
             status = GoalStatus.SUCCEEDED if status else GoalStatus.ABORTED
         if goal is None:
@@ -263,7 +270,7 @@ class GoalRunner:
             opening = (self.servo.config.geometry.opening_m(state.position_rad)
                        if state is not None else math.nan)
             step = Step(Phase.IDLE, None, None, message, opening)
-        snap = self.snapshot(step)
+        snap = self.snapshot(step, force_n)
         message += tail.format(force=snap.force_n)
         return Finish(status, message, goal.result(snap, message))
 

@@ -47,6 +47,9 @@ class ForceSettler:
     window_s: float = 0.1
     max_window_s: float = 0.4
     gain: float = 0.8
+    #: The mean [N] of the last window judged: the force the hold reports once settled
+    #: (a single reading carries the sensor's full noise, 0.19 N σ after the filter).
+    judged_n: float | None = None
     _sum_n: float = 0.0
     _count: int = 0
     _window_from_s: float | None = None
@@ -74,7 +77,8 @@ class ForceSettler:
         """(goal for this tick, or None to hold still; settled?)."""
         if self._window_from_s is None or now_s - self._window_from_s < self.window_s:
             return None, False
-        error = self._sum_n / self._count - self.target_force_n
+        self.judged_n = self._sum_n / self._count
+        error = self.judged_n - self.target_force_n
         self.restart_window()
         if abs(error) <= self.tolerance * self.target_force_n:
             return None, True

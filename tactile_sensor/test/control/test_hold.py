@@ -91,3 +91,14 @@ def test_a_correction_under_half_a_pulse_counts_as_settled():
 def test_rejects_a_configuration_that_cannot_regulate(kw):
     with pytest.raises(ValueError, match="ForceSettler needs"):
         ForceSettler(**{"geometry": G, "target_force_n": 1.0, **kw})
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(0.5, 4.0), min_size=1, max_size=200))
+def test_the_force_a_hold_reports_is_the_mean_it_judged(forces):
+    """A settled hold reports the window's mean, not the newest (noisy) reading."""
+    settler = ForceSettler(G, 2.0, tolerance=1.0)  # any of these means counts as settled
+    assert settler.judged_n is None
+    settler.add(float(sum(forces)), len(forces), 0.0)
+    assert settler.command(0.1, Servo(CONTACT + 0.02), 0.6, 6.0) == (None, True)
+    assert settler.judged_n == pytest.approx(float(np.mean(forces)))
