@@ -3,7 +3,7 @@
 Along the fingers (+x toward the fingertips, the tactile frame's x) the object is one mass m.
 Each finger touches it through its skin: the skin's contact patch is a tangential spring,
 its stiffness k(d) from the FEM array grid at that finger's indentation d
-(:class:`TangentialStiffness`), in series with Coulomb friction against the object
+(``sim/skin_shear.py``), in series with Coulomb friction against the object
 (static mu_s, kinetic mu_k <= mu_s) that has a stick state (Karnopp 1985):
 
 - stuck, the patch moves with the object and the skin carries e = k (x - anchor); the
@@ -29,11 +29,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.skin_shear import TangentialStiffness
 
 #: Standard gravity [m/s^2] (ISO 80000-3).
 STANDARD_GRAVITY_M_S2 = 9.80665
@@ -107,48 +108,6 @@ class ObjectSpec:
             raise SimError(f"object.friction_kinetic = {self.friction_kinetic!r} is above "
                            f"object.friction_static = {self.friction_static!r}; kinetic "
                            "friction must not exceed static.")
-
-
-class TangentialStiffness:
-    """The skin's tangential stiffness k(d) [N/m] against indentation d [m]: the grid's
-    lateral force over lateral displacement along +x at its largest shear level (the secant
-    over the whole range a sticking contact spans), linear between its indentation levels,
-    the end values beyond them."""
-
-    def __init__(self, indentation_m: Sequence[float], stiffness_n_per_m: Sequence[float],
-                 source: str = "table") -> None:
-        d = np.asarray(indentation_m, float)
-        k = np.asarray(stiffness_n_per_m, float)
-        if d.ndim != 1 or d.size < 1 or k.shape != d.shape or not (
-                np.all(np.isfinite(d)) and np.all(np.isfinite(k))) or np.any(k <= 0) or \
-                np.any(np.diff(d) <= 0):
-            raise SimError("A tangential stiffness table needs increasing indentations and "
-                           "finite stiffnesses > 0.")
-        self._d, self._k = d.tolist(), k.tolist()
-        self.source = source
-
-    def __call__(self, indentation_m: float) -> float:
-        return float(np.interp(indentation_m, self._d, self._k))
-
-    @property
-    def largest_n_per_m(self) -> float:
-        return max(self._k)
-
-    @classmethod
-    def from_grid(cls, grid: Any) -> TangentialStiffness:
-        """From a ``physics.array_grid.ArrayGrid``: its direction 0 (+x), largest level."""
-        direction = np.asarray(grid.direction, int)
-        level = np.asarray(grid.level, int)
-        sx = np.asarray(grid.shear_x_m, float)
-        fx = np.asarray(grid.force_x_n, float)
-        d = np.asarray(grid.indentation_m, float)
-        rows = (direction == 0) & (level == level.max()) & (sx > 0)
-        if not np.any(rows):
-            raise SimError("The array grid has no shear along +x; recompute it with "
-                           "'tactile-sensor model array-calibration'.")
-        order = np.argsort(d[rows])
-        return cls(d[rows][order], (fx[rows] / sx[rows])[order],
-                   source=f"fem-array:{getattr(grid, 'digest', '?')}")
 
 
 class RateModel(Protocol):

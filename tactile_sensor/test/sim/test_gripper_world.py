@@ -12,8 +12,9 @@ from hypothesis import strategies as st
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.gripper_world import GripperWorld
-from tactile_sensor.sim.held_object import HeldObject, ObjectSpec, TangentialStiffness
+from tactile_sensor.sim.held_object import HeldObject, ObjectSpec
 from tactile_sensor.sim.skin_response import TabulatedSkin
+from tactile_sensor.sim.skin_shear import TangentialStiffness
 
 
 def skin() -> TabulatedSkin:

@@ -19,10 +19,10 @@ from tactile_sensor.sim.held_object import (
     HeldObject,
     LoadScript,
     ObjectSpec,
-    TangentialStiffness,
     object_from_values,
     parse_load_profile,
 )
+from tactile_sensor.sim.skin_shear import TangentialStiffness
 
 #: A skin of constant tangential stiffness [N/m] (the FEM grid's is about this, docs).
 K = 340.0

@@ -30,8 +30,9 @@ from waiting import wait_until
 from tactile_sensor.sim.dynamixel_packets import Instruction, build_instruction, parse_one
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.gripper_world import GripperWorld
-from tactile_sensor.sim.held_object import HeldObject, ObjectSpec, TangentialStiffness
+from tactile_sensor.sim.held_object import HeldObject, ObjectSpec
 from tactile_sensor.sim.skin_response import TabulatedSkin
+from tactile_sensor.sim.skin_shear import TangentialStiffness
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
 
 BAUD = 1_000_000
