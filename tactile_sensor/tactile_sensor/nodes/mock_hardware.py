@@ -494,8 +494,10 @@ class MockHardwareNode(Node):
                                "computes its FEM shear path)")
         stiffness = load_or_compute_stiffness(physics, cache, self._grid_progress).scaled(
             self.values["skin.stiffness_ratio"])
+        # the fingers run along the skin block's x: it slips off past half its width
         return HeldObject(self.object_spec, stiffness,
-                          lambda: RateDependentForce.from_params(physics))
+                          lambda: RateDependentForce.from_params(physics),
+                          reach_m=0.5 * physics.width)
 
     def _build_gripper(self, skin: TabulatedSkin, held: Any = None) -> None:
         from tactile_sensor.control.geometry import GripperGeometry

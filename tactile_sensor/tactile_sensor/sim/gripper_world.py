@@ -113,7 +113,7 @@ class GripperWorld:
     def indentations_m(self, position_rad: float) -> tuple[float, float]:
         """Skin indentation of finger A (at -opening/2) and finger B (at +opening/2)."""
         rod = self._rod
-        if rod is None:
+        if rod is None or (self.held is not None and self.held.dropped):
             return 0.0, 0.0
         diameter, offset = rod
         half = 0.5 * self.geometry.opening_m(position_rad)

@@ -21,7 +21,8 @@ over the skins, without their elastic deflection.
 
 Before the lift the object stands on its support, which holds it along the fingers: nothing
 moves. From the lift on, gravity m g and the scripted pull (:class:`LoadScript`, seconds
-after the lift) act along +x. The object's place across the fingers stays the rod's.
+after the lift) act along +x. The object's place across the fingers stays the rod's; once
+it slipped farther than ``reach_m`` (off the skins' edge) it falls out of the fingers.
 """
 
 from __future__ import annotations
@@ -160,7 +161,7 @@ class Contact:
 
 @dataclass(frozen=True)
 class ObjectState:
-    """Ground truth along the fingers: position and velocity from where it was lifted
+    """Ground truth along the fingers: position and velocity from where it was gripped
     [m, m/s], its slip over the skins [m] (mean of the two), each skin's force [N]."""
 
     position_m: float = 0.0
@@ -169,14 +170,20 @@ class ObjectState:
     force_a_n: float = 0.0
     force_b_n: float = 0.0
     lifted: bool = False
+    #: It slipped off the skins and fell out of the fingers.
+    dropped: bool = False
 
 
 class HeldObject:
     """The object's motion along the fingers under the two skins' friction (module doc)."""
 
     def __init__(self, spec: ObjectSpec, stiffness: TangentialStiffness,
-                 rate: Callable[[], RateModel] | None = None) -> None:
+                 rate: Callable[[], RateModel] | None = None, reach_m: float = math.inf
+                 ) -> None:
         self.spec = spec
+        #: How far the object slips before it leaves the skins (and falls) [m].
+        self.reach_m = reach_m
+        self.dropped = False
         self.stiffness = stiffness
         self.contacts = (Contact(rate() if rate else None), Contact(rate() if rate else None))
         self.x_m = 0.0
@@ -191,8 +198,14 @@ class HeldObject:
         self._lift_wanted = True
 
     def set_down(self) -> None:
-        """Put the object back on its support: it stops where it is."""
+        """Put the object back on its support: it stops where it is, or, once it fell out of
+        the fingers, where it started, as a new object."""
         self._lift_wanted, self._lift_s, self.v_m_s = False, None, 0.0
+        if self.dropped:
+            self.dropped, self.x_m = False, 0.0
+            for contact in self.contacts:
+                contact.release(0.0)
+                contact.slid_m = 0.0
 
     @property
     def lifted(self) -> bool:
@@ -213,7 +226,9 @@ class HeldObject:
         if self._t_s is None:
             self._t_s = t_s
         if self._lift_wanted and self._lift_s is None:
-            self._lift_s = t_s
+            self._lift_s = self._t_s = t_s  # on the support until now
+        if self.dropped:
+            normal_n = (0.0, 0.0)
         k = tuple(self.stiffness(d) if n > 0 else 0.0
                   for n, d in zip(normal_n, indentation_m, strict=True))
         for contact, n in zip(self.contacts, normal_n, strict=True):
@@ -252,12 +267,17 @@ class HeldObject:
                 contact.follow(self.x_m, contact.force_n / kk)
                 if self.v_m_s * contact.direction <= 0:
                     contact.stuck = True  # the slide stopped in this step
+        a, b = self.contacts
+        if abs(a.slid_m + b.slid_m) > 2.0 * self.reach_m:
+            self.dropped = True  # off the skins' edge: it falls
+            for contact in self.contacts:
+                contact.release(self.x_m)
 
     @property
     def state(self) -> ObjectState:
         a, b = self.contacts
         return ObjectState(self.x_m, self.v_m_s, 0.5 * (a.slid_m + b.slid_m), a.force_n,
-                           b.force_n, self.lifted)
+                           b.force_n, self.lifted, self.dropped)
 
 
 def object_from_values(mass_kg: float, friction_static: float, friction_kinetic: float,

@@ -145,6 +145,20 @@ def test_a_lifted_object_slips_through_a_light_grip_and_the_normal_force_stays()
     assert not GripperWorld(skin()).lift()                  # no object: nothing to lift
 
 
+def test_an_object_that_fell_out_leaves_the_fingers_nothing_to_press():
+    held = HeldObject(ObjectSpec(0.3, 0.3, 0.2), TangentialStiffness([0.001], [340.0]),
+                      reach_m=0.002)
+    world = GripperWorld(skin(), held=held)
+    position = world.geometry.position_rad(0.0195)
+    world.update(0.0, position)
+    world.lift()
+    sample = next(s for s in (world.update(0.001 * i, position) for i in range(1, 500))
+                  if s.held.dropped)
+    assert world.indentations_m(position) == (0.0, 0.0)
+    assert world.update(0.6, position).force_a_n == 0.0 and world.load_torque_nm(position) == 0
+    assert sample.held.slip_m > 0.002
+
+
 def test_an_object_needs_a_rod():
     with pytest.raises(ValueError, match="needs a rod diameter"):
         GripperWorld(skin(), rod_diameter_m=None, held=held_object())

@@ -211,3 +211,17 @@ def test_the_stiffness_is_the_grids_secant_along_x_at_its_largest_level():
     with pytest.raises(SimError, match="no shear along"):
         TangentialStiffness.from_grid(SimpleNamespace(**{**grid.__dict__,
                                                          "shear_x_m": [0.0] * 11}))
+
+
+def test_an_object_that_slips_off_the_skins_falls_and_is_set_down_anew():
+    spec = ObjectSpec(0.3, 0.5, 0.4)                  # 2.9 N against 0.8 N of kinetic friction
+    obj = HeldObject(spec, STIFFNESS, reach_m=0.011)
+    obj.step(0.0, (1.0, 1.0), DEPTH)
+    obj.lift()
+    states = run(obj, (1.0, 1.0), 0.001, 0.3)
+    fell = next(i for i, s in enumerate(states) if s.dropped)
+    assert 0.011 < states[fell].slip_m < 0.012 and not states[fell - 1].dropped
+    assert states[-1].force_a_n == 0.0 and states[-1].slip_m == states[fell].slip_m
+    obj.set_down()
+    state = obj.step(0.4, (1.0, 1.0), DEPTH)
+    assert not state.dropped and state.position_m == 0.0 and state.slip_m == 0.0
