@@ -6,18 +6,19 @@ its stiffness k(d) from the FEM array grid at that finger's indentation d
 (``sim/skin_shear.py``), in series with Coulomb friction against the object
 (static mu_s, kinetic mu_k <= mu_s) that has a stick state (Karnopp 1985):
 
-- stuck, the patch moves with the object and the skin carries e = k (x - anchor); the
-  contact breaks away once |e| > mu_s N (N: that finger's normal force);
+- stuck, the patch moves with the object and the skin carries F = k (x - anchor), with
+  the silicone's rate effect; the contact breaks away once |F| > mu_s N (N: that
+  finger's normal force);
 - sliding, the friction force is mu_k N against the slide, the skin stays deflected by it
   (the patch is massless) and the anchor moves with the object; the contact sticks again
   in the step in which the sliding velocity reaches zero (it changes sign or vanishes):
   Karnopp's velocity band, one step's velocity change wide.
 
 The spring in series with a stick state is Haessig and Friedland's reset-integrator
-friction model (1991). The skin's force on the object carries the silicone's rate effect
-(physics' Prony series, per axis as the bench gauge has it), which is also what damps the
-object's ringing while it sticks. The object's slip is how far its anchors moved: its travel
-over the skins, without their elastic deflection.
+friction model (1991). The rate effect is physics' Prony series, per axis as the bench
+gauge has it; it is also what damps the object's ringing while it sticks. The object's
+slip is how far its anchors moved: its travel over the skins, without their elastic
+deflection.
 
 Before the lift the object stands on its support, which holds it along the fingers: nothing
 moves. From the lift on, gravity m g and the scripted pull (:class:`LoadScript`, seconds

@@ -48,10 +48,6 @@ class TangentialStiffness:
         the hyperelastic law is homogeneous in its moduli, so every force scales)."""
         return TangentialStiffness(self._d, [ratio * k for k in self._k], self.source)
 
-    @property
-    def largest_n_per_m(self) -> float:
-        return max(self._k)
-
     @classmethod
     def from_grid(cls, grid: Any) -> TangentialStiffness:
         """From a ``physics.array_grid.ArrayGrid``: its direction 0 (+x), largest level."""

@@ -58,7 +58,6 @@ def test_a_cached_grid_is_read_and_nothing_solved(tmp_path, monkeypatch):
 def test_a_stiffer_skin_scales_and_a_bad_table_is_refused():
     k = TangentialStiffness([0.001, 0.002], [300.0, 280.0])
     assert k.scaled(1.5)(0.0015) == pytest.approx(1.5 * 290.0)
-    assert k.largest_n_per_m == 300.0
     with pytest.raises(SimError, match="finite stiffnesses > 0"):
         TangentialStiffness([0.001, 0.002], [300.0, 0.0])
     with pytest.raises(SimError, match="increasing indentations"):
