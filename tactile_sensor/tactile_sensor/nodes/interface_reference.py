@@ -205,6 +205,7 @@ def _mock_hardware() -> NodeInterface:
 
     specs = [*physics_specs(), *SPECS]
     bench, gripper = frozenset({"bench"}), frozenset({"gripper"})
+    held = frozenset({"object"})
     return NodeInterface(
         "mock_hardware", "mock_hardware_node",
         "The devices on pseudo-terminals (a photoreflector ADC, an XM430) and the rig's "
@@ -219,11 +220,18 @@ def _mock_hardware() -> NodeInterface:
             Endpoint("~/gauge/wrench", _WRENCH, "the probe's force on the skin [N], "
                      "+z pressing in; with a wrench protocol also its torque on the skin "
                      "about the probe's centre [N m]", bench),
-            Endpoint("~/ground_truth", _WRENCH, "finger A's true skin force [N]", gripper),
+            Endpoint("~/ground_truth", _WRENCH, "finger A's true skin force [N]: force.z "
+                     "normal; with an object (`object.mass_kg` > 0) force.x along the "
+                     "fingers, toward their tips", gripper | held),
+            Endpoint("~/object/joint_states", _JOINTS, "the object along the fingers "
+                     "(+ toward their tips): `object_position` its travel [m] (the skins' "
+                     "deflection included), `object_slip` its slip over the skins [m]",
+                     held),
         ],
         services=[Endpoint("~/start", _TRIGGER, "start the protocol now (with "
                            "`protocol.start_delay` < 0 it waits for this)", bench)],
-        variants={"bench": {"world": "bench"}, "gripper": {"world": "gripper"}},
+        variants={"bench": {"world": "bench"}, "gripper": {"world": "gripper"},
+                  "object": {"world": "gripper", "object.mass_kg": 0.1}},
         notes="Not a lifecycle node: it opens its devices when it starts. The ADC appears "
               "at `adc_link`, the servo at `servo_link` (gripper world).")
 

@@ -19,7 +19,10 @@ servo and the reference instruments agree:
   ``~/start``.
 - ``world: gripper`` — the soft gripper: an emulated XM430 moves the fingers, the rod
   indents the fingertip skin, the mock ADC streams finger A's modules, and
-  ``~/ground_truth`` carries finger A's true skin force.
+  ``~/ground_truth`` carries finger A's true skin force. With ``object.mass_kg`` > 0 the
+  rod is an object that can slip along the fingers (sim/held_object.py): its skin force
+  along them is force.x of ``~/ground_truth`` and ``~/object/joint_states`` carries its
+  travel and slip; the emulator's control FIFO lifts it (``object lift``).
 """
 
 from __future__ import annotations
@@ -62,6 +65,7 @@ from tactile_sensor.sim.ambient_light import (
 from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin
 from tactile_sensor.sim.bench_world import BenchRun, BenchWorld
 from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.held_object import ObjectSpec, object_from_values
 from tactile_sensor.sim.profiles import MAX_ROTATION_RAD, MAX_SHEAR_M, LoadProfile, array_profile
 from tactile_sensor.sim.skin_response import TabulatedSkin
 from tactile_sensor.sim.wrench_world import WRENCH_MIN_MODULES, WrenchBenchWorld, WrenchSkin
@@ -148,10 +152,24 @@ SPECS = [
     ParamSpec("rod.diameter", 0.020, "diameter of the rod between the fingers [m]; 0 = none",
               minimum=0.0),
     ParamSpec("rod.offset", 0.0, "rod centre offset from the gripper axis [m]"),
+    ParamSpec("object.mass_kg", 0.0, "mass [kg] of an object held between the fingers in "
+              "place of the fixed rod (its size and place are the rod's); 0 = none", minimum=0.0,
+              maximum=100.0),
+    ParamSpec("object.friction_static", 0.5, "static friction coefficient of the object on "
+              "each skin [1] (> 0)"),
+    ParamSpec("object.friction_kinetic", 0.5, "kinetic friction coefficient of the object "
+              "on each skin [1] (> 0, <= object.friction_static)"),
+    ParamSpec("object.load_profile", [], "pull on the object along the fingers, toward "
+              "their tips: 'time:newtons' entries [s:N], seconds after the lift (`object "
+              "lift` on servo_control), linear in between; added to its weight once lifted"),
     ParamSpec("ground_truth_rate", 200.0, "rate of ~/ground_truth [Hz]", minimum=1.0,
               maximum=2000.0),
 ]
 
+
+#: The object along the fingers (+ toward their tips) [m]: its travel since the lift (the
+#: skins' deflection included) and its slip over the skins (without it).
+OBJECT_JOINTS = ("object_position", "object_slip")
 
 #: On shutdown the devices stay until their clients closed them, at most this long [s].
 RELEASE_WAIT_S = 3.0
@@ -248,6 +266,15 @@ class MockHardwareNode(Node):
                                     sample_rate_hz=values["adc_rate"])
             self.detector = DetectorState(values["temperature.delta_k"],
                                           values["emitter.output_ratio"])
+            self.object_spec: ObjectSpec | None = object_from_values(
+                values["object.mass_kg"], values["object.friction_static"],
+                values["object.friction_kinetic"], values["object.load_profile"])
+            if self.object_spec is not None and values["world"] != "gripper":
+                raise SimError("An object with mass (object.mass_kg > 0) is held by the "
+                               "gripper; set world to gripper or object.mass_kg to 0.")
+            if self.object_spec is not None and values["rod.diameter"] <= 0:
+                raise SimError("An object with mass (object.mass_kg > 0) is the rod between "
+                               "the fingers; give rod.diameter > 0 m.")
             if values["protocol.scenario"] and not self.scene.is_dark:
                 raise SimError(f"protocol.scenario '{values['protocol.scenario']}' sets the "
                                "light itself; leave the ambient.* parameters at 0 or the "
@@ -283,6 +310,7 @@ class MockHardwareNode(Node):
                     "loading the skin model (a first run computes the FEM sweep)")
                 self.curve = load_or_compute_curve(physics, cache, self._progress)
                 skin = TabulatedSkin.from_prediction_curve(self.curve)
+            held = self._held_object(physics, cache)
         except (PhysicsError, SimError) as exc:
             raise MockHardwareError(str(exc)) from None
         seed = values["seed"] if values["seed"] >= 0 else None
@@ -294,7 +322,7 @@ class MockHardwareNode(Node):
             if values["world"] == "bench":
                 self._build_bench(skin, physics)
             else:
-                self._build_gripper(skin)
+                self._build_gripper(skin, held)
             for path in self._links():
                 Path(path).parent.mkdir(parents=True, exist_ok=True)
             faces = self.world.faces  # the ADC samples every module the world has
@@ -454,7 +482,24 @@ class MockHardwareNode(Node):
                 next_ns += period_ns
 
     # -- gripper -------------------------------------------------------------------------------
-    def _build_gripper(self, skin: TabulatedSkin) -> None:
+    def _held_object(self, physics: Any, cache: Path | None) -> Any:
+        """The object with mass, its skins' tangential stiffness from the FEM array grid of
+        the gripper's skin (None: the fixed rod)."""
+        if self.object_spec is None:
+            return None
+        from tactile_sensor.sim.held_object import HeldObject
+        from tactile_sensor.sim.skin_shear import load_or_compute_stiffness
+
+        self.get_logger().info("loading the skin's tangential stiffness (a first run "
+                               "computes its FEM shear path)")
+        stiffness = load_or_compute_stiffness(physics, cache, self._grid_progress).scaled(
+            self.values["skin.stiffness_ratio"])
+        # the fingers run along the skin block's x: it slips off past half its width
+        return HeldObject(self.object_spec, stiffness,
+                          lambda: RateDependentForce.from_params(physics),
+                          reach_m=0.5 * physics.width)
+
+    def _build_gripper(self, skin: TabulatedSkin, held: Any = None) -> None:
         from tactile_sensor.control.geometry import GripperGeometry
         from tactile_sensor.sim.gripper_world import GripperWorld
         from tactile_sensor.sim.xm430_emulator import Xm430Emulator
@@ -469,12 +514,14 @@ class MockHardwareNode(Node):
                                     ) from None
         self.world = GripperWorld(skin, geometry, rod_diameter_m=v["rod.diameter"] or None,
                                   rod_offset_m=v["rod.offset"],
-                                  stiffness_ratio=v["skin.stiffness_ratio"])
+                                  stiffness_ratio=v["skin.stiffness_ratio"], held=held)
         self.source = self.world.module_voltages
         self.emulator = Xm430Emulator(v["servo_link"], servo_id=v["servo_id"],
                                       baudrate=v["servo_baud_rate"], world=self.world,
                                       control_path=v["servo_control"] or None)
         self._truth_pub = self.create_publisher(WrenchStamped, "~/ground_truth", 100)
+        self._object_pub = None if held is None else self.create_publisher(
+            JointState, "~/object/joint_states", 100)
         self.create_timer(1.0 / v["ground_truth_rate"], self._publish_truth)
 
     def _publish_truth(self) -> None:
@@ -483,7 +530,16 @@ class MockHardwareNode(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         msg.header.frame_id = "finger_a"
         msg.wrench.force.z = float(sample.force_a_n)
+        held = sample.held
+        if held is not None:
+            msg.wrench.force.x = float(held.force_a_n)
         self._truth_pub.publish(msg)
+        if held is not None and self._object_pub is not None:
+            along = JointState()
+            along.header = msg.header
+            along.name = list(OBJECT_JOINTS)
+            along.position = [held.position_m, held.slip_m]
+            self._object_pub.publish(along)
 
     # -- shutdown ------------------------------------------------------------------------------
     def close_devices(self) -> None:

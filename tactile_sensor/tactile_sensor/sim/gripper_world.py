@@ -15,6 +15,10 @@ layer through :class:`TabulatedSkin`. Beyond the table the skin bottoms out on t
 frame, modelled as a stiff spring. The motor must supply ``pitch_radius_m * (F_A + F_B)`` to
 hold a position; hard stops at both ends of the travel do the same with a stiff spring.
 
+An object with mass (``held``, sim/held_object.py) makes the rod free along the fingers:
+it stands on its support until :meth:`GripperWorld.lift`, then gravity and a scripted pull
+act on it, and the skins' friction holds it or lets it slip. Without one the rod is fixed.
+
 Threads: the emulator thread calls :meth:`GripperWorld.update`; the mock ADC thread calls
 :meth:`GripperWorld.module_voltages`; a lock guards the shared state.
 """
@@ -23,12 +27,13 @@ from __future__ import annotations
 
 import bisect
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
 
 from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.sim.held_object import HeldObject, ObjectState
 from tactile_sensor.sim.skin_block import SkinBlock
 from tactile_sensor.sim.skin_response import RIGID_STIFFNESS_N_PER_M, SkinResponse
 
@@ -45,6 +50,8 @@ class WorldSample:
     force_a_n: float
     force_b_n: float
     voltages_v: tuple[float, ...]
+    #: The object along the fingers (None: the rod is fixed).
+    held: ObjectState | None = None
 
 
 class GripperWorld:
@@ -52,7 +59,8 @@ class GripperWorld:
 
     def __init__(self, skin: SkinResponse, geometry: GripperGeometry | None = None,
                  rod_diameter_m: float | None = 0.020, rod_offset_m: float = 0.0,
-                 history_s: float = 5.0, stiffness_ratio: float = 1.0) -> None:
+                 history_s: float = 5.0, stiffness_ratio: float = 1.0,
+                 held: HeldObject | None = None) -> None:
         self.geometry = geometry or GripperGeometry()
         if rod_diameter_m is not None and rod_diameter_m <= 0:
             raise ValueError("rod_diameter_m must be positive (or None for no rod)")
@@ -60,6 +68,9 @@ class GripperWorld:
         self.finger_a = SkinBlock(skin, stiffness_ratio=stiffness_ratio)
         self.finger_b = SkinBlock(skin, faces=(), stiffness_ratio=stiffness_ratio)
         self.faces = self.finger_a.faces
+        if held is not None and rod_diameter_m is None:
+            raise ValueError("an object with mass needs a rod diameter (its size)")
+        self.held = held
         self._lock = threading.Lock()
         self._rod: tuple[float, float] | None = None
         self.set_rod(rod_diameter_m, rod_offset_m)
@@ -67,6 +78,8 @@ class GripperWorld:
         self._forces: list[float] = []
         self._history_s = history_s
         self._latest = self._sample(0.0, self.geometry.open_position_rad)
+        if held is not None:
+            self._latest = replace(self._latest, held=held.state)
 
     # -- configuration ---------------------------------------------------------------------
 
@@ -74,6 +87,22 @@ class GripperWorld:
         """Place (or remove, with None) the rod between the fingers."""
         with self._lock:
             self._rod = None if diameter_m is None else (float(diameter_m), float(offset_m))
+
+    def lift(self) -> bool:
+        """Take the object off its support (False: there is no object)."""
+        with self._lock:
+            if self.held is None:
+                return False
+            self.held.lift()
+            return True
+
+    def set_down(self) -> bool:
+        """Put the object back on its support (False: there is no object)."""
+        with self._lock:
+            if self.held is None:
+                return False
+            self.held.set_down()
+            return True
 
     @property
     def initial_position_rad(self) -> float:
@@ -84,7 +113,7 @@ class GripperWorld:
     def indentations_m(self, position_rad: float) -> tuple[float, float]:
         """Skin indentation of finger A (at -opening/2) and finger B (at +opening/2)."""
         rod = self._rod
-        if rod is None:
+        if rod is None or (self.held is not None and self.held.dropped):
             return 0.0, 0.0
         diameter, offset = rod
         half = 0.5 * self.geometry.opening_m(position_rad)
@@ -118,6 +147,10 @@ class GripperWorld:
         """Record the fingers at ``position_rad`` at time ``t_s`` (emulator thread)."""
         sample = self._sample(t_s, position_rad)
         with self._lock:
+            if self.held is not None:
+                sample = replace(sample, held=self.held.step(
+                    t_s, (sample.force_a_n, sample.force_b_n),
+                    (sample.indentation_a_m, sample.indentation_b_m)))
             self._latest = sample
             self._times.append(t_s)
             self._forces.append(sample.force_a_n)

@@ -57,6 +57,8 @@ control FIFO commands (one per line, e.g. `echo "fault overload" > CONTROL`):
   no-response on|off  stop / resume answering (a pulled cable or dead servo)
   delay SECONDS       extra delay before every reply (slow response; 0 to clear)
   rod DIAMETER_M [OFFSET_M] | rod none   place or remove the object between the fingers
+  object lift|down    take the object with mass off its support (gravity and the
+                      scripted pull act from then on) or put it back
   clear               undo voltage, no-response and delay (latched bits stay)"""
 
 #: Parser gives up a partial packet after this much silence (a real servo's own timeout).
@@ -209,6 +211,12 @@ class Xm430Emulator:
                 offset = float(args[1]) if len(args) > 1 else 0.0
                 self.world.set_rod(float(args[0]), offset)
                 return f"rod {float(args[0]):.4f} m at {offset:.4f} m"
+            if cmd == "object" and args in (["lift"], ["down"]) and self.world is not None:
+                done = self.world.lift() if args[0] == "lift" else self.world.set_down()
+                if not done:
+                    raise SimError("There is no object to lift or set down; give the world "
+                                   "one (object.mass_kg > 0).")
+                return "object lifted" if args[0] == "lift" else "object set down"
             if cmd == "clear" and not args:
                 self.clear_faults()
                 return "faults cleared"

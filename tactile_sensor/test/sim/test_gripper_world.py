@@ -12,7 +12,9 @@ from hypothesis import strategies as st
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.gripper_world import GripperWorld
+from tactile_sensor.sim.held_object import HeldObject, ObjectSpec
 from tactile_sensor.sim.skin_response import TabulatedSkin
+from tactile_sensor.sim.skin_shear import TangentialStiffness
 
 
 def skin() -> TabulatedSkin:
@@ -113,3 +115,50 @@ def test_reader_thread_sees_consistent_samples():
     stop.set()
     thread.join()
     assert seen and all(1.0 < v <= 2.0 for v in seen)
+
+
+def held_object() -> HeldObject:
+    return HeldObject(ObjectSpec(0.2, 0.3, 0.2), TangentialStiffness([0.001], [340.0]))
+
+
+def test_an_object_on_its_support_leaves_the_world_as_the_fixed_rod_had_it():
+    fixed, holding = GripperWorld(skin()), GripperWorld(skin(), held=held_object())
+    g = fixed.geometry
+    for i, opening in enumerate(np.linspace(0.030, 0.017, 40).tolist()):
+        position, t = g.position_rad(opening), 0.01 * i
+        a, b = fixed.update(t, position), holding.update(t, position)
+        assert a.held is None
+        assert b.held is not None and b.held.position_m == 0.0 and b.held.force_a_n == 0.0
+        assert (a.force_a_n, a.force_b_n, a.voltages_v) == (b.force_a_n, b.force_b_n,
+                                                           b.voltages_v)
+        assert fixed.load_torque_nm(position) == holding.load_torque_nm(position)
+
+
+def test_a_lifted_object_slips_through_a_light_grip_and_the_normal_force_stays():
+    world = GripperWorld(skin(), held=held_object())
+    position = world.geometry.position_rad(0.0195)      # 0.25 mm each side: a light grip
+    before = world.update(0.0, position)
+    assert world.lift()
+    samples = [world.update(0.001 * i, position) for i in range(1, 200)]
+    assert samples[-1].held.lifted and samples[-1].held.slip_m > 0.001
+    assert samples[-1].force_a_n == before.force_a_n
+    assert not GripperWorld(skin()).lift()                  # no object: nothing to lift
+
+
+def test_an_object_that_fell_out_leaves_the_fingers_nothing_to_press():
+    held = HeldObject(ObjectSpec(0.3, 0.3, 0.2), TangentialStiffness([0.001], [340.0]),
+                      reach_m=0.002)
+    world = GripperWorld(skin(), held=held)
+    position = world.geometry.position_rad(0.0195)
+    world.update(0.0, position)
+    world.lift()
+    sample = next(s for s in (world.update(0.001 * i, position) for i in range(1, 500))
+                  if s.held.dropped)
+    assert world.indentations_m(position) == (0.0, 0.0)
+    assert world.update(0.6, position).force_a_n == 0.0 and world.load_torque_nm(position) == 0
+    assert sample.held.slip_m > 0.002
+
+
+def test_an_object_needs_a_rod():
+    with pytest.raises(ValueError, match="needs a rod diameter"):
+        GripperWorld(skin(), rod_diameter_m=None, held=held_object())

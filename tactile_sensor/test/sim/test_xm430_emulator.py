@@ -30,7 +30,9 @@ from waiting import wait_until
 from tactile_sensor.sim.dynamixel_packets import Instruction, build_instruction, parse_one
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.gripper_world import GripperWorld
+from tactile_sensor.sim.held_object import HeldObject, ObjectSpec
 from tactile_sensor.sim.skin_response import TabulatedSkin
+from tactile_sensor.sim.skin_shear import TangentialStiffness
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
 
 BAUD = 1_000_000
@@ -304,6 +306,18 @@ def test_control_commands_and_errors(emulator):
         emulator.control("voltage twelve")
     with pytest.raises(SimError, match="negative"):
         emulator.set_extra_delay(-1)
+    with pytest.raises(SimError, match="There is no object to lift"):
+        emulator.control("object lift")
+
+
+def test_the_object_is_lifted_and_set_down_through_the_control_commands(tmp_path):
+    held = HeldObject(ObjectSpec(0.1, 0.5, 0.4), TangentialStiffness([0.001], [340.0]))
+    world = GripperWorld(linear_skin(), held=held)
+    with Xm430Emulator(tmp_path / "xm430", baudrate=BAUD, world=world) as emu:
+        assert emu.control("object lift") == "object lifted"
+        assert wait_until(lambda: world.latest.held is not None and world.latest.held.lifted)
+        assert emu.control("object down") == "object set down"
+        assert wait_until(lambda: not world.latest.held.lifted)
 
 
 def test_bad_constructor_arguments(tmp_path):
