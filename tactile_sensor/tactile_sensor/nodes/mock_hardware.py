@@ -67,8 +67,9 @@ from tactile_sensor.sim.bench_world import BenchRun, BenchWorld
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.held_object import ObjectSpec, object_from_values
 from tactile_sensor.sim.profiles import MAX_ROTATION_RAD, MAX_SHEAR_M, LoadProfile, array_profile
+from tactile_sensor.sim.rig_refusals import RigSettings, rig_refusal
 from tactile_sensor.sim.skin_response import TabulatedSkin
-from tactile_sensor.sim.wrench_world import WRENCH_MIN_MODULES, WrenchBenchWorld, WrenchSkin
+from tactile_sensor.sim.wrench_world import WrenchBenchWorld, WrenchSkin
 
 SPECS = [
     ParamSpec("world", "bench", "which rig to simulate", choices=("bench", "gripper")),
@@ -179,19 +180,6 @@ class MockHardwareError(Exception):
     """The mock rig cannot start; the message names the parameter or file to fix."""
 
 
-def wrench_refusal(world: str, modules: int) -> str | None:
-    """Why a wrench protocol cannot run on this rig, in one sentence (None: it can)."""
-    if world != "bench":
-        return ("A wrench protocol (protocol.tilt or protocol.twist > 0) needs the bench "
-                "world; set world to bench or protocol.tilt and protocol.twist to 0.")
-    if modules < WRENCH_MIN_MODULES:
-        return (f"A wrench protocol needs at least {WRENCH_MIN_MODULES} modules to tell six "
-                f"wrench components apart, the physics parameter modules names {modules}; "
-                "set e.g. modules to front@-0.0055,front@0.0055,back@-0.0055,back@0.0055,"
-                "left@-0.0055,left@0.0055,right@-0.0055,right@0.0055.")
-    return None
-
-
 class ProtocolSource:
     """The ADC's voltage source: the world at rest until the protocol starts, then its run.
 
@@ -269,33 +257,18 @@ class MockHardwareNode(Node):
             self.object_spec: ObjectSpec | None = object_from_values(
                 values["object.mass_kg"], values["object.friction_static"],
                 values["object.friction_kinetic"], values["object.load_profile"])
-            if self.object_spec is not None and values["world"] != "gripper":
-                raise SimError("An object with mass (object.mass_kg > 0) is held by the "
-                               "gripper; set world to gripper or object.mass_kg to 0.")
-            if self.object_spec is not None and values["rod.diameter"] <= 0:
-                raise SimError("An object with mass (object.mass_kg > 0) is the rod between "
-                               "the fingers; give rod.diameter > 0 m.")
-            if values["protocol.scenario"] and not self.scene.is_dark:
-                raise SimError(f"protocol.scenario '{values['protocol.scenario']}' sets the "
-                               "light itself; leave the ambient.* parameters at 0 or the "
-                               "scenario empty.")
         except (ParameterError, PhysicsError, SimError) as exc:
             raise MockHardwareError(str(exc)) from None
         self.values = values
         self.faces: tuple[str, ...] = physics.module_faces
-        array = values["world"] == "bench" and len(self.faces) > 1
-        wrench = values["protocol.tilt"] > 0 or values["protocol.twist"] > 0
-        refusal = wrench_refusal(values["world"], len(self.faces)) if wrench else None
-        if refusal:
+        rig = RigSettings(
+            values["world"], len(self.faces), values["protocol.shear"], values["protocol.tilt"],
+            values["protocol.twist"], values["skin.stiffness_ratio"],
+            self.object_spec is not None, values["rod.diameter"], values["protocol.scenario"],
+            self.scene.is_dark)
+        if (refusal := rig_refusal(rig)) is not None:
             raise MockHardwareError(refusal)
-        if array and values["skin.stiffness_ratio"] != 1.0:
-            raise MockHardwareError(
-                "skin.stiffness_ratio applies to a single-module skin (the bench or the "
-                "gripper); set it to 1.0 for a module array.")
-        if values["world"] == "bench" and values["protocol.shear"] > 0 and not array:
-            raise MockHardwareError(
-                "A shear protocol needs a module array; set the physics parameter modules "
-                "to several faces (e.g. front,back,left,right) or protocol.shear to 0.")
+        array, wrench = rig.array, rig.wrench
         cache = Path(values["cache_dir"]) if values["cache_dir"] else None
         skin: Any
         try:

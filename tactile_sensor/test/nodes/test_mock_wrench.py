@@ -9,8 +9,8 @@ from tactile_sensor.nodes.mock_hardware import (
     WRENCH_STAGE_JOINTS,
     stage_and_gauge,
     stage_and_gauge_block,
-    wrench_refusal,
 )
+from tactile_sensor.sim.rig_refusals import wrench_refusal
 
 
 def test_wrench_protocol_needs_the_bench_and_six_modules() -> None:
