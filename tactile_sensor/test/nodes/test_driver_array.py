@@ -15,19 +15,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from driver_listener import DriverListener, start_driver
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from std_srvs.srv import Trigger
-from waiting import wait_until
 
 from tactile_sensor.nodes import array_calibration_msg
-from tactile_sensor.nodes.background_spin import BackgroundSpin
-from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import TactileReading
@@ -79,14 +75,16 @@ def _seconds(stamp: Time) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-class Listener:
+class Listener(DriverListener):
     def __init__(self) -> None:
-        self.node = rclpy.create_node("array_listener")
         self.readings: list[TactileReading] = []
         self.wrenches: list[tuple[float, float, float]] = []
         self.torques: list[tuple[float, float, float]] = []
         self.wrench_stamps: list[float] = []  # [s], the samples' host-clock stamps
         self.diagnostics: list[DiagnosticStatus] = []
+        super().__init__("array_listener")
+
+    def subscribe(self) -> None:
         self.node.create_subscription(TactileReading, "/driver/reading",
                                       self.readings.append, 1000)
         self.node.create_subscription(WrenchStamped, "/driver/wrench", self._on_wrench, 1000)
@@ -94,45 +92,21 @@ class Listener:
             DiagnosticArray, "/diagnostics",
             lambda m: self.diagnostics.extend(s for s in m.status if "tactile ADC" in s.name),
             100)
-        self.executor = rclpy.executors.SingleThreadedExecutor()
-        self.executor.add_node(self.node)
-        self.spin = BackgroundSpin(self.executor)
 
     def _on_wrench(self, m: WrenchStamped) -> None:
         self.wrenches.append((m.wrench.force.x, m.wrench.force.y, m.wrench.force.z))
         self.torques.append((m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z))
         self.wrench_stamps.append(_seconds(m.header.stamp))
 
-    @staticmethod
-    def wait_for(predicate, timeout_s: float) -> bool:
-        return wait_until(predicate, timeout_s)
-
-
-    def call_tare(self) -> Trigger.Response:
-        client = self.node.create_client(Trigger, "/driver/tare")
-        assert client.wait_for_service(timeout_sec=PATIENCE_S)
-        future = client.call_async(Trigger.Request())
-        assert self.wait_for(future.done, PATIENCE_S)
-        return future.result()
-
-    def close(self) -> None:
-        self.spin.stop()
-        self.node.destroy_node()
-
 
 @pytest.fixture
 def ros(ros_domain):
-    with ros_session():
-        listener = Listener()
+    with Listener.listening() as listener:
         yield listener
-        listener.close()
 
 
-def start_driver(spawn, link: Path, calibration: Path, *extra: str):
-    return spawn("--ros-args", "-r", "__node:=driver", "-p", f"port:={link}",
-                 "-p", "calibration_source:=file", "-p", f"calibration_file:={calibration}",
-                 "-p", f"modules:={MODULES}", "-p", "autostart:=true", *extra,
-                 module="tactile_sensor.nodes.driver")
+def start_array_driver(spawn, link: Path, calibration: Path, *extra: str):
+    return start_driver(spawn, link, calibration, "-p", f"modules:={MODULES}", *extra)
 
 
 def start_mock(spawn, link: Path, channels: int = 4):
@@ -149,7 +123,7 @@ def _value(status: DiagnosticStatus, key: str) -> str | None:
 def test_four_modules_give_the_wrench_and_every_module_in_the_reading(spawn, ros, tmp_path):
     calibration = tmp_path / "array.json"
     fit_calibration(calibration)
-    driver = start_driver(spawn, tmp_path / "adc", calibration)
+    driver = start_array_driver(spawn, tmp_path / "adc", calibration)
     assert driver.wait_for_output("active", PATIENCE_S), driver.output()
     assert "modules 0:front,1:back,2:left,3:right" in driver.output()
     start_mock(spawn, tmp_path / "adc")
@@ -212,7 +186,7 @@ def test_a_six_column_calibration_gives_low_passed_torque_and_nan_for_the_rest(s
                            "synthetic", torque, ["fx", "fy", "fz", "tx"])
     calibration = tmp_path / "six.json"
     six.to_file(calibration)
-    driver = start_driver(spawn, tmp_path / "adc", calibration, "-p", "torque_cutoff_hz:=5.0")
+    driver = start_array_driver(spawn, tmp_path / "adc", calibration, "-p", "torque_cutoff_hz:=5.0")
     assert driver.wait_for_output("active", PATIENCE_S), driver.output()
     start_mock(spawn, tmp_path / "adc")
     assert ros.wait_for(lambda: len(ros.torques) > 2500, PATIENCE_S), driver.output()
@@ -229,7 +203,7 @@ def test_a_six_column_calibration_gives_low_passed_torque_and_nan_for_the_rest(s
 def test_a_calibration_for_other_faces_is_refused(spawn, ros_domain, tmp_path):
     calibration = tmp_path / "two.json"
     fit_calibration(calibration, ("front", "back"))
-    driver = start_driver(spawn, tmp_path / "adc", calibration)
+    driver = start_array_driver(spawn, tmp_path / "adc", calibration)
     assert driver.wait_for_output("configure transition failed", PATIENCE_S), driver.output()
     assert f"configure failed: The array calibration file:{calibration}" in driver.output()
     assert ("is for modules front, back but the driver's modules are front, back, left, "
@@ -240,7 +214,7 @@ def test_a_calibration_for_other_faces_is_refused(spawn, ros_domain, tmp_path):
 def test_a_device_with_too_few_channels_is_an_error_naming_both(spawn, ros, tmp_path):
     calibration = tmp_path / "array.json"
     fit_calibration(calibration)
-    driver = start_driver(spawn, tmp_path / "adc", calibration)
+    driver = start_array_driver(spawn, tmp_path / "adc", calibration)
     assert driver.wait_for_output("active", PATIENCE_S), driver.output()
     start_mock(spawn, tmp_path / "adc", channels=2)
     expected = "The driver reads channel 3 but the device sends 2 channel(s)"
@@ -260,7 +234,7 @@ def test_a_device_with_too_few_channels_is_an_error_naming_both(spawn, ros, tmp_
 def test_a_bad_modules_parameter_fails_configure_with_its_sentence(spawn, ros_domain,
                                                                    tmp_path, modules,
                                                                    sentence):
-    driver = start_driver(spawn, tmp_path / "adc", tmp_path / "none.json",
+    driver = start_array_driver(spawn, tmp_path / "adc", tmp_path / "none.json",
                           "-p", f"modules:={modules}")
     assert driver.wait_for_output("configure transition failed", PATIENCE_S), driver.output()
     assert "'modules'" in driver.output() and sentence in driver.output()

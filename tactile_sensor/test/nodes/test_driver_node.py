@@ -14,21 +14,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from driver_listener import DriverListener, start_driver
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
-from std_srvs.srv import Trigger
-from waiting import wait_until
 
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.hardware.adc_frame import crc16, encode_frame
 from tactile_sensor.nodes import calibration_curve_msg
-from tactile_sensor.nodes.background_spin import BackgroundSpin
-from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.rate_calibration import RateCalibration, RateTerm
@@ -67,14 +63,16 @@ def files(tmp_path: Path) -> dict[str, Path]:
             "control": tmp_path / "adc.ctl"}
 
 
-class Listener:
+class Listener(DriverListener):
     """Collects the driver's topics in a background executor."""
 
     def __init__(self) -> None:
-        self.node = rclpy.create_node("driver_listener")
         self.readings: list[tuple[float, TactileReading]] = []
         self.wrenches: list[tuple[float, float]] = []
         self.diagnostics: list[tuple[float, DiagnosticStatus]] = []
+        super().__init__("driver_listener")
+
+    def subscribe(self) -> None:
         # As deep as the driver's queues (SAMPLE_QUEUE_DEPTH): 10 s of samples wait for a
         # listener that a busy machine starves.
         self.node.create_subscription(TactileReading, "/driver/reading",
@@ -84,9 +82,6 @@ class Listener:
             WrenchStamped, "/driver/wrench",
             lambda m: self.wrenches.append((_stamp(m), m.wrench.force.z)), 10_000)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
-        self.executor = rclpy.executors.SingleThreadedExecutor()
-        self.executor.add_node(self.node)
-        self.spin = BackgroundSpin(self.executor)
 
     def _on_diag(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
@@ -101,24 +96,6 @@ class Listener:
             self.node.count_publishers(t) > 0 for t in ("/driver/reading", "/driver/wrench")),
             PATIENCE_S)
 
-    @staticmethod
-    def wait_for(predicate, timeout_s: float) -> bool:
-        return wait_until(predicate, timeout_s)
-
-
-    def call_tare(self) -> Trigger.Response:
-        client = self.node.create_client(Trigger, "/driver/tare")
-        assert client.wait_for_service(timeout_sec=PATIENCE_S)
-        future = client.call_async(Trigger.Request())
-        deadline = time.monotonic() + PATIENCE_S
-        while not future.done() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        return future.result()
-
-    def close(self) -> None:
-        self.spin.stop()
-        self.node.destroy_node()
-
 
 def _stamp(msg) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
@@ -126,16 +103,8 @@ def _stamp(msg) -> float:
 
 @pytest.fixture
 def ros(ros_domain):
-    with ros_session():
-        listener = Listener()
+    with Listener.listening() as listener:
         yield listener
-        listener.close()
-
-
-def start_driver(spawn, link: Path, calibration: Path, *extra: str):
-    return spawn("--ros-args", "-r", "__node:=driver", "-p", f"port:={link}",
-                 "-p", "calibration_source:=file", "-p", f"calibration_file:={calibration}",
-                 "-p", "autostart:=true", *extra, module="tactile_sensor.nodes.driver")
 
 
 def start_mock(spawn, files: dict[str, Path], profile: str = PROFILE, *extra: str):

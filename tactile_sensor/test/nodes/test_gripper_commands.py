@@ -27,6 +27,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
+from lone_gripper import lone_gripper
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
@@ -401,14 +402,7 @@ def test_an_inactive_gripper_rejects_goals_naming_the_fix(spawn, ros_domain, tmp
     """Configured but not active (the launch files activate at once, so this runs the node
     alone on an emulated servo, configured through its lifecycle service, as
     ``ros2 lifecycle set /gripper configure`` does)."""
-    servo = tmp_path / "xm430"
-    emulator = spawn("mock", "xm430", "--link", str(servo), "--baud", "1000000", "--no-world",
-                     module="tactile_sensor.cli")
-    assert emulator.wait_for_output("xm430: id 1", PATIENCE_S), emulator.output()
-    # packet_timeout, comm_retries: as Launch's (a busy machine holds the emulator up)
-    gripper = spawn("--ros-args", "-r", "__node:=gripper", "-p", f"port:={servo}",
-                    "-p", "packet_timeout:=0.5", "-p", "comm_retries:=4",
-                    module="tactile_sensor.nodes.gripper")
+    gripper = lone_gripper(spawn, tmp_path / "xm430")
     with ros_session():
         client = Client()
         change_state = client.node.create_client(ChangeState, "/gripper/change_state")

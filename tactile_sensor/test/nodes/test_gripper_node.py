@@ -17,6 +17,7 @@ import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
+from lone_gripper import lone_gripper
 from rclpy.action import ActionClient, get_action_names_and_types
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -409,13 +410,7 @@ def test_a_grasp_on_a_stale_tactile_force_is_refused_in_one_sentence(
         spawn, ros_domain, tmp_path):
     """The driver went quiet, as it does while its detector is blind (no force then): a
     grasp is rejected before anything moves, naming why."""
-    servo = tmp_path / "xm430"
-    emulator = spawn("mock", "xm430", "--link", str(servo), "--baud", "1000000", "--no-world",
-                     module="tactile_sensor.cli")
-    assert emulator.wait_for_output("xm430: id 1", PATIENCE_S), emulator.output()
-    gripper = spawn("--ros-args", "-r", "__node:=gripper", "-p", f"port:={servo}",
-                    "-p", "autostart:=true", "-p", "packet_timeout:=0.5",
-                    "-p", "comm_retries:=4", module="tactile_sensor.nodes.gripper")
+    gripper = lone_gripper(spawn, tmp_path / "xm430", "-p", "autostart:=true")
     assert gripper.wait_for_output("active", PATIENCE_S), gripper.output()
     heard: list[JointState] = []
     with ros_session():

@@ -52,7 +52,9 @@ PROVIDER = {
     "xacro": "xacro",
     "urdf_parser_py": "urdfdom_py",
 }
-FIRST_PARTY = {"tactile_sensor", "conftest", "interface_servers", "waiting"}
+# the package, and the tests' own helper modules (beside conftest.py, and interface_servers)
+FIRST_PARTY = {"tactile_sensor", "interface_servers"} | {
+    path.stem for path in Path(__file__).resolve().parents[1].glob("*.py")}
 
 
 def third_party_imports(*roots: Path) -> dict[str, Path]:
