@@ -12,7 +12,7 @@ time may be asked in any order, as the mock ADC does.
 temperature and the emitter act once, on whatever world the ADC samples. For a modulated
 device it also gives the emitter-on and emitter-off samples of a period (``pair``): the
 same world and light, with the emitter's part at the share the detector shows after its
-switch (``sensing.modulation.emitter_levels``).
+switch (``physics.detector.emitter_levels``, which the driver shares).
 """
 
 from __future__ import annotations
@@ -25,8 +25,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tactile_sensor.physics.detector import DetectorState, module_output_v, response_tau_s
-from tactile_sensor.sensing.modulation import emitter_levels
+from tactile_sensor.physics.detector import (
+    DetectorState,
+    emitter_levels,
+    module_output_v,
+    response_tau_s,
+)
 from tactile_sensor.sim.errors import SimError
 
 #: Harmonics of the rectified lamp kept: the k-th has 2/(4k^2 - 1) of its mean, so the 10th
