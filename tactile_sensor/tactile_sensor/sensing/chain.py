@@ -208,7 +208,7 @@ class _Parts:
                                    else max(1, round(config.rate_hz * 0.01)))
 
 
-class SignalChain(SampleSteps["float | tuple[float, float]", Reading]):
+class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
     """Stateful per-sample processing for one sensor channel."""
 
     def __init__(self, config: ChainConfig | None = None,
@@ -225,6 +225,7 @@ class SignalChain(SampleSteps["float | tuple[float, float]", Reading]):
         self._filtered_v = NAN
         self._pair: PairSignal | None = None
         self._detector_v = NAN  # modulated: the lower of the last on and off samples
+        self._on_off_v = (NAN, NAN)  # modulated: the last on and off samples
         self._calibration = calibration
         self._static, self._estimator = _force_parts(calibration)
         self._baseline_v: float | None = None
@@ -323,6 +324,19 @@ class SignalChain(SampleSteps["float | tuple[float, float]", Reading]):
             self._tare.clear()
             self._restart_rate_terms()
 
+    def ambient(self) -> tuple[float, float | None] | None:
+        """The room's light on the detector as (drop below the supply [V], ratio of the
+        emitter's drop at rest; None before a tare), measured from the emitter-off
+        sample; None for a device without one (not modulated)."""
+        pair = self._pair
+        if pair is None:
+            return None
+        drop = pair.ambient_drop(*self._on_off_v)
+        baseline, vref = self._baseline_v, self._conversion.vref_v
+        if baseline is None or vref - baseline <= 0 or drop != drop:
+            return drop, None
+        return drop, drop / (vref - baseline)
+
     @property
     def modulation(self) -> Modulation | None:
         return None if self._pair is None else self._pair.modulation
@@ -377,24 +391,26 @@ class SignalChain(SampleSteps["float | tuple[float, float]", Reading]):
 
     # -- per sample ------------------------------------------------------------------------
 
-    def _volts(self, counts: tuple[int, ...]) -> float | tuple[float, float]:
+    def _volts(self, counts: tuple[int, ...]) -> float | tuple[float, float, float]:
         pair = self._pair
         if pair is None:
             return counts[self.config.channel] * self._volts_per_count
         on = counts[self.config.channel] * self._volts_per_count
         off = counts[pair.off_index] * self._volts_per_count
-        return pair.signal(on, off), min(on, off)
+        return pair.signal(on, off), on, off
 
     def _missing_channel(self, channels: int) -> SensingError:
         return SensingError(
             f"The sample has {channels} channel(s) but the chain reads channel "
             f"{self.config.channel}; set the channel parameter to match the firmware.")
 
-    def _step(self, volts: float | tuple[float, float], t_us: int, host_ns: int) -> Reading:
+    def _step(self, volts: float | tuple[float, float, float], t_us: int,
+              host_ns: int) -> Reading:
         """One sample's filter, tare window, force and contact (call with the lock held)."""
         if type(volts) is tuple:
-            volts, detector_v = volts
-            self._detector_v = detector_v
+            volts, on, off = volts
+            self._on_off_v = (on, off)
+            self._detector_v = detector_v = on if on < off else off
         else:
             detector_v = volts
         filtered = self._filter.update(volts)

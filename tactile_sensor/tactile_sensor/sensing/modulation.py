@@ -61,11 +61,16 @@ class Modulation:
     tau_s: float = DETECTOR_TAU_S
 
     @property
-    def share(self) -> float:
-        """The share of the emitter's drop in ``off - on`` for this channel (sampled
-        ``settle_us + channel * read_us`` after each switch)."""
+    def levels(self) -> tuple[float, float]:
+        """(on, off): the shares of the emitter's drop in this channel's on and off
+        samples (taken ``settle_us + channel * read_us`` after each switch)."""
         settle_s = (self.settle_us + self.channel * self.read_us) * 1e-6
-        on, off = emitter_levels(settle_s, self.period_us * 1e-6, self.tau_s)
+        return emitter_levels(settle_s, self.period_us * 1e-6, self.tau_s)
+
+    @property
+    def share(self) -> float:
+        """The share of the emitter's drop in ``off - on`` for this channel."""
+        on, off = self.levels
         return on - off
 
 
@@ -94,6 +99,7 @@ class PairSignal:
     def __init__(self, modulation: Modulation, vref_v: float) -> None:
         self.modulation = modulation
         self._gain = 1.0 / modulation.share
+        self._off_share = modulation.levels[1]
         self._vref = vref_v
         self._off_index = modulation.channels + modulation.channel
         self._last_off: float | None = None
@@ -105,6 +111,11 @@ class PairSignal:
 
     def reset(self) -> None:
         self._last_off = None
+
+    def ambient_drop(self, on_v: float, off_v: float) -> float:
+        """The room's light (and dark current) as a drop below ``vref`` [V]: the off
+        sample's drop less the emitter's light the detector still shows in it."""
+        return self._vref - off_v - (off_v - on_v) * self._gain * self._off_share
 
     def signal(self, on_v: float, off_v: float) -> float:
         last, self._last_off = self._last_off, off_v

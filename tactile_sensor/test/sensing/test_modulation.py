@@ -10,8 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo
+from tactile_sensor.hardware.adc_reader import ConnectionState, ReaderStats
 from tactile_sensor.hardware.adc_samples import Sample
 from tactile_sensor.physics.detector import response_tau_s
+from tactile_sensor.sensing.adc_health import adc_health
+from tactile_sensor.sensing.adc_settings import resolve_adc
 from tactile_sensor.sensing.chain import ChainConfig, SignalChain
 from tactile_sensor.sensing.errors import SensingError
 from tactile_sensor.sensing.modulation import (
@@ -175,3 +178,29 @@ def test_steady_light_never_reaches_the_signal(ambient_v, drop_v):
     on = off - drop_v * modulation.share
     values = [pair.signal(on, off) for _ in range(3)]
     assert np.allclose(values, 5.0 - drop_v)
+
+
+def test_the_room_light_is_measured_from_the_emitter_off_sample():
+    """The off sample still shows some emitter light (the detector's response); what is
+    left is the room's, reported in the ratio the light scenes use."""
+    chain = modulated_chain()
+    on_share, off_share = modulation_of(MODULATED, 0).levels  # type: ignore[union-attr]
+    assert chain.ambient() is not None and math.isnan(chain.ambient()[0])  # no sample yet
+    room_v, emitter_v = 0.6, 3.0
+    feed(chain, [(5.0 - room_v - emitter_v * on_share, 5.0 - room_v - emitter_v * off_share)]
+         * 120)
+    drop, ratio = chain.ambient()  # type: ignore[misc]
+    assert (drop, ratio) == (pytest.approx(room_v, abs=3e-3), pytest.approx(0.2, abs=2e-3))
+    assert SignalChain().ambient() is None  # a stock module has no emitter-off sample
+
+
+def test_the_diagnostics_report_the_room_light_of_a_modulated_module():
+    chain = modulated_chain()
+    on_share, off_share = modulation_of(MODULATED, 0).levels  # type: ignore[union-attr]
+    feed(chain, [(4.4 - 3.0 * on_share, 4.4 - 3.0 * off_share)] * 120)
+    reader = ReaderStats(state=ConnectionState.CONNECTED, reason="", frames=120, crc_errors=0,
+                         header_errors=0, sequence_gaps=0, dropped_frames=0,
+                         sequence_resets=0, resyncs=0, bytes_received=0, bytes_discarded=0,
+                         connections=1, last_frame_age_s=0.0, device_info=MODULATED)
+    values = adc_health(reader, resolve_adc(MODULATED), chain, 500.0, 0, 0).values
+    assert (values["ambient_v"], values["ambient_ratio"]) == ("0.600", "0.200")
