@@ -279,12 +279,10 @@ class DriverNode(Node):
                           chain.top_channel, values["sample_rate"])
         if adc.conversion is not None:
             chain.set_conversion(adc.conversion)
-        set_modulation = getattr(chain, "set_modulation", None)
-        if set_modulation is not None:
-            try:
-                set_modulation(modulation_of(info, chain.top_channel))
-            except SensingError as exc:
-                self.get_logger().error(f"The device's modulation cannot be read: {exc}")
+        try:  # channel 0 is sampled first after each switch: the least settled
+            chain.set_modulation(modulation_of(info, 0))
+        except SensingError as exc:
+            self.get_logger().error(f"The device's modulation cannot be read: {exc}")
         self._adc = adc
         if info != self._info_logged:  # once per device, not once per reconnection
             self._info_logged = info

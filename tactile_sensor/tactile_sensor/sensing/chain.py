@@ -23,6 +23,7 @@ lock guards the shared state, taken once per batch.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import threading
 from abc import ABC, abstractmethod
@@ -342,8 +343,11 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
         return None if self._pair is None else self._pair.modulation
 
     def set_modulation(self, modulation: Modulation | None) -> None:
-        """Read on/off pairs as ``modulation`` says (None: one code per channel); a change
-        forgets the filter and tare window, whose volts meant something else."""
+        """Read on/off pairs as ``modulation`` says for the chain's channel (None: one
+        code per channel); a change forgets the filter and tare window, whose volts meant
+        something else."""
+        if modulation is not None:
+            modulation = dataclasses.replace(modulation, channel=self.config.channel)
         with self._lock:
             if modulation == self.modulation:
                 return

@@ -204,3 +204,23 @@ def test_the_diagnostics_report_the_room_light_of_a_modulated_module():
                          connections=1, last_frame_age_s=0.0, device_info=MODULATED)
     values = adc_health(reader, resolve_adc(MODULATED), chain, 500.0, 0, 0).values
     assert (values["ambient_v"], values["ambient_ratio"]) == ("0.600", "0.200")
+
+
+def test_an_array_chain_reads_every_modules_emitter_light_from_its_own_pair():
+    from tactile_sensor.sensing.array_chain import ArrayChain, parse_modules
+
+    info = MODULATED._replace(channels=2, read_us=50)
+    chain = ArrayChain(ChainConfig(rate_hz=500.0, adc_bits=12, vref_v=5.0,
+                                   filter_name="none"), parse_modules("0:front,1:back"))
+    chain.set_modulation(modulation_of(info, 0))
+    shares = [Modulation(2000, 900, 50, c, 2).share for c in (0, 1)]
+    assert chain.modulation == Modulation(2000, 900, 50, 0, 2) and shares[0] < shares[1]
+    emitter = (3.0, 2.0)  # each module's emitter drop; the room's light 0.5 V on both
+    on = [4.5 - d * s for d, s in zip(emitter, shares, strict=True)]
+    counts = (*map(counts_of, on), counts_of(4.5), counts_of(4.5))
+    reading = chain.process(Sample(0, 0, 0, counts, 0))
+    assert reading.voltages_v == pytest.approx((2.0, 3.0), abs=3e-3)
+    chain.set_modulation(None)
+    assert chain.modulation is None
+    assert chain.process(Sample(1, 2000, 0, counts, 0)).voltages_v == pytest.approx(
+        tuple(on), abs=2e-3)
