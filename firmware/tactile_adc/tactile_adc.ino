@@ -226,11 +226,11 @@ static void wait_until(uint32_t t) {
   if (left > 0) delayMicroseconds((unsigned int)left);
 }
 
-static uint8_t data[FRAME_SIZE];                  // the data data being built
-static bool pending = false;                      // a modulated data waiting to be sent
+static uint8_t data[FRAME_SIZE];                  // the data frame being built
+static bool pending = false;                      // a modulated frame waiting to be sent
 
 // One modulated period from t0: the emitters on for the first half, off for the second,
-// each half sampled SETTLE_US after its switch. The previous period's data is sent while
+// each half sampled SETTLE_US after its switch. The previous period's frame is sent while
 // the detector settles, so the serial port never delays a switch.
 static void modulated_period(uint32_t t0) {
   set_emitters(HIGH);
