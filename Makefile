@@ -27,7 +27,7 @@ docs: setup  ## the ROS interface reference from the code, the pages' figures fr
 		&& sphinx-build -W --keep-going -q -b html docs build/docs/html \
 		&& echo "docs: build/docs/html/index.html"
 
-firmware:  ## cross-compile the ADC sketch for Uno, Mega, Leonardo, 8-channel Nano (avr-g++, -Werror), print sizes
+firmware:  ## cross-compile the ADC sketch for Uno, Mega, Leonardo, 8-channel Nano, modulated Uno and 8-channel Nano (avr-g++, -Werror), print sizes
 	@bash firmware/build-avr.sh
 
 lint: setup  ## ruff only

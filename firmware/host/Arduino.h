@@ -17,6 +17,17 @@ static const uint8_t A0 = 14, A1 = 15, A2 = 16, A3 = 17, A4 = 18, A5 = 19, A6 = 
 
 uint32_t micros();
 uint32_t millis();
+void delayMicroseconds(unsigned int us);  // sleeps on the host
+
+// Digital pins: a modulated sketch switches its emitters with them; the shim takes any
+// output pin driven HIGH as the emitters on (analogRead then gives the "volts" stimulus,
+// otherwise the "off" one).
+#define LOW 0
+#define HIGH 1
+#define INPUT 0
+#define OUTPUT 1
+void pinMode(uint8_t pin, uint8_t mode);
+void digitalWrite(uint8_t pin, uint8_t level);
 
 // The code of an ideal converter for the stimulus voltage on `pin` (A0 + channel or the
 // channel number): floor(V / Vref * 2^bits), clipped; 10 bits until told otherwise.

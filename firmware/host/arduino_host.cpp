@@ -9,8 +9,12 @@
 // stdin, one command per line:
 //   volts V          every channel at V volts
 //   volts CH V       channel CH (0..7) at V volts
-//   stats            answer "stats bytes_sent=N blocked_us=N adc_prescaler=N" on stdout
-//                    (adc_prescaler: the AVR ADC clock divider ADCSRA selects, 0 elsewhere)
+//   off V            every channel at V volts while the emitters are off (a modulated
+//   off CH V         sketch's off sample); until given, the same as "volts"
+//   stats            answer "stats bytes_sent=N blocked_us=N adc_prescaler=N
+//                    emitter_pins=N emitter_switches=N" on stdout (adc_prescaler: the AVR
+//                    ADC clock divider ADCSRA selects, 0 elsewhere; emitter_pins: pins set
+//                    as outputs; emitter_switches: times they went from low to high)
 // stdout: "pty /dev/pts/N" once the device is ready. Exits at stdin EOF, SIGINT or SIGTERM.
 
 #include "Arduino.h"
@@ -38,6 +42,11 @@ namespace {
 const int kChannels = 8;
 double g_vref = 5.0;
 double g_volts[kChannels] = {0};
+double g_off[kChannels] = {-1, -1, -1, -1, -1, -1, -1, -1};  // < 0: as g_volts
+const int kPins = 64;
+bool g_output[kPins] = {false};
+bool g_high[kPins] = {false};
+uint64_t g_switches = 0;
 int g_bits = 10;
 uint64_t g_micros_offset = 0;
 timespec g_start;
@@ -88,15 +97,23 @@ void run_command(const std::string &line) {
   double a = 0, b = 0;
   int n = sscanf(line.c_str(), "%15s %lf %lf", word, &a, &b);
   if (n >= 1 && strcmp(word, "stats") == 0) {
-    printf("stats bytes_sent=%llu blocked_us=%llu adc_prescaler=%u\n",
-           (unsigned long long)g_bytes_sent, (unsigned long long)g_blocked_us,
-           adc_prescaler());
+    int outputs = 0;
+    for (int pin = 0; pin < kPins; pin++) outputs += g_output[pin] ? 1 : 0;
+    printf("stats bytes_sent=%llu blocked_us=%llu adc_prescaler=%u emitter_pins=%d "
+           "emitter_switches=%llu\n", (unsigned long long)g_bytes_sent,
+           (unsigned long long)g_blocked_us, adc_prescaler(), outputs,
+           (unsigned long long)g_switches);
   } else if (n == 2 && strcmp(word, "volts") == 0) {
     for (int ch = 0; ch < kChannels; ch++) g_volts[ch] = a;
   } else if (n == 3 && strcmp(word, "volts") == 0 && a >= 0 && a < kChannels) {
     g_volts[(int)a] = b;
+  } else if (n == 2 && strcmp(word, "off") == 0) {
+    for (int ch = 0; ch < kChannels; ch++) g_off[ch] = a;
+  } else if (n == 3 && strcmp(word, "off") == 0 && a >= 0 && a < kChannels) {
+    g_off[(int)a] = b;
   } else {
-    printf("error unknown command '%s'; use: volts V, volts CH V, stats\n", line.c_str());
+    printf("error unknown command '%s'; use: volts V, volts CH V, off V, off CH V, stats\n",
+           line.c_str());
   }
   fflush(stdout);
 }
@@ -133,13 +150,36 @@ uint32_t micros() { return (uint32_t)(g_micros_offset + elapsed_us()); }
 
 uint32_t millis() { return (uint32_t)((g_micros_offset + elapsed_us()) / 1000u); }
 
+void delayMicroseconds(unsigned int us) { pause_us((long)us); }
+
 void analogReadResolution(int bits) { g_bits = bits < 1 ? 1 : bits > 16 ? 16 : bits; }
+
+void pinMode(uint8_t pin, uint8_t mode) {
+  if (pin < kPins) g_output[pin] = mode == OUTPUT;
+}
+
+void digitalWrite(uint8_t pin, uint8_t level) {
+  if (pin >= kPins) return;
+  if (level && !g_high[pin] && g_output[pin]) g_switches++;
+  g_high[pin] = level != 0;
+}
+
+// The emitters are on while any output pin is high (a sketch without them: always on).
+static bool emitters_on() {
+  bool any_output = false;
+  for (int pin = 0; pin < kPins; pin++) {
+    if (g_output[pin] && g_high[pin]) return true;
+    any_output = any_output || g_output[pin];
+  }
+  return !any_output;
+}
 
 int analogRead(uint8_t pin) {
   int ch = pin >= A0 ? pin - A0 : pin;
   if (ch >= kChannels) return 0;
   const long full = (1L << g_bits) - 1;
-  long code = (long)floor(g_volts[ch] / g_vref * (double)(1L << g_bits));
+  const double volts = emitters_on() || g_off[ch] < 0 ? g_volts[ch] : g_off[ch];
+  long code = (long)floor(volts / g_vref * (double)(1L << g_bits));
   return (int)(code < 0 ? 0 : code > full ? full : code);
 }
 

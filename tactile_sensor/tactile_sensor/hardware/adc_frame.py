@@ -24,6 +24,15 @@ and every 0.25 s, saying what its codes mean, so firmware and host cannot disagr
     13 .   board       ASCII board family, e.g. "avr", "rp2040" (bytes after it: reserved)
     4+L 2  crc         CRC-16/CCITT-FALSE over header..payload
 
+A modulated device (version 3: its emitters switched apart from the detectors' pull-ups)
+sends each frame's codes twice, emitter on then emitter off (``11 + 4·n`` bytes; ``counts``
+holds the ``2·n`` codes in that order, ``t_us`` is the on sample's), and its info frame
+(header ``0x30``) appends after the board name::
+
+    .  1   modulation  1: on/off pairs
+    .  2   settle_us   uint16 time from an emitter switch to channel 0's sample [µs]
+    .  2   read_us     uint16 time between consecutive channels' samples [µs]
+
 Info frames are not numbered (``seq`` counts samples only). The CRC is
 ``binascii.crc_hqx`` (C speed), so parsing costs a few microseconds per frame. A chunk
 that holds a long run of data frames of one kind (a port read after the consumer was
@@ -44,7 +53,8 @@ from tactile_sensor.hardware.errors import FrameError
 
 SYNC = b"\xa5\x5a"
 PROTOCOL_VERSION = 2
-SUPPORTED_VERSIONS = (1, 2)
+MODULATED_VERSION = 3  # on/off pairs from a modulated module
+SUPPORTED_VERSIONS = (1, 2, 3)
 MAX_CHANNELS = 8
 HEADER_SIZE = 9  # sync + header byte + seq + t_us
 CRC_SIZE = 2
@@ -52,14 +62,18 @@ CRC_INIT = 0xFFFF
 SEQ_MODULO = 1 << 16
 TIME_MODULO = 1 << 32
 INFO_HEADER = PROTOCOL_VERSION << 4  # channel count 0 marks an info frame
+MODULATED_INFO_HEADER = MODULATED_VERSION << 4
+INFO_HEADERS = (INFO_HEADER, MODULATED_INFO_HEADER)
 INFO_FIXED_SIZE = 9  # adc_bits, channels, vref_mv, period_us, name_len
+MODULATION_SIZE = 5  # version 3 after the name: modulation, settle_us, read_us
 INFO_MAX_PAYLOAD = 40
 MAX_ADC_BITS = 16
 
 _HEAD = struct.Struct("<2sBHI")
 _CRC = struct.Struct("<H")
-_COUNTS = [struct.Struct(f"<{n}H") for n in range(MAX_CHANNELS + 1)]
+_COUNTS = [struct.Struct(f"<{n}H") for n in range(2 * MAX_CHANNELS + 1)]
 _INFO = struct.Struct("<BBHIB")
+_MODULATION = struct.Struct("<BHH")
 _VERSIONS = frozenset(SUPPORTED_VERSIONS)
 RUN_MIN_FRAMES = 32  # a run of data frames this long is decoded as one array
 
@@ -78,15 +92,14 @@ def _crc_table() -> np.ndarray:
 _CRC_TABLE = _crc_table()
 _RUN_DTYPES = [None] + [np.dtype([("sync", "<u2"), ("header", "u1"), ("seq", "<u2"),
                                   ("t_us", "<u4"), ("counts", "<u2", (n,)), ("crc", "<u2")])
-                        for n in range(1, MAX_CHANNELS + 1)]
+                        for n in range(1, 2 * MAX_CHANNELS + 1)]
 
 
 def _decode_run(buf: bytearray, start: int, header: int, count: int) -> list[Frame]:
     """The leading valid frames of ``count`` data frames with ``header`` from ``start``:
     decoding stops before the first whose sync, header or CRC is wrong (the caller's
     byte-wise search takes over there)."""
-    n = header & 0x0F
-    dtype = _RUN_DTYPES[n]
+    dtype = _RUN_DTYPES[codes_per_frame(header)]
     frames = np.frombuffer(buf, dtype=dtype, count=count, offset=start)
     raw = np.frombuffer(buf, dtype=np.uint8, count=count * dtype.itemsize,
                         offset=start).reshape(count, dtype.itemsize)
@@ -123,6 +136,14 @@ class DeviceInfo(NamedTuple):
     vref_v: float | None = None
     period_us: int | None = None
     board: str = ""
+    modulated: bool = False  # version 3: every frame holds emitter-on then emitter-off codes
+    settle_us: int | None = None  # from an emitter switch to channel 0's sample
+    read_us: int | None = None  # between consecutive channels' samples
+
+    @property
+    def codes(self) -> int:
+        """Codes in every data frame: one per channel, or an on/off pair per channel."""
+        return 2 * self.channels if self.modulated else self.channels
 
     @property
     def described(self) -> bool:
@@ -139,13 +160,23 @@ class DeviceInfo(NamedTuple):
             return (f"protocol {self.version}, {self.channels} channel(s), resolution and "
                     "reference not stated")
         rate = f"{self.rate_hz:g} Hz" if self.rate_hz else "rate not stated"
+        modulated = (f", modulated (emitter on/off, settle {self.settle_us} us)"
+                     if self.modulated else "")
         return (f"protocol {self.version}, {self.board or 'unnamed board'}, {self.adc_bits} "
-                f"bit, {self.vref_v:g} V, {self.channels} channel(s), {rate}")
+                f"bit, {self.vref_v:g} V, {self.channels} channel(s), {rate}{modulated}")
 
 
-def frame_size(channels: int) -> int:
+def frame_size(channels: int, version: int = PROTOCOL_VERSION) -> int:
     """Bytes in a data frame carrying ``channels`` channels."""
-    return HEADER_SIZE + 2 * channels + CRC_SIZE
+    codes = 2 * channels if version == MODULATED_VERSION else channels
+    return HEADER_SIZE + 2 * codes + CRC_SIZE
+
+
+def codes_per_frame(header: int) -> int:
+    """Codes a data frame with this header byte carries (an on/off pair per channel in
+    version 3)."""
+    n = header & 0x0F
+    return 2 * n if header >> 4 == MODULATED_VERSION else n
 
 
 def crc16(data: bytes | bytearray | memoryview) -> int:
@@ -155,8 +186,14 @@ def crc16(data: bytes | bytearray | memoryview) -> int:
 
 def encode_frame(seq: int, t_us: int, counts: tuple[int, ...] | list[int],
                  version: int = PROTOCOL_VERSION) -> bytes:
-    """Bytes of one data frame; ``seq`` and ``t_us`` are wrapped to their field widths."""
+    """Bytes of one data frame; ``seq`` and ``t_us`` are wrapped to their field widths. A
+    version-3 frame's ``counts`` are the on codes of every channel, then the off codes."""
     n = len(counts)
+    if version == MODULATED_VERSION:
+        if n % 2:
+            raise FrameError(f"A modulated frame carries an on and an off code per channel, "
+                             f"got {n} codes; pass the on codes, then the off codes.")
+        n //= 2
     if not 1 <= n <= MAX_CHANNELS:
         raise FrameError(
             f"A frame carries 1 to {MAX_CHANNELS} channels, not {n}; pass fewer counts."
@@ -168,7 +205,7 @@ def encode_frame(seq: int, t_us: int, counts: tuple[int, ...] | list[int],
     if version not in SUPPORTED_VERSIONS:
         raise FrameError(f"Protocol version must be one of {SUPPORTED_VERSIONS}, got {version!r}.")
     body = _HEAD.pack(SYNC, (version << 4) | n, seq % SEQ_MODULO,
-                      t_us % TIME_MODULO) + _COUNTS[n].pack(*counts)
+                      t_us % TIME_MODULO) + _COUNTS[len(counts)].pack(*counts)
     return body + _CRC.pack(crc16(body[2:]))
 
 
@@ -186,8 +223,9 @@ def info_problem(adc_bits: int, channels: int, vref_mv: int, period_us: int) -> 
 
 
 def encode_info(adc_bits: int, channels: int, vref_v: float, period_us: int,
-                board: str = "") -> bytes:
-    """Bytes of one version-2 info frame."""
+                board: str = "", modulation: tuple[int, int] | None = None) -> bytes:
+    """Bytes of one info frame: version 2, or version 3 (a modulated device) when
+    ``modulation`` gives its (settle_us, read_us)."""
     vref_mv = round(vref_v * 1000)
     name = board.encode("ascii", "replace")
     if not 0 <= vref_mv <= 0xFFFF or not 0 <= period_us < TIME_MODULO:
@@ -196,24 +234,42 @@ def encode_info(adc_bits: int, channels: int, vref_v: float, period_us: int,
     problem = info_problem(adc_bits, channels, vref_mv, period_us)
     if problem:
         raise FrameError(f"Cannot encode the device info: {problem}.")
-    if len(name) > INFO_MAX_PAYLOAD - INFO_FIXED_SIZE:
-        raise FrameError(f"A board name has at most {INFO_MAX_PAYLOAD - INFO_FIXED_SIZE} "
-                         f"ASCII characters, got {board!r}.")
-    payload = _INFO.pack(adc_bits, channels, vref_mv, period_us, len(name)) + name
-    body = SYNC + bytes([INFO_HEADER, len(payload)]) + payload
+    extra = b""
+    if modulation is not None:
+        settle_us, read_us = modulation
+        if not (0 <= settle_us <= 0xFFFF and 0 <= read_us <= 0xFFFF):
+            raise FrameError(f"settle_us {settle_us!r} and read_us {read_us!r} must fit in "
+                             "16 bits.")
+        extra = _MODULATION.pack(1, settle_us, read_us)
+    room = INFO_MAX_PAYLOAD - INFO_FIXED_SIZE - len(extra)
+    if len(name) > room:
+        raise FrameError(f"A board name has at most {room} ASCII characters, got {board!r}.")
+    payload = _INFO.pack(adc_bits, channels, vref_mv, period_us, len(name)) + name + extra
+    header = INFO_HEADER if modulation is None else MODULATED_INFO_HEADER
+    body = SYNC + bytes([header, len(payload)]) + payload
     return body + _CRC.pack(crc16(body[2:]))
 
 
-def _parse_info(payload: bytes | bytearray | memoryview) -> DeviceInfo | str:
+def _parse_info(payload: bytes | bytearray | memoryview,
+                version: int = PROTOCOL_VERSION) -> DeviceInfo | str:
     """The info frame's payload as DeviceInfo, or the reason it is unusable."""
     adc_bits, channels, vref_mv, period_us, name_len = _INFO.unpack_from(payload, 0)
     problem = info_problem(adc_bits, channels, vref_mv, period_us)
-    if problem is None and INFO_FIXED_SIZE + name_len > len(payload):
+    end = INFO_FIXED_SIZE + name_len
+    if problem is None and end > len(payload):
         problem = f"board name of {name_len} bytes overruns the {len(payload)}-byte payload"
+    if problem is None and version == MODULATED_VERSION:
+        if end + MODULATION_SIZE > len(payload):
+            problem = "a version-3 info frame lacks its modulation fields after the name"
+        elif payload[end] != 1:
+            problem = f"modulation {payload[end]} is not 1 (on/off pairs)"
     if problem:
         return problem
-    board = bytes(payload[INFO_FIXED_SIZE:INFO_FIXED_SIZE + name_len]).decode("ascii",
-                                                                              "replace")
+    board = bytes(payload[INFO_FIXED_SIZE:end]).decode("ascii", "replace")
+    if version == MODULATED_VERSION:
+        _, settle_us, read_us = _MODULATION.unpack_from(payload, end)
+        return DeviceInfo(version, channels, adc_bits, vref_mv / 1000.0, period_us, board,
+                          True, settle_us, read_us)
     return DeviceInfo(PROTOCOL_VERSION, channels, adc_bits, vref_mv / 1000.0, period_us, board)
 
 
@@ -224,18 +280,18 @@ def decode_frame(data: bytes | bytearray) -> Frame | DeviceInfo:
     if data[:2] != SYNC:
         raise FrameError(f"A frame starts with sync bytes a5 5a, got {bytes(data[:2]).hex(' ')}.")
     version, n = data[2] >> 4, data[2] & 0x0F
-    if data[2] == INFO_HEADER:
+    if data[2] in INFO_HEADERS:
         length = data[3]
         if not INFO_FIXED_SIZE <= length <= INFO_MAX_PAYLOAD:
             raise FrameError(f"An info frame's payload is {INFO_FIXED_SIZE}..{INFO_MAX_PAYLOAD} "
                              f"bytes, its length byte says {length}.")
         size = 4 + length + CRC_SIZE
     elif version in SUPPORTED_VERSIONS and 1 <= n <= MAX_CHANNELS:
-        size = frame_size(n)
+        size = frame_size(n, version)
     else:
         raise FrameError(
             f"Header byte 0x{data[2]:02x} is not protocol version {SUPPORTED_VERSIONS} with "
-            f"1..{MAX_CHANNELS} channels (or 0x{INFO_HEADER:02x}, an info frame); update the "
+            f"1..{MAX_CHANNELS} channels (or 0x20/0x30, an info frame); update the "
             "firmware or the driver to match."
         )
     if len(data) != size:
@@ -243,13 +299,14 @@ def decode_frame(data: bytes | bytearray) -> Frame | DeviceInfo:
     (crc,) = _CRC.unpack_from(data, size - CRC_SIZE)
     if crc != crc16(data[2:size - CRC_SIZE]):
         raise FrameError("The frame's CRC does not match its content (corrupted in transit).")
-    if data[2] == INFO_HEADER:
-        info = _parse_info(data[4:size - CRC_SIZE])
+    if data[2] in INFO_HEADERS:
+        info = _parse_info(data[4:size - CRC_SIZE], version)
         if isinstance(info, str):
             raise FrameError(f"The device's info frame is unusable: {info}; fix the firmware.")
         return info
     _, _, seq, t_us = _HEAD.unpack_from(data, 0)
-    return Frame(seq, t_us, _COUNTS[n].unpack_from(data, HEADER_SIZE), version)
+    return Frame(seq, t_us, _COUNTS[codes_per_frame(data[2])].unpack_from(data, HEADER_SIZE),
+                 version)
 
 
 class ParserStats(NamedTuple):
@@ -334,8 +391,10 @@ class FrameParser:
             n = header & 0x0F
             if (n and n <= MAX_CHANNELS and (header >> 4) in _VERSIONS
                     and (want is None or n == want)):
-                size = HEADER_SIZE + 2 * n + CRC_SIZE  # a data frame (the common case)
-            elif header == INFO_HEADER:
+                # a data frame (the common case); version 3 holds on/off pairs
+                size = HEADER_SIZE + (4 * n if header >> 4 == MODULATED_VERSION
+                                      else 2 * n) + CRC_SIZE
+            elif header in INFO_HEADERS:
                 if end - j < 4:
                     break
                 length = buf[j + 3]
@@ -350,7 +409,7 @@ class FrameParser:
                 continue
             if end - j < size:
                 break
-            if header != INFO_HEADER and j >= run_from and end - j >= RUN_MIN_FRAMES * size:
+            if header not in INFO_HEADERS and j >= run_from and end - j >= RUN_MIN_FRAMES * size:
                 count = (end - j) // size
                 run = _decode_run(buf, j, header, count)
                 if len(run) < count:  # broken off: not again for a run's length
@@ -368,8 +427,8 @@ class FrameParser:
                 self._discard(1)
                 i = j + 1
                 continue
-            if header == INFO_HEADER:
-                info = _parse_info(buf[j + 4:crc_at])
+            if header in INFO_HEADERS:
+                info = _parse_info(buf[j + 4:crc_at], header >> 4)
                 if isinstance(info, str):
                     self.info_errors += 1
                     self.last_info_error = info
@@ -378,7 +437,7 @@ class FrameParser:
                     out.append(info)
             else:
                 _, _, seq, t_us = _HEAD.unpack_from(buf, j)
-                out.append(Frame(seq, t_us, _COUNTS[header & 0x0F].unpack_from(
+                out.append(Frame(seq, t_us, _COUNTS[codes_per_frame(header)].unpack_from(
                     buf, j + HEADER_SIZE), header >> 4))
                 frames += 1
             self._in_sync = True

@@ -526,7 +526,7 @@ class AdcStreamReader:
             if type(f) is Frame:
                 t_us = seqr.advance(f.seq, f.t_us)
                 if (info is not None and f.version == info.version
-                        and len(f.counts) == info.channels):
+                        and len(f.counts) == info.codes):
                     if batch is None:
                         batch = SampleBatch(epoch)
                         out.append(batch)

@@ -220,7 +220,7 @@ class _InfoGate:
             out.append(_InfoChange(info))
         waiting, self.waiting = self.waiting, collections.deque()
         for sample in waiting:
-            if len(sample.counts) == info.channels:
+            if len(sample.counts) == info.codes:
                 out.append(sample)
             else:
                 self.mismatches += 1
@@ -238,7 +238,7 @@ class _InfoGate:
                 self.dropped += 1
             self.waiting.append(sample)
             return []
-        if len(sample.counts) != info.channels:
+        if len(sample.counts) != info.codes:
             self.mismatches += 1
             return []
         return [sample]

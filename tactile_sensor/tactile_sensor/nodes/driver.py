@@ -56,6 +56,7 @@ from tactile_sensor.sensing.chain_parameters import (
 )
 from tactile_sensor.sensing.device_clock import DeviceClock
 from tactile_sensor.sensing.errors import SensingError, TareError
+from tactile_sensor.sensing.modulation import modulation_of
 from tactile_sensor.sensing.rate_calibration import describe_model
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
 from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
@@ -278,6 +279,10 @@ class DriverNode(Node):
                           chain.top_channel, values["sample_rate"])
         if adc.conversion is not None:
             chain.set_conversion(adc.conversion)
+        try:  # channel 0 is sampled first after each switch: the least settled
+            chain.set_modulation(modulation_of(info, 0))
+        except SensingError as exc:
+            self.get_logger().error(f"The device's modulation cannot be read: {exc}")
         self._adc = adc
         if info != self._info_logged:  # once per device, not once per reconnection
             self._info_logged = info

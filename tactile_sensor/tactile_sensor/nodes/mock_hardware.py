@@ -76,6 +76,9 @@ SPECS = [
     ParamSpec("adc_link", "/tmp/tactile_sensor/adc", "path of the mock ADC's serial device"),
     ParamSpec("adc_rate", 1000.0, "mock ADC sample rate [Hz] (paper: 1 kHz)", minimum=1.0,
               maximum=200_000.0),
+    ParamSpec("adc_protocol", 2, "serial protocol of the mock ADC: 2 = one code per channel, "
+              "3 = a modulated module (emitter on and off codes per channel; use adc_rate "
+              "500), 1 = an old device that states nothing", minimum=1, maximum=3),
     ParamSpec("noise.white", -1.0, "white noise sigma [V] before quantisation; < 0 = the "
               "value that gives the paper's 31.5 dB with the 9-point average", maximum=10.0),
     ParamSpec("noise.drift", 0.001, "ambient-light drift sigma [V]", minimum=0.0,
@@ -301,7 +304,7 @@ class MockHardwareNode(Node):
             faces = self.world.faces  # the ADC samples every module the world has
             self.adc = MockAdcDevice(values["adc_link"], self._lit(self.source, physics),
                                      rate_hz=values["adc_rate"], noise=noise, seed=seed,
-                                     channels=len(faces))
+                                     channels=len(faces), protocol=values["adc_protocol"])
             self.adc.start()
             if self.emulator is not None:
                 self.emulator.start()

@@ -30,6 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+# A modulated module's detector under its switched emitter: the closed form the driver
+# scales the on - off difference with, so the mock and the driver share it.
+from tactile_sensor.sensing.modulation import emitter_levels as emitter_levels
+
 from .errors import PhysicsError
 
 PULL_UP_OHM = 47e3  # QTR-1A output pull-up to VIN (Pololu)

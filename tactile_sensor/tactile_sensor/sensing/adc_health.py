@@ -123,6 +123,13 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         values["detector_headroom_ratio"] = ("none" if left_ratio is None
                                              or left_ratio != left_ratio
                                              else f"{left_ratio:.3f}")
+        # the room's light itself, from the emitter-off sample of a modulated module
+        ambient = chain.ambient()
+        if ambient is None:
+            values["ambient_ratio"] = "not measured (no emitter-off sample: stock module)"
+        else:
+            values["ambient_v"] = f"{ambient[0]:.3f}"
+            values["ambient_ratio"] = "none" if ambient[1] is None else f"{ambient[1]:.3f}"
     if isinstance(chain, ArrayChain):
         baselines = chain.baselines_v or (None,) * len(chain.faces)
         values.update({f"baseline_v.{face}": "none" if b is None else f"{b:.4f}"

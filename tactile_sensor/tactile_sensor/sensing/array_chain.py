@@ -20,6 +20,7 @@ Threading as ``SignalChain``: ``process`` and ``process_batch`` in the reader's 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import threading
 from collections.abc import Sequence
@@ -36,6 +37,7 @@ from tactile_sensor.sensing.chain import (
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
 from tactile_sensor.sensing.filters import Butterworth, Filter, make_filter
+from tactile_sensor.sensing.modulation import Modulation, PairSignal
 from tactile_sensor.sensing.rate_calibration import load_file
 from tactile_sensor.sensing.tare import TareWindow
 
@@ -151,6 +153,7 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
         parts = _Parts(config)
         self._conversion = parts.adc
         self._volts_per_count = parts.adc.volts_per_count
+        self._pairs: list[PairSignal] | None = None  # a modulated device: one per module
         self._filters = [parts.filter] + [self._new_filter() for _ in self.modules[1:]]
         self._tares = [parts.tare] + [self._new_tare() for _ in self.modules[1:]]
         self._contact = parts.contact
@@ -264,7 +267,28 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
                 return
             self._conversion = conversion
             self._volts_per_count = conversion.volts_per_count
+            if self._pairs is not None:
+                self._pairs = self._new_pairs(self._pairs[0].modulation)
             self._forget()
+
+    @property
+    def modulation(self) -> Modulation | None:
+        """How a modulated device samples the first module (None: not modulated)."""
+        return None if self._pairs is None else self._pairs[0].modulation
+
+    def set_modulation(self, modulation: Modulation | None) -> None:
+        """As ``SignalChain.set_modulation``, for every module's channel: each module's
+        voltage is its emitter's light alone."""
+        with self._lock:
+            pairs = None if modulation is None else self._new_pairs(modulation)
+            if (None if pairs is None else pairs[0].modulation) == self.modulation:
+                return
+            self._pairs = pairs
+            self._forget()
+
+    def _new_pairs(self, modulation: Modulation) -> list[PairSignal]:
+        return [PairSignal(dataclasses.replace(modulation, channel=c), self._conversion.vref_v)
+                for c in self.channels]
 
     def reconfigure(self, config: ChainConfig) -> None:
         """As ``SignalChain.reconfigure``: filter, tare and contact settings while samples
@@ -293,6 +317,8 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
     def _forget(self) -> None:
         for f in self._filters:
             f.reset()
+        for pair in self._pairs or ():
+            pair.reset()
         self._reset_torque()
         for t in self._tares:
             t.clear()
@@ -302,6 +328,9 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
     def _volts(self, counts: tuple[int, ...]) -> tuple[float, ...]:
         """Every module's volts, in ``modules`` order."""
         scale = self._volts_per_count
+        if self._pairs is not None:  # a modulated device: each module's emitter light
+            return tuple([p.signal(counts[c] * scale, counts[p.off_index] * scale)
+                          for c, p in zip(self.channels, self._pairs)])  # noqa: B905
         return tuple([counts[c] * scale for c in self.channels])
 
     def _missing_channel(self, channels: int) -> SensingError:

@@ -10,6 +10,11 @@ A ``RateCalibration`` (static curve plus relaxing rate terms, ``sensing.rate_cal
 makes the force depend on the output's history: its terms run on the device's sample
 times and start from rest at every tare, baseline change, reset and calibration change.
 
+A modulated device (``set_modulation``) sends each channel's code with the emitter on
+and off; the chain's voltage is then the emitter's light alone, as the output a dark room
+would give (``sensing.modulation.PairSignal``), and blindness is judged on the detector's
+own lower sample.
+
 Threading: ``process`` and ``process_batch`` run in one thread (the reader's); ``tare``,
 ``set_calibration`` and the properties may be called from another (a service callback). A
 lock guards the shared state, taken once per batch.
@@ -18,6 +23,7 @@ lock guards the shared state, taken once per batch.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import threading
 from abc import ABC, abstractmethod
@@ -31,6 +37,7 @@ from tactile_sensor.sensing.contact import ContactDetector
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.errors import SensingError, TareError
 from tactile_sensor.sensing.filters import DEFAULT_FILTER, make_filter
+from tactile_sensor.sensing.modulation import Modulation, PairSignal
 from tactile_sensor.sensing.rate_calibration import RateCalibration, RateForceEstimator
 from tactile_sensor.sensing.tare import TareResult, TareWindow
 
@@ -122,7 +129,8 @@ class Reading(NamedTuple):
     includes the rate terms).
     """
 
-    voltage_v: float  # photoreflector voltage after the ADC, unfiltered
+    voltage_v: float  # photoreflector voltage after the ADC, unfiltered (modulated: the
+    # emitter's light alone as a dark-room output)
     output_v: float  # baseline − filtered voltage
     force_n: float
     contact: bool
@@ -201,7 +209,7 @@ class _Parts:
                                    else max(1, round(config.rate_hz * 0.01)))
 
 
-class SignalChain(SampleSteps[float, Reading]):
+class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
     """Stateful per-sample processing for one sensor channel."""
 
     def __init__(self, config: ChainConfig | None = None,
@@ -216,6 +224,9 @@ class SignalChain(SampleSteps[float, Reading]):
         self._contact = parts.contact
         self._blind = parts.blind
         self._filtered_v = NAN
+        self._pair: PairSignal | None = None
+        self._detector_v = NAN  # modulated: the lower of the last on and off samples
+        self._on_off_v = (NAN, NAN)  # modulated: the last on and off samples
         self._calibration = calibration
         self._static, self._estimator = _force_parts(calibration)
         self._baseline_v: float | None = None
@@ -248,7 +259,8 @@ class SignalChain(SampleSteps[float, Reading]):
         """The filtered voltage's room above saturation [V] and as a ratio of the emitter's
         drop at rest (None before a tare); the supply is taken as the ADC's reference
         (the module and the ADC share VIN on the reference firmware)."""
-        volts = SATURATION_V if self._blind.blind else self._filtered_v  # none while blind
+        volts = SATURATION_V if self._blind.blind else (
+            self._filtered_v if self._pair is None else self._detector_v)  # none while blind
         return headroom(volts, self._baseline_v, self._conversion.vref_v)
 
     @property
@@ -307,8 +319,43 @@ class SignalChain(SampleSteps[float, Reading]):
                 return
             self._conversion = conversion
             self._volts_per_count = conversion.volts_per_count
+            if self._pair is not None:
+                self._pair = PairSignal(self._pair.modulation, conversion.vref_v)
             self._filter.reset()
             self._tare.clear()
+            self._restart_rate_terms()
+
+    def ambient(self) -> tuple[float, float | None] | None:
+        """The room's light on the detector as (drop below the supply [V], ratio of the
+        emitter's drop at rest; None before a tare), measured from the emitter-off
+        sample; None for a device without one (not modulated)."""
+        pair = self._pair
+        if pair is None:
+            return None
+        drop = pair.ambient_drop(*self._on_off_v)
+        baseline, vref = self._baseline_v, self._conversion.vref_v
+        if baseline is None or vref - baseline <= 0 or drop != drop:
+            return drop, None
+        return drop, drop / (vref - baseline)
+
+    @property
+    def modulation(self) -> Modulation | None:
+        return None if self._pair is None else self._pair.modulation
+
+    def set_modulation(self, modulation: Modulation | None) -> None:
+        """Read on/off pairs as ``modulation`` says for the chain's channel (None: one
+        code per channel); a change forgets the filter and tare window, whose volts meant
+        something else."""
+        if modulation is not None:
+            modulation = dataclasses.replace(modulation, channel=self.config.channel)
+        with self._lock:
+            if modulation == self.modulation:
+                return
+            self._pair = (None if modulation is None
+                          else PairSignal(modulation, self._conversion.vref_v))
+            self._filter.reset()
+            self._tare.clear()
+            self._blind.reset()
             self._restart_rate_terms()
 
     def reconfigure(self, config: ChainConfig) -> None:
@@ -336,6 +383,8 @@ class SignalChain(SampleSteps[float, Reading]):
             self._tare.clear()
             self._contact.reset()
             self._blind.reset()
+            if self._pair is not None:
+                self._pair.reset()
             self._restart_rate_terms()
 
     def _restart_rate_terms(self) -> None:
@@ -346,22 +395,34 @@ class SignalChain(SampleSteps[float, Reading]):
 
     # -- per sample ------------------------------------------------------------------------
 
-    def _volts(self, counts: tuple[int, ...]) -> float:
-        return counts[self.config.channel] * self._volts_per_count
+    def _volts(self, counts: tuple[int, ...]) -> float | tuple[float, float, float]:
+        pair = self._pair
+        if pair is None:
+            return counts[self.config.channel] * self._volts_per_count
+        on = counts[self.config.channel] * self._volts_per_count
+        off = counts[pair.off_index] * self._volts_per_count
+        return pair.signal(on, off), on, off
 
     def _missing_channel(self, channels: int) -> SensingError:
         return SensingError(
             f"The sample has {channels} channel(s) but the chain reads channel "
             f"{self.config.channel}; set the channel parameter to match the firmware.")
 
-    def _step(self, volts: float, t_us: int, host_ns: int) -> Reading:
+    def _step(self, volts: float | tuple[float, float, float], t_us: int,
+              host_ns: int) -> Reading:
         """One sample's filter, tare window, force and contact (call with the lock held)."""
+        if type(volts) is tuple:
+            volts, on, off = volts
+            self._on_off_v = (on, off)
+            self._detector_v = detector_v = on if on < off else off
+        else:
+            detector_v = volts
         filtered = self._filter.update(volts)
         self._filtered_v = filtered
         tare = self._tare
         tare.add(volts)
         was_blind = self._blind.blind
-        if self._blind.update(volts):
+        if self._blind.update(detector_v):  # type: ignore[arg-type]
             if not was_blind:  # what the contact and rate terms knew is void
                 self._contact.reset()
                 self._restart_rate_terms()

@@ -7,7 +7,9 @@ written in batches of at most ~1 ms so it holds 1 kHz and reaches tens of kHz.
 
 It speaks protocol version 2 like the reference firmware: an info frame stating its
 ``adc_bits``, ``vref_v``, channels and rate at start and every ``info_period_s`` (0.25 s,
-as the firmware); ``protocol=1`` makes it a version-1 device that states nothing.
+as the firmware); ``protocol=1`` makes it a version-1 device that states nothing, and
+``protocol=3`` a modulated one: each frame holds every channel's code with the emitter on,
+then off, from a source with a ``pair`` (``sim.ambient_light.LitSource``).
 
 Like the firmware it never blocks on a slow host. A pseudo-terminal buffers only ~18 KB,
 a real USB serial port (ttyACM, tty flip buffers) about 64 KB more, so the device keeps
@@ -21,13 +23,8 @@ stream, possibly mid-frame) and ``drop_frames``.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import errno
 import math
-import os
-import select
 import signal
-import stat
 import struct
 import sys
 import threading
@@ -49,7 +46,9 @@ from tactile_sensor.hardware.adc_frame import (
     SYNC,
     encode_info,
 )
+from tactile_sensor.sim.adc_control import ControlFifo
 from tactile_sensor.sim.errors import SimError
+from tactile_sensor.sim.modulated_adc import dark_room_pairs, modulation_timing
 from tactile_sensor.sim.pty_link import PtyLink
 
 VoltageSource = Callable[[float], float]
@@ -234,6 +233,8 @@ class MockAdcDevice:
             raise SimError(f"info_period_s must be in (0, 60] s, got {info_period_s!r}.")
         if not callable(voltage_source):
             raise SimError("voltage_source must be a callable t [s] -> V.")
+        self._modulation = modulation_timing(protocol, rate_hz, voltage_source)
+        codes = 2 * channels if self._modulation else channels
         self.link = PtyLink(link_path)
         self.rate_hz = float(rate_hz)
         self.noise = noise if noise is not None else AdcNoise()
@@ -246,17 +247,18 @@ class MockAdcDevice:
         self._rng = np.random.default_rng(seed)
         self._backlog = bytearray()
         self._backlog_limit = host_buffer_bytes
-        self._sampler = AdcSampler(rate_hz, self.noise, adc_bits, vref_v, channels, self._rng)
-        self._frame = struct.Struct(f"<2sBHI{channels}H")
+        self._sampler = AdcSampler(rate_hz, self.noise, adc_bits, vref_v, codes, self._rng)
+        self._frame = struct.Struct(f"<2sBHI{codes}H")
         self.protocol = protocol
         self._header = (protocol << 4) | channels
         # The firmware's info frame: every info_every-th frame is preceded by it.
-        self._info = (encode_info(adc_bits, channels, vref_v, round(1e6 / rate_hz), board)
+        self._info = (encode_info(adc_bits, channels, vref_v, round(1e6 / rate_hz), board,
+                                  self._modulation and (self._modulation[0], 0))
                       if protocol >= 2 else b"")
         self._info_every = max(1, round(info_period_s * rate_hz))
         # Frames sampled ahead of their time (see _frames): from sample _ahead_k on.
         self._ahead: list[bytes] = []
-        self._ahead_noise = np.zeros((0, channels))
+        self._ahead_noise = np.zeros((0, codes))
         self._ahead_k = 0
         self._ahead_revision: Any = None
         self._ahead_n = max(1, int(self.rate_hz * self.LOOKAHEAD_S))
@@ -418,6 +420,12 @@ class MockAdcDevice:
                 self._replug_at = None
 
     def _voltages(self, times: np.ndarray) -> np.ndarray:
+        if self._modulation:  # the on codes of every channel, then the off codes
+            settle_us, period_s = self._modulation
+            pair = self._source.pair(times, settle_us * 1e-6, period_s)  # type: ignore[attr-defined]
+            shape = (len(times), self.channels)  # one voltage for all or one per channel
+            return np.hstack([np.broadcast_to(np.asarray(v, dtype=float).reshape(len(times), -1),
+                                              shape) for v in pair])
         if self._vectorised:
             v = np.asarray(self._source(times), dtype=float)
             if v.ndim == 2 and v.shape == (len(times), self.channels):
@@ -568,7 +576,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--vref", type=float, default=5.0, help="ADC reference [V]")
     parser.add_argument("--protocol", type=int, default=PROTOCOL_VERSION,
                         choices=SUPPORTED_VERSIONS, help="serial protocol version: 2 states "
-                        "bits, reference, channels and rate; 1 states nothing (default "
+                        "bits, reference, channels and rate; 1 states nothing; 3 is a "
+                        "modulated module (emitter on/off pairs; use --rate 500) (default "
                         "%(default)s)")
     parser.add_argument("--noise", type=float, default=AdcNoise().white_v,
                         help="white noise sigma [V] (default: the paper's 31.5 dB, %(default).4f)")
@@ -604,53 +613,6 @@ def _load_skin(path: Path | None) -> Any:
                        "must be JSON with arrays indentation_m, force_n, voltage_v.") from None
 
 
-class _ControlFifo:
-    """A named pipe at ``path``; each line written to it runs ``device.command``."""
-
-    def __init__(self, path: Path, device: MockAdcDevice) -> None:
-        if path.exists() and not stat.S_ISFIFO(path.stat().st_mode):
-            raise SimError(f"--control {path} exists and is not a FIFO; remove it or choose "
-                           "another path.")
-        try:
-            if not path.exists():
-                os.mkfifo(path)
-            # Opened read-write so the pipe never reports EOF between writers.
-            self._fd = os.open(path, os.O_RDWR | os.O_NONBLOCK)
-        except OSError as exc:
-            raise SimError(f"Cannot create the control FIFO {path} ({exc.strerror}); choose "
-                           "a writable --control path.") from None
-        self.path = path
-        self._device = device
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="mock-adc-control", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        pending = b""
-        while not self._stop.is_set():
-            ready, _, _ = select.select([self._fd], [], [], 0.1)
-            if not ready:
-                continue
-            try:
-                pending += os.read(self._fd, 4096)
-            except OSError as exc:
-                if exc.errno in (errno.EAGAIN, errno.EINTR):
-                    continue
-                raise
-            *lines, pending = pending.split(b"\n")
-            for raw in lines:
-                answer = self._device.command(raw.decode("utf-8", "replace"))
-                if answer:
-                    print(f"mock adc: {answer}", flush=True)
-
-    def close(self) -> None:
-        self._stop.set()
-        self._thread.join(1.0)
-        os.close(self._fd)
-        with contextlib.suppress(OSError):
-            self.path.unlink()
-
-
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
@@ -661,7 +623,9 @@ def main(argv: list[str] | None = None) -> int:
         noise = AdcNoise(white_v=args.noise, drift_v=args.drift, drift_tau_s=args.drift_tau)
         skin = _load_skin(args.skin_table)
         world = BenchWorld(profile, skin, loop=args.loop)
-        device = MockAdcDevice(args.link, FixedSource(world.module_voltages),
+        source = (dark_room_pairs(world) if args.protocol == 3
+                  else FixedSource(world.module_voltages))
+        device = MockAdcDevice(args.link, source,
                                rate_hz=args.rate,
                                noise=noise, adc_bits=args.adc_bits, vref_v=args.vref,
                                channels=args.channels, seed=args.seed,
@@ -677,7 +641,7 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(sig, lambda *_: stop.set())
     try:
         if args.control is not None:
-            control = _ControlFifo(args.control, device)
+            control = ControlFifo(args.control, device)
         print(f"mock adc: {device.rate_hz:g} Hz on {args.link} -> {device.link.slave_name}; "
               f"profile {args.profile} ({profile.duration_s:g} s{', looping' if args.loop else ''})"
               f"; skin {skin.source}"

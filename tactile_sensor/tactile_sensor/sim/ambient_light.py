@@ -9,7 +9,10 @@ its response time (``physics.detector.response_tau_s``), evaluated in closed for
 time may be asked in any order, as the mock ADC does.
 
 :class:`LitSource` wraps a world's ``module_voltages`` for the mock ADC, so the light, the
-temperature and the emitter act once, on whatever world the ADC samples.
+temperature and the emitter act once, on whatever world the ADC samples. For a modulated
+device it also gives the emitter-on and emitter-off samples of a period (``pair``): the
+same world and light, with the emitter's part at the share the detector shows after its
+switch (``physics.detector.emitter_levels``, which the driver shares).
 """
 
 from __future__ import annotations
@@ -22,7 +25,12 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from tactile_sensor.physics.detector import DetectorState, module_output_v, response_tau_s
+from tactile_sensor.physics.detector import (
+    DetectorState,
+    emitter_levels,
+    module_output_v,
+    response_tau_s,
+)
 from tactile_sensor.sim.errors import SimError
 
 #: Harmonics of the rectified lamp kept: the k-th has 2/(4k^2 - 1) of its mean, so the 10th
@@ -132,7 +140,22 @@ class LitSource:
         return getattr(self.source, name)
 
     def __call__(self, t: Any) -> Any:
-        v = self.source(t)
+        return self._lit(self.source(t), t)
+
+    def pair(self, t: Any, settle_s: float, period_s: float) -> tuple[Any, Any]:
+        """(on, off): the module's output ``settle_s`` after the emitter is switched on at
+        ``t - settle_s``, and ``settle_s`` after it is switched off half a period later;
+        the emitter is on for the first half of each ``period_s``."""
+        on_share, off_share = emitter_levels(settle_s, period_s, self.scene.tau_s)
+        t_off = np.asarray(t, dtype=float) + period_s / 2.0
+        return (self._lit(self.source(t), t, on_share),
+                self._lit(self.source(t_off), t_off, off_share))
+
+    def _lit(self, v: Any, t: Any, emitter_share: float = 1.0) -> Any:
+        """The world's dark-room output ``v`` at ``t`` with the emitter's part at
+        ``emitter_share`` of its own, under the scene's light and the detector's state."""
+        if emitter_share != 1.0:
+            v = self.supply_v - (self.supply_v - np.asarray(v, dtype=float)) * emitter_share
         if self.scene.is_dark and self.state.is_calibration:
             return v
         origin = self.origin_s

@@ -68,8 +68,11 @@ def compiler() -> str | None:
 
 
 def build(board: Board, out_dir: Path, channels: int | None = None,
-          folder: Path | None = None) -> Path:
+          folder: Path | None = None, modulated: bool = False,
+          defines: tuple[str, ...] = ()) -> Path:
     """Compile the sketch for ``board`` on this computer; returns the executable.
+    ``modulated`` builds the modulated image (protocol 3, emitters on pin 2); ``defines``
+    are further ``NAME=VALUE`` macros.
 
     A build whose sources and flags are unchanged is reused (the name holds their hash),
     so a test session compiles each variant once.
@@ -85,6 +88,9 @@ def build(board: Board, out_dir: Path, channels: int | None = None,
         flags.append(f"-DNUM_ANALOG_INPUTS={board.analog_inputs}")
     if channels is not None:
         flags.append(f"-DTACTILE_CHANNELS={channels}")
+    if modulated:
+        flags.append("-DTACTILE_MODULATED=1")
+    flags += [f"-D{define}" for define in defines]
     digest = hashlib.sha256(" ".join([cxx, *flags]).encode())
     for source in sources:
         digest.update(source.read_bytes())
@@ -163,6 +169,11 @@ class HostFirmware:
     def set_voltage(self, volts: float, channel: int | None = None) -> None:
         """Put ``volts`` on one channel's pin (A0 + channel), or on every channel."""
         self._send(f"volts {volts!r}" if channel is None else f"volts {channel} {volts!r}")
+
+    def set_off_voltage(self, volts: float, channel: int | None = None) -> None:
+        """What the pin reads while a modulated sketch has its emitters off (until set:
+        the ``set_voltage`` value)."""
+        self._send(f"off {volts!r}" if channel is None else f"off {channel} {volts!r}")
 
     def stats(self, timeout_s: float = 5.0) -> dict[str, int]:
         self._send("stats")

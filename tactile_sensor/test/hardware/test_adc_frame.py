@@ -27,13 +27,15 @@ frame_st = st.builds(Frame, st.integers(0, 0xFFFF), st.integers(0, 0xFFFFFFFF), 
 info_st = st.builds(DeviceInfo, st.just(2), st.integers(1, 8), st.integers(1, 16),
                     st.integers(1, 0xFFFF).map(lambda mv: mv / 1000),
                     st.integers(1, 0xFFFFFFFF),
-                    st.text("abcdefghijklmnopqrstuvwxyz0123456789-_", max_size=31))
+                    st.text("abcdefghijklmnopqrstuvwxyz0123456789-_", max_size=31),
+                    st.just(False), st.none(), st.none())
 
 
 def encode(item: Frame | DeviceInfo) -> bytes:
     if isinstance(item, DeviceInfo):
+        modulation = (item.settle_us, item.read_us) if item.modulated else None
         return encode_info(item.adc_bits, item.channels, item.vref_v, item.period_us,
-                           item.board)
+                           item.board, modulation)  # type: ignore[arg-type]
     return encode_frame(*item)
 
 
@@ -69,6 +71,9 @@ DOC_EXAMPLES = [
      "a5 5a 20 0c 0a 01 88 13 e8 03 00 00 03 61 76 72 50 52"),
     (DeviceInfo(2, 3, 12, 3.3, 1000, "rp2040"),
      "a5 5a 20 0f 0c 03 e4 0c e8 03 00 00 06 72 70 32 30 34 30 74 9f"),
+    (DeviceInfo(3, 1, 10, 5.0, 2000, "avr", True, 788, 112),
+     "a5 5a 30 11 0a 01 88 13 d0 07 00 00 03 61 76 72 01 14 03 70 00 8d 00"),
+    (Frame(258, 1_000_000, (406, 819), 3), "a5 5a 31 02 01 40 42 0f 00 96 01 33 03 e7 fe"),
 ]
 
 
@@ -136,7 +141,7 @@ def test_encode_info_refuses_what_cannot_be_sent(args, match):
 
 def test_encode_refuses_an_unknown_version():
     with pytest.raises(FrameError, match="version"):
-        encode_frame(0, 0, [1], 3)
+        encode_frame(0, 0, [1], 4)
 
 
 @pytest.mark.parametrize(("counts", "match"), [([], "1 to 8"), ([0] * 9, "1 to 8"),
@@ -175,7 +180,7 @@ BAD_INFOS = [
     (_corrupt(GOOD, 2, 0x10), "channels"),
     (GOOD + b"\x00", "bytes, got"),
     (_corrupt(GOOD, 10, GOOD[10] ^ 0x01), "CRC"),
-    (_corrupt(GOOD, 2, 0x32), "version"),
+    (_corrupt(GOOD, 2, 0x42), "version"),
     (_corrupt(INFO, 3, 8), "length byte says 8"),
     (_corrupt(INFO, 3, 41), "length byte says 41"),
     (INFO[:-1], "bytes, got"),
@@ -326,3 +331,51 @@ def test_runs_decoded_as_arrays_give_what_the_byte_wise_search_gives(runs, chunk
             adc_frame.RUN_MIN_FRAMES = default
 
     assert parse(2) == parse(10**9)
+
+
+pairs_st = st.integers(1, 8).flatmap(
+    lambda n: st.lists(st.integers(0, 0xFFFF), min_size=2 * n, max_size=2 * n).map(tuple))
+modulated_st = st.builds(Frame, st.integers(0, 0xFFFF), st.integers(0, 0xFFFFFFFF), pairs_st,
+                         st.just(3))
+modulated_info_st = st.builds(DeviceInfo, st.just(3), st.integers(1, 8), st.integers(1, 16),
+                              st.just(5.0), st.integers(1, 0xFFFF), st.just("avr"),
+                              st.just(True), st.integers(0, 0xFFFF), st.integers(0, 0xFFFF))
+
+
+@given(modulated_st, modulated_info_st)
+def test_a_modulated_stream_round_trips_its_on_off_pairs(frame, info):
+    assert decode_frame(encode_frame(*frame)) == frame
+    assert decode_frame(encode(info)) == info
+    assert info.codes == 2 * info.channels
+    assert len(encode_frame(*frame)) == frame_size(len(frame.counts) // 2, 3)
+    assert FrameParser().feed(encode(info) + encode_frame(*frame) * 40) == [info, *[frame] * 40]
+
+
+def test_a_modulated_info_frame_states_its_timing_in_the_summary():
+    info = DeviceInfo(3, 1, 10, 5.0, 2000, "avr", True, 788, 112)
+    assert info.summary().endswith("500 Hz, modulated (emitter on/off, settle 788 us)")
+
+
+def test_a_modulated_frame_needs_an_on_and_an_off_code_per_channel():
+    with pytest.raises(FrameError, match="an on and an off code per channel"):
+        encode_frame(0, 0, [1, 2, 3], 3)
+
+
+@pytest.mark.parametrize(("payload_tail", "reason"), [
+    (b"", "lacks its modulation fields"),
+    (bytes([0, 0x14, 0x03, 0x70, 0x00]), "modulation 0 is not 1"),
+])
+def test_an_unusable_modulated_info_frame_is_counted_and_ignored(payload_tail, reason):
+    payload = bytes([10, 1, 0x88, 0x13, 0xD0, 0x07, 0, 0, 3]) + b"avr" + payload_tail
+    body = bytes([0x30, len(payload)]) + payload
+    data = b"\xa5\x5a" + body + crc16(body).to_bytes(2, "little")
+    parser = FrameParser()
+    assert parser.feed(data) == []
+    assert parser.info_errors == 1 and reason in parser.last_info_error
+    with pytest.raises(FrameError, match=reason):
+        decode_frame(data)
+
+
+def test_encode_info_refuses_a_settle_time_beyond_16_bits():
+    with pytest.raises(FrameError, match="must fit in 16 bits"):
+        encode_info(10, 1, 5.0, 2000, "avr", (70_000, 0))

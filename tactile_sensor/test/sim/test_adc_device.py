@@ -17,8 +17,10 @@ import pytest
 
 from tactile_sensor.hardware.adc_frame import DeviceInfo, Frame, FrameParser
 from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
+from tactile_sensor.physics.detector import DetectorState
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.filters import make_filter
+from tactile_sensor.sensing.modulation import emitter_levels
 from tactile_sensor.sim import adc_device
 from tactile_sensor.sim.adc_device import (
     QUIET,
@@ -28,6 +30,7 @@ from tactile_sensor.sim.adc_device import (
     MockAdcDevice,
     white_noise_for_dynamic_range,
 )
+from tactile_sensor.sim.ambient_light import LightScene, LitSource
 from tactile_sensor.sim.errors import SimError
 
 SOURCE_DIR = Path(__file__).resolve().parents[2]
@@ -260,7 +263,8 @@ def test_commands_and_their_errors(tmp_path):
 @pytest.mark.parametrize(("kwargs", "match"), [
     ({"rate_hz": 0.0}, "rate"), ({"adc_bits": 20}, "adc_bits"), ({"vref_v": 0}, "vref_v"),
     ({"channels": 9}, "channels"), ({"voltage_source": 3.0}, "callable"),
-    ({"protocol": 3}, "protocol"), ({"info_period_s": 0}, "info_period_s"),
+    ({"protocol": 4}, "protocol"), ({"info_period_s": 0}, "info_period_s"),
+    ({"protocol": 3}, "needs a source that gives emitter on/off pairs"),
     ({"noise": None, "link_path": "/nonexistent-dir/adc"}, "does not exist"),
 ])
 def test_bad_device_settings(tmp_path, kwargs, match):
@@ -352,3 +356,41 @@ def test_sampler_drift_is_an_ornstein_uhlenbeck_process():
     assert drift.std() == pytest.approx(0.05, rel=0.1)
     lag1 = np.corrcoef(drift[:-1], drift[1:])[0, 1]
     assert lag1 == pytest.approx(math.exp(-0.1), abs=0.02)
+
+
+def test_a_modulated_device_sends_the_emitter_on_and_off_under_the_same_light(tmp_path):
+    """Protocol 3: every channel's code with the emitter on, then off; the light of the
+    scene in both, the emitter's part at the share the detector shows after each switch."""
+    path = tmp_path / "adc"
+    scene = LightScene(dc_ratio=0.2, sample_rate_hz=500.0)
+    lit = LitSource(lambda t: np.full(np.shape(t), 2.0), scene, DetectorState(), 2.0)
+    with MockAdcDevice(path, lit, noise=QUIET, adc_bits=12, rate_hz=500.0, channels=2,
+                       protocol=3):
+        items = raw_stream(path, 200)
+    infos = {i for i in items if isinstance(i, DeviceInfo)}
+    frames = [i for i in items if isinstance(i, Frame)]
+    assert infos == {DeviceInfo(3, 2, 12, 5.0, 2000, "mock", True, 900, 0)}
+    on_share, off_share = emitter_levels(900e-6, 2e-3)
+    ambient = 0.2 * 3.0  # the ratio of the emitter's drop at rest, 3 V
+    on, off = 5.0 - 3.0 * on_share - ambient, 5.0 - 3.0 * off_share - ambient
+    assert {f.version for f in frames} == {3}
+    assert frames[-1].counts == tuple(round(v / 5.0 * 4095) for v in (on, on, off, off))
+
+
+def test_a_modulated_device_needs_time_to_settle(tmp_path):
+    lit = LitSource(lambda t: np.full(np.shape(t), 2.0), LightScene(), DetectorState(), 2.0)
+    with pytest.raises(SimError, match="leaves no time to settle"):
+        MockAdcDevice(tmp_path / "adc", lit, rate_hz=5000.0, protocol=3)
+
+
+def test_the_command_line_runs_a_modulated_device_in_the_dark_room(tmp_path):
+    from tactile_sensor.sim.modulated_adc import dark_room_pairs
+
+    class World:
+        def module_voltages(self, t):
+            return np.full(np.shape(t), 1.99)
+
+    on, off = dark_room_pairs(World()).pair(np.zeros(3), 900e-6, 2e-3)
+    on_share, off_share = emitter_levels(900e-6, 2e-3)
+    assert on == pytest.approx(5.0 - 3.01 * on_share) and off == pytest.approx(
+        5.0 - 3.01 * off_share)

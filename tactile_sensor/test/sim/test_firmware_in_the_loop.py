@@ -2,7 +2,8 @@
 
 Builds of the unmodified ``firmware/tactile_adc/tactile_adc.ino``, chosen by the boards'
 own macros: an Uno (10 bit, 5 V), a Pico (12 bit, 3.3 V) and an 8-channel Nano (the Uno's
-MCU with A0-A7). Nothing is configured by hand:
+MCU with A0-A7), and the modulated Uno and Nano (emitter on/off pairs, protocol 3).
+Nothing is configured by hand:
 counts become volts with what each device states. Skipped only where there is no g++.
 """
 
@@ -23,6 +24,7 @@ from tactile_sensor.hardware.adc_samples import Sample
 from tactile_sensor.sensing.adc_settings import Source, resolve_adc
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor.sensing.chain import ChainConfig, SignalChain
+from tactile_sensor.sensing.modulation import modulation_of
 from tactile_sensor.sim import firmware_host
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.firmware_host import NANO, PICO, UNO, Board, HostFirmware, build
@@ -291,3 +293,58 @@ def test_a_missing_build_and_a_stopped_device_are_clear_errors(build_dir, tmp_pa
     device = HostFirmware(build(UNO, build_dir), tmp_path / "adc", UNO)
     with pytest.raises(SimError, match="not running"):
         device.set_voltage(1.0)
+
+
+def test_a_modulated_uno_sends_on_off_pairs_that_the_chain_reads_as_the_emitters_light(
+        build_dir, tmp_path):
+    exe = build(UNO, build_dir, modulated=True)
+    stream = Stream()
+    chain = SignalChain(ChainConfig(rate_hz=500.0, adc_bits=10, vref_v=5.0, auto_tare=False))
+    with HostFirmware(exe, tmp_path / "adc", UNO) as device, \
+            AdcStreamReader(str(tmp_path / "adc"), stream.on_sample, on_info=stream.on_info):
+        device.set_off_voltage(4.0)  # the room's light alone, emitter off
+        counts = settled_counts(device, stream, 1.0)  # the emitter's light on top of it
+        stats = device.stats()
+    info = stream.infos[0]
+    # 500 Hz; each half period waits 1000 - 112 (one read at F_CPU/128) - 100 us
+    assert info == DeviceInfo(3, 1, 10, 5.0, 2000, "avr", True, 788, 112)
+    assert {c[1] for c in counts[5:]} == {int(4.0 / 5.0 * 1024)}  # the off code, every frame
+    assert stats["emitter_pins"] == 1 and stats["emitter_switches"] >= len(counts)
+    chain.set_modulation(modulation_of(info, 0))
+    signal = [chain.process(s).voltage_v for s in stream.since(stream.count() - 20)]
+    share = modulation_of(info, 0).share  # type: ignore[union-attr]
+    expected = 5.0 - (int(4.0 / 5.0 * 1024) - int(1.0 / 5.0 * 1024)) * 5.0 / 1023 / share
+    assert signal[-1] == pytest.approx(expected)
+
+
+def test_a_modulated_nano_reads_eight_channels_on_and_off(build_dir, tmp_path):
+    exe = build(NANO, build_dir, channels=8, modulated=True)
+    stream = Stream()
+    on = [0.25 * (c + 1) for c in range(8)]
+    with HostFirmware(exe, tmp_path / "adc", NANO) as device, \
+            AdcStreamReader(str(tmp_path / "adc"), stream.on_sample, on_info=stream.on_info):
+        for channel, v in enumerate(on[:-1]):
+            device.set_voltage(v, channel)
+        device.set_off_voltage(4.5)
+        counts = settled_counts(device, stream, on[-1], 7)
+    assert stream.infos[0] == DeviceInfo(3, 8, 10, 5.0, 2000, "avr", True, 676, 28)
+    assert counts[-1] == tuple(int(v / 5.0 * 1024) for v in [*on, *[4.5] * 8])
+
+
+def test_a_host_that_knows_only_version_2_still_reads_the_plain_build(build_dir, tmp_path):
+    """The plain build's bytes are version 2's: nothing a version-2 parser would refuse."""
+    exe = build(UNO, build_dir)
+    with HostFirmware(exe, tmp_path / "adc", UNO):
+        fd = os.open(tmp_path / "adc", os.O_RDONLY | os.O_NONBLOCK)
+        try:
+            parser = FrameParser()
+            frames = read_frames(fd, parser, 0.3)
+        finally:
+            os.close(fd)
+    assert frames and {f.version for f in frames} == {2}
+    assert parser.header_errors == 0 and parser.info_frames >= 1
+
+
+def test_a_modulated_build_with_too_few_pins_does_not_compile(tmp_path):
+    with pytest.raises(SimError, match="this board has too few pins for TACTILE_CHANNELS"):
+        build(UNO, tmp_path / "out", modulated=True, defines=("TACTILE_EMITTER_PINS=13",))
