@@ -322,6 +322,23 @@ class ParserStats(NamedTuple):
     last_info_error: str = ""
 
 
+
+def _frame_size(buf: bytearray, j: int, end: int, want: int | None) -> int | None:
+    """Bytes of the frame whose sync is at ``j``: 0 when its header is not one this host
+    reads (or not the channel count it expects), None when the bytes that tell are not
+    here yet."""
+    header = buf[j + 2]
+    n = header & 0x0F
+    if n and n <= MAX_CHANNELS and (header >> 4) in _VERSIONS and (want is None or n == want):
+        # a data frame (the common case); version 3 holds on/off pairs
+        return HEADER_SIZE + (4 * n if header >> 4 == MODULATED_VERSION else 2 * n) + CRC_SIZE
+    if header in INFO_HEADERS:
+        if end - j < 4:
+            return None
+        length = buf[j + 3]
+        return 4 + length + CRC_SIZE if INFO_FIXED_SIZE <= length <= INFO_MAX_PAYLOAD else 0
+    return 0
+
 class FrameParser:
     """Incremental frame finder: feed arbitrary chunks, get the valid frames back.
 
@@ -388,20 +405,9 @@ class FrameParser:
             if end - j < 3:
                 break
             header = buf[j + 2]
-            n = header & 0x0F
-            if (n and n <= MAX_CHANNELS and (header >> 4) in _VERSIONS
-                    and (want is None or n == want)):
-                # a data frame (the common case); version 3 holds on/off pairs
-                size = HEADER_SIZE + (4 * n if header >> 4 == MODULATED_VERSION
-                                      else 2 * n) + CRC_SIZE
-            elif header in INFO_HEADERS:
-                if end - j < 4:
-                    break
-                length = buf[j + 3]
-                size = (4 + length + CRC_SIZE
-                        if INFO_FIXED_SIZE <= length <= INFO_MAX_PAYLOAD else 0)
-            else:
-                size = 0
+            size = _frame_size(buf, j, end, want)
+            if size is None:
+                break
             if not size:
                 self.header_errors += 1
                 self._discard(1)
