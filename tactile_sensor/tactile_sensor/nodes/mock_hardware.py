@@ -242,6 +242,12 @@ def stage_and_gauge_block(world: BenchRun, t: np.ndarray
 class MockHardwareNode(Node):
     def __init__(self, node_name: str = "mock_hardware", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
+        # Before anything can refuse: a node whose set-up raised is still destroyed by the
+        # context's shutdown (Kilted's rclpy destroys every node it made), and closing the
+        # devices must find nothing to close instead of failing (the context stayed up).
+        self._stop = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self.emulator = None
         specs = physics_specs() + SPECS
         declare_parameters(self, specs)
         try:
@@ -290,9 +296,6 @@ class MockHardwareNode(Node):
         except (PhysicsError, SimError) as exc:
             raise MockHardwareError(str(exc)) from None
         seed = values["seed"] if values["seed"] >= 0 else None
-        self._stop = threading.Event()
-        self._threads: list[threading.Thread] = []
-        self.emulator = None
         self.source: Any
         try:
             if values["world"] == "bench":

@@ -84,3 +84,12 @@ def test_an_impossible_scene_is_refused_in_one_sentence(ros, tmp_path, values, s
         start(tmp_path, **values)
     assert sentence in str(error.value) and "\n" not in str(error.value)
     assert not (tmp_path / "adc").exists()  # no device opened
+
+
+def test_a_refused_rig_can_still_be_destroyed(ros, tmp_path):
+    """The context's shutdown destroys every node it made, the refused one too (Kilted):
+    closing its devices must find nothing to close, or the context stays up for the next."""
+    with pytest.raises(MockHardwareError) as error:
+        start(tmp_path, **{"ambient.dc_ratio": -0.1})
+    node = error.traceback[-1].frame.f_locals["self"]
+    node.destroy_node()  # raised AttributeError ('_stop') before
