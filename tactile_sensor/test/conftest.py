@@ -44,11 +44,12 @@ def worker_domains(ids: range, worker: str, workers: int) -> tuple[int, range]:
     its tests take in turn). Workers take every ``workers``-th id, so no two share one, and
     each keeps its first id as the domain of the tests that start nodes in-process without
     the ``ros_domain`` fixture (without it, two workers' in-process nodes would meet in the
-    run's base domain). Without xdist (``worker`` empty) the whole block is one worker's."""
+    run's base domain). Without xdist (``worker`` empty) the whole block is one worker's.
+    xdist names the worker that replaces a crashed one gw2, gw3, ... in turn: it takes the
+    share of gw0, gw1, ... in turn, the crashed ones' when they crash in that order, so a
+    crash fails its own test and not every test after it."""
     index = int(worker.removeprefix("gw")) if worker.startswith("gw") else 0
-    if not 0 <= index < max(workers, 1):
-        raise pytest.UsageError(f"pytest-xdist worker {worker!r} is not one of {workers}.")
-    share = ids[index::max(workers, 1)]
+    share = ids[index % max(workers, 1)::max(workers, 1)]
     if len(share) < 2:
         raise pytest.UsageError(
             f"{len(ids)} ROS domain ids cannot give each of {workers} pytest-xdist workers two; "

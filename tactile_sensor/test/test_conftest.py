@@ -51,6 +51,12 @@ def test_xdist_workers_never_share_a_domain_id(workers: int):
     assert all(len(ids) >= 20 for _, ids in shares)
 
 
+def test_a_worker_replacing_a_crashed_one_takes_a_share_of_the_block():
+    shares = {i: worker_domains(domain_ids(20), f"gw{i}", 2) for i in range(4)}
+    assert shares[2] == shares[0] and shares[3] == shares[1]
+    assert shares[0][0] != shares[1][0]
+
+
 def test_without_xdist_the_whole_block_is_one_workers():
     own, ids = worker_domains(domain_ids(20), "", 1)
     assert own == 20 and (ids[0], ids[-1]) == (21, 119)

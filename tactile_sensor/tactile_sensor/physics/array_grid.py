@@ -353,7 +353,8 @@ def load_or_compute_grid(params: PhysicsParams, cache_dir: Path | None = None,
     from .prediction import load_or_compute
 
     return load_or_compute(
-        lambda: cached_grid(params, cache_dir), lambda: compute_grid(params, progress, workers),
+        grid_cache_path(params, cache_dir), lambda: cached_grid(params, cache_dir),
+        lambda: compute_grid(params, progress, workers),
         lambda grid: store_grid(params, grid, cache_dir), progress,
         "computing the array calibration grid (cache miss: "
         f"{grid_cache_path(params, cache_dir).name})")

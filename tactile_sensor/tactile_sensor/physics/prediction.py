@@ -10,10 +10,11 @@ crashed run never leaves half a file).
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -243,17 +244,40 @@ def cache_file(cache_dir: Path | None, name: str) -> Path:
     return (Path(cache_dir) if cache_dir is not None else default_cache_dir()) / name
 
 
-def load_or_compute(cached: Callable[[], T | None], compute: Callable[[], T],
+@contextlib.contextmanager
+def solving_lock(path: Path) -> Iterator[None]:
+    """Hold ``path``'s lock file while its value is solved, so that processes missing the
+    same entry at once (a model node and a CLI started together, two bring-ups) solve it once
+    and the others wait for the file. Best effort: where no lock can be taken (a read-only
+    cache) each solves it, as before. The kernel releases it when its holder dies."""
+    handle = None
+    with contextlib.suppress(OSError):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(path.with_name(f".{path.name}.lock"), "a")  # noqa: SIM115 (held below)
+        fcntl.flock(handle, fcntl.LOCK_EX)
+    try:
+        yield
+    finally:
+        if handle is not None:
+            handle.close()
+
+
+def load_or_compute(path: Path, cached: Callable[[], T | None], compute: Callable[[], T],
                     store: Callable[[T], None], progress: Progress | None, miss: str) -> T:
-    """The cached value, or (announcing ``miss`` to ``progress``) computed and stored: the one
-    way a curve, a grid and a wrench set are kept, so each is solved once per digest."""
+    """The cached value at ``path``, or (announcing ``miss`` to ``progress``) computed and
+    stored: the one way a curve, a grid and a wrench set are kept, so each is solved once
+    per digest, by one process at a time."""
     value = cached()
     if value is not None:
         return value
-    if progress is not None:
-        progress(0.0, miss)
-    value = compute()
-    store(value)
+    with solving_lock(path):
+        value = cached()  # solved by another process while this one waited for the lock
+        if value is not None:
+            return value
+        if progress is not None:
+            progress(0.0, miss)
+        value = compute()
+        store(value)
     return value
 
 
@@ -319,6 +343,7 @@ def load_or_compute_curve(params: PhysicsParams, cache_dir: Path | None = None,
                           progress: Progress | None = None) -> PredictionCurve:
     """The cached curve for ``params``, computing and caching it on a miss."""
     return load_or_compute(
-        lambda: cached_curve(params, cache_dir), lambda: compute_curve(params, progress),
+        cache_path(params, cache_dir), lambda: cached_curve(params, cache_dir),
+        lambda: compute_curve(params, progress),
         lambda curve: store_curve(params, curve, cache_dir), progress,
         f"computing the FEM sweep (cache miss: {cache_path(params, cache_dir).name})")

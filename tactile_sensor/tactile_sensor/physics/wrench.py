@@ -179,7 +179,7 @@ def load_or_compute_wrench_set(params: PhysicsParams, cache_dir: Path | None = N
     from .prediction import load_or_compute
 
     return load_or_compute(
-        lambda: cached_wrench_set(params, cache_dir),
+        wrench_cache_path(params, cache_dir), lambda: cached_wrench_set(params, cache_dir),
         lambda: compute_wrench_set(params, progress, workers),
         lambda data: store_wrench_set(params, data, cache_dir), progress,
         f"solving the wrench paths (cache miss: {wrench_cache_path(params, cache_dir).name})")

@@ -107,7 +107,7 @@ def load_or_compute_stiffness(params: Any, cache_dir: Path | None = None,
                    for k in ("indentation_m", "shear_x_m", "force_x_n")}}
 
     try:
-        data = load_or_compute(lambda: read_cache(path, parse), compute,
+        data = load_or_compute(path, lambda: read_cache(path, parse), compute,
                                lambda d: write_cache(path, d), progress,
                                f"computing the skin's shear path (cache miss: {path.name})")
     except (PhysicsError, SimError) as exc:

@@ -8,6 +8,7 @@ mesh that still resolves the photoreflector window checks the paper's configurat
 from __future__ import annotations
 
 import json
+import threading
 import time
 from pathlib import Path
 
@@ -251,6 +252,46 @@ def test_corrupt_cache_file_is_recomputed_and_replaced(tmp_path, content):
     stored = PredictionCurve.from_dict(json.loads(path.read_text()))
     assert np.array_equal(stored.force_n, curve.force_n)
     assert not list(tmp_path.glob(".prediction-*.tmp"))  # no temporary left behind
+
+
+def test_two_solvers_missing_one_entry_solve_it_once(tmp_path):
+    """The second waits on the entry's lock while the first solves, then reads its file (flock
+    excludes two open files of one process as it does two processes)."""
+    path = tmp_path / "entry.json"
+    solved: list[str] = []
+    first_solving, second_missed, release = (threading.Event(), threading.Event(),
+                                             threading.Event())
+
+    def cached() -> str | None:
+        if threading.current_thread().name == "second":
+            second_missed.set()
+        return path.read_text() if path.is_file() else None
+
+    def compute() -> str:
+        solved.append(threading.current_thread().name)
+        if threading.current_thread().name == "first":
+            first_solving.set()
+            assert release.wait(timeout=60)
+        return threading.current_thread().name
+
+    results: dict[str, str] = {}
+
+    def solve() -> None:
+        name = threading.current_thread().name
+        results[name] = prediction.load_or_compute(path, cached, compute, path.write_text,
+                                                   None, "miss")
+
+    first = threading.Thread(target=solve, name="first")
+    first.start()
+    assert first_solving.wait(timeout=60)
+    second = threading.Thread(target=solve, name="second")
+    second.start()
+    assert second_missed.wait(timeout=60)  # the second found no entry before the first ended
+    release.set()
+    first.join(timeout=60)
+    second.join(timeout=60)
+    assert solved == ["first"]
+    assert results == {"first": "first", "second": "first"}
 
 
 def test_unwritable_cache_still_returns_the_curve(tmp_path):
