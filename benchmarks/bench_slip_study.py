@@ -44,6 +44,9 @@ STATIC_FRICTION = (0.3, 0.5, 0.7, 1.0)
 KINETIC_SHARE = (1.0, 0.8)
 DOUBLING_S = (0.1, 0.01)
 GRIPS_N = (1.0, 2.0, 5.0)
+#: The bandwidth the study chose (docs/gripper.md) and the friction errors tried there.
+CHOSEN_HZ = 20.0
+LEARNED = (0.9, 1.1)
 #: Indentation [m] at which each layout's sensitivity is taken for the resolution table.
 TABLE_INDENTATION_M = 0.001
 
@@ -113,6 +116,13 @@ def slip_study(skin: Skin, figures: list[Figure]) -> None:
             summarise(hz, [r for r in rows if r["double_s"] == ramp], figures,
                       f"{ramp * 1e3:g} ms doubling")
         sys.stdout.flush()
+    print(f"Friction learned wrong, at {CHOSEN_HZ:g} Hz (the hold and the detector believe "
+          "it this many times the kinetic friction):")
+    for learned in LEARNED:
+        rows = [as_row(s, evaluate(s, skin, CHOSEN_HZ, rng, learned=learned))
+                for s in objects()]
+        print(f"  x {learned:g}:", end="")
+        summarise(CHOSEN_HZ, rows, figures, f"friction believed x {learned:g}")
 
 
 def main() -> None:

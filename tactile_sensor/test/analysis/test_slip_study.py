@@ -215,3 +215,13 @@ def test_evaluate_holds_at_the_detectors_margin_and_sees_the_slip() -> None:
     assert fig.plateau_s is not None and fig.plateau_s > 0
     row = as_row(heavy, fig)
     assert row["bandwidth_hz"] == 20.0 and row["delay_ms"] == pytest.approx(fig.delay_s * 1e3)
+
+
+def test_a_friction_believed_too_high_grips_less_and_warns_later() -> None:
+    skin = Skin(STIFF, lambda f: f / 2000.0, lambda _d: FOUR)
+    heavy = Scenario(0.3, 0.5, 0.4, 1.0, hold_s=0.3, after_s=0.2)
+    right = evaluate(heavy, skin, 20.0, np.random.default_rng(1))
+    high = evaluate(heavy, skin, 20.0, np.random.default_rng(1), learned=1.2)
+    assert high.grip_n < right.grip_n
+    assert high.delay_s is not None and right.delay_s is not None
+    assert high.delay_s > right.delay_s

@@ -115,13 +115,13 @@ class Skin:
     sample_noise_v: float = SAMPLE_NOISE_V
 
 
-def held_grip_n(scenario: Scenario, res: Resolution) -> float:
+def held_grip_n(scenario: Scenario, res: Resolution, learned: float = 1.0) -> float:
     """The least grip per finger [N] at which the weight rests outside the detector's alarm
-    (its least margin), and never under what holds the weight statically."""
-    mu = scenario.friction_kinetic
+    (its least margin) for a hold that believes the friction ``learned`` x the kinetic one
+    (above the static least grip by construction: the margin is > 0)."""
+    mu = learned * scenario.friction_kinetic
     detector = MarginDetector.for_resolution(mu, res)
-    return max(least_grip_n(scenario.weight_n, scenario.friction_static),
-               (0.5 * scenario.weight_n + detector.least_margin_n()) / mu)
+    return (0.5 * scenario.weight_n + detector.least_margin_n()) / mu
 
 
 @dataclass(frozen=True)
@@ -138,28 +138,30 @@ class HeldRun:
 
     @classmethod
     def at(cls, scenario: Scenario, skin: Skin, bandwidth_hz: float,
-           false_alarms_per_hour: float = 1.0) -> HeldRun:
-        """The sensitivity is taken at the least grip's indentation to find the grip, then
+           false_alarms_per_hour: float = 1.0, learned: float = 1.0) -> HeldRun:
+        """The hold and its detector believe the friction ``learned`` x the kinetic one.
+        The sensitivity is taken at the least grip's indentation to find the grip, then
         again at the grip's own."""
         first_d = skin.indentation_of(least_grip_n(scenario.weight_n,
                                                    scenario.friction_static))
         first = resolution(skin.sensitivity_at(first_d), bandwidth_hz, 1.0,
                            false_alarms_per_hour, skin.sample_noise_v)
-        run = replace(scenario, grip_n=held_grip_n(scenario, first))
+        run = replace(scenario, grip_n=held_grip_n(scenario, first, learned))
         depth = skin.indentation_of(run.grip_n)
         sensitivity = skin.sensitivity_at(depth)
         res = resolution(sensitivity, bandwidth_hz, run.grip_n, false_alarms_per_hour,
                          skin.sample_noise_v)
         cov = force_covariance(sensitivity, skin.sample_noise_v)[np.ix_([0, 2], [0, 2])]
-        return cls(run, depth, res, MarginDetector.for_resolution(run.friction_kinetic, res),
-                   cov)
+        detector = MarginDetector.for_resolution(learned * run.friction_kinetic, res)
+        return cls(run, depth, res, detector, cov)
 
 
 def evaluate(scenario: Scenario, skin: Skin, bandwidth_hz: float, rng: np.random.Generator,
-             false_alarms_per_hour: float = 1.0) -> BandwidthFigures:
+             false_alarms_per_hour: float = 1.0, learned: float = 1.0) -> BandwidthFigures:
     """``scenario`` held at the grip the detector at ``bandwidth_hz`` allows (its own grip
-    ignored), then its load doubled (module doc)."""
-    held = HeldRun.at(scenario, skin, bandwidth_hz, false_alarms_per_hour)
+    ignored), then its load doubled (module doc); ``learned``: the friction the hold and
+    its detector believe, over the true kinetic one."""
+    held = HeldRun.at(scenario, skin, bandwidth_hz, false_alarms_per_hour, learned)
     run, depth, res, detector, cov = held.run, held.depth_m, held.res, held.detector, held.cov
     coupling = skin.coupling_at(depth)
     slip = simulate(run, skin.stiffness, depth, coupling, skin.rate)
