@@ -56,12 +56,17 @@ def forces(bag: Path) -> dict[str, np.ndarray]:
     """(time [s], force x, y, z [N]) rows of the driver's wrench and of the truth."""
     from rosbags.highlevel import AnyReader
 
-    topics = {"/driver/wrench": "driver", "/gripper_world/ground_truth": "truth"}
-    rows: dict[str, list[tuple[float, float, float, float]]] = {v: [] for v in topics.values()}
+    topics = {"/driver/wrench": "driver", "/gripper_world/ground_truth": "truth",
+              "/gripper_world/object/joint_states": "object"}
+    rows: dict[str, list[tuple[float, ...]]] = {v: [] for v in topics.values()}
     with AnyReader([bag]) as reader:
         chosen = [c for c in reader.connections if c.topic in topics]
         for con, stamp, raw in reader.messages(connections=chosen):
-            f = reader.deserialize(raw, con.msgtype).wrench.force
+            msg = reader.deserialize(raw, con.msgtype)
+            if topics[con.topic] == "object":  # object_position, object_slip [m]
+                rows["object"].append((stamp * 1e-9, *msg.position))
+                continue
+            f = msg.wrench.force
             rows[topics[con.topic]].append((stamp * 1e-9, f.x, f.y, f.z))
     return {k: np.asarray(v) for k, v in rows.items()}
 
@@ -86,7 +91,8 @@ def main() -> int:
     for start, end in WINDOWS_S:
         span = f"{start:+g} to {end:+g} s from the lift"
         means = {}
-        for name, rows in f.items():
+        for name in ("driver", "truth"):
+            rows = f[name]
             t = rows[:, 0] - lifted[0]
             window = rows[(t > start) & (t < end)]
             means[name] = window[:, 1:].mean(axis=0)
@@ -98,6 +104,9 @@ def main() -> int:
         figures += [Figure(f"{span}: driver Fx", float(means["driver"][0]), "N"),
                     Figure(f"{span}: truth Fx", float(means["truth"][0]), "N"),
                     Figure(f"{span}: driver Fx sd", spread, "N")]
+    slip = float(np.abs(f["object"][:, 2]).max()) if f["object"].size else float("nan")
+    print(f"the object's largest slip: {slip * 1e3:.2f} mm")
+    figures.append(Figure("largest slip", slip, "m"))
     write_results("gripper_shear", figures,
                   notes=f"{args.mass:g} kg, friction {args.friction:g}, grasp "
                   f"{args.grip:g} N; half its weight {args.mass * 9.80665 / 2:.3f} N.")
