@@ -187,6 +187,33 @@ def module_layouts(_series: Series, path: Path) -> Path:
     return saved(fig, path)
 
 
+def slip_trace(series: Series, path: Path) -> Path:
+    """One slip as the study computes it: finger A's tangential force, true and as the
+    array layout senses it, against the friction limit, and the margin detector's filtered
+    margin crossing its threshold before the onset (the package draws no such plot)."""
+    plt = pyplot()
+    t = series["t_s"] * 1e3
+    fig, (force, margin) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    force.plot(t, series["ft_sensed_n"], lw=0.4, color="0.7", label="sensed Ft (1 kHz)")
+    force.plot(t, series["ft_true_n"], lw=1.2, color="tab:blue", label="true Ft")
+    force.plot(t, series["limit_n"], lw=1.0, ls="--", color="k", label="mu_k Fn")
+    margin.plot(t, series["margin_n"], lw=1.0, color="tab:green", label="filtered margin")
+    margin.plot(t, series["threshold_n"], lw=1.0, ls="--", color="tab:red",
+                label="threshold (1 false alarm / h)")
+    for ax in (force, margin):
+        for key, style in (("onset_s", "tab:purple"), ("alarm_s", "tab:red")):
+            value = float(series[key][0])
+            if np.isfinite(value):
+                ax.axvline(value * 1e3, color=style, lw=0.8)
+        ax.legend(fontsize=8, loc="upper left")
+    force.set(ylabel="force along the fingers [N]",
+              title="A slip: the load doubles from t = 0 (purple: onset, red: alarm)")
+    margin.set(xlabel="time from the load's doubling [ms]", ylabel="margin [N]",
+               xlim=(-200, 300))
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.93, hspace=0.12)
+    return saved(fig, path)
+
+
 @dataclass(frozen=True)
 class PageFigure:
     """One figure of a docs page: the benchmark result it is drawn from (empty: drawn from
@@ -213,6 +240,8 @@ FIGURES = (
                "the rate errors per speed", rate_errors),
     PageFigure("gripper-workflow", "grasp", "gripper",
                "a grasp's force and opening over time", grasp_trace),
+    PageFigure("gripper", "slip_study", "slip_study",
+               "a slip's tangential force and the detector's alarm", slip_trace),
 )
 
 

@@ -121,7 +121,26 @@ WRENCH = Configuration(
     record_topics=BENCH.record_topics,
 )
 
-CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER, ARRAY, WRENCH)}
+GRIPPER_SHEAR = Configuration(
+    name="gripper_shear",
+    description="The soft gripper with modules on four side faces of finger A's skin: the "
+                "grip and the force along the fingers.",
+    nodes=(
+        replace(GRIPPER.nodes[0], config_files=(*GRIPPER.nodes[0].config_files,
+                                                "gripper_shear.yaml")),
+        replace(_MODEL, config_files=(*_MODEL.config_files, "gripper_shear.yaml")),
+        replace(GRIPPER.nodes[2], config_files=(*GRIPPER.nodes[2].config_files,
+                                                "gripper_shear.yaml")),
+        GRIPPER.nodes[3],
+    ),
+    ports={"adc_port": ("/tmp/tactile_sensor/gripper_shear_adc",
+                        "serial device of finger A's ADC (one channel per module)"),
+           "servo_port": ("/tmp/tactile_sensor/gripper_shear_xm430",
+                          "serial device of the U2D2 (Dynamixel bus)")},
+    record_topics=(*GRIPPER.record_topics, "/gripper_world/object/joint_states"),
+)
+
+CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER, ARRAY, WRENCH, GRIPPER_SHEAR)}
 
 
 def config_dir() -> Path:

@@ -1,4 +1,5 @@
-"""``tactile-sensor bringup bench|gripper|array|wrench``: a launch file's job without launch.
+"""``tactile-sensor bringup CONFIGURATION`` (bench, gripper, gripper_shear, array, wrench): a
+launch file's job without launch.
 
 Composes the configuration's nodes in one process and one executor (as ros2/demos composes
 nodes), loads the same config files as ``launch/*.launch.py`` (both read
@@ -27,7 +28,8 @@ class BringupError(Exception):
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="tactile-sensor bringup",
-        description="Run the bench, gripper, array or wrench configuration in one process "
+        description="Run the bench, gripper, gripper_shear, array or wrench configuration in "
+                    "one process "
                     "(no launch needed).")
     parser.add_argument("configuration", choices=sorted(CONFIGURATIONS))
     parser.add_argument("--duration", type=float, default=None,
@@ -38,7 +40,7 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--protocol", default=None,
                         help="bench: compression | repeatability | speeds | rate_check | "
                              "ambient | rest; "
-                             "gripper: grasp | idle; array: compression | shear; "
+                             "gripper, gripper_shear: grasp | idle; array: compression | shear; "
                              "wrench: wrench "
                              "(config/protocols.yaml); "
                              "NAME:key=value,... overrides its fields, e.g. "

@@ -54,7 +54,7 @@ def run_protocol(runner: RunningBringup, duration: float | None) -> int:
     bench = runner.nodes.get("bench")
     if bench is not None and name:
         return _run_bench(runner, bench, duration)
-    if runner.configuration.name == "gripper" and name == "grasp":
+    if "gripper" in runner.nodes and name == "grasp":
         return _run_grasp(runner, duration)
     end = math.inf if duration is None else runner.now() + duration
     say("running" + ("" if duration is None else f" for {duration:.1f} s")

@@ -19,10 +19,13 @@ servo and the reference instruments agree:
   ``~/start``.
 - ``world: gripper`` — the soft gripper: an emulated XM430 moves the fingers, the rod
   indents the fingertip skin, the mock ADC streams finger A's modules, and
-  ``~/ground_truth`` carries finger A's true skin force. With ``object.mass_kg`` > 0 the
-  rod is an object that can slip along the fingers (sim/held_object.py): its skin force
-  along them is force.x of ``~/ground_truth`` and ``~/object/joint_states`` carries its
-  travel and slip; the emulator's control FIFO lifts it (``object lift``).
+  ``~/ground_truth`` carries finger A's true skin force. With ``modules`` naming several
+  faces finger A's skin is the FEM array grid: its modules read the press and the object's
+  shear of the skin along the fingers (configuration ``gripper_shear``). With
+  ``object.mass_kg`` > 0 the rod is an object that can slip along the fingers
+  (sim/held_object.py): its skin force along them is force.x of ``~/ground_truth`` and
+  ``~/object/joint_states`` carries its travel and slip; the emulator's control FIFO lifts
+  it (``object lift``).
 """
 
 from __future__ import annotations
@@ -300,6 +303,8 @@ class MockHardwareNode(Node):
         try:
             if values["world"] == "bench":
                 self._build_bench(skin, physics)
+            elif array:  # finger A's modules from the grid, the fingers' forces as it reads
+                self._build_gripper(skin.press_skin(), held, skin)
             else:
                 self._build_gripper(skin, held)
             for path in self._links():
@@ -478,7 +483,8 @@ class MockHardwareNode(Node):
                           lambda: RateDependentForce.from_params(physics),
                           reach_m=0.5 * physics.width)
 
-    def _build_gripper(self, skin: TabulatedSkin, held: Any = None) -> None:
+    def _build_gripper(self, skin: TabulatedSkin, held: Any = None,
+                       fingertip: ArraySkin | None = None) -> None:
         from tactile_sensor.control.geometry import GripperGeometry
         from tactile_sensor.sim.gripper_world import GripperWorld
         from tactile_sensor.sim.xm430_emulator import Xm430Emulator
@@ -493,7 +499,8 @@ class MockHardwareNode(Node):
                                     ) from None
         self.world = GripperWorld(skin, geometry, rod_diameter_m=v["rod.diameter"] or None,
                                   rod_offset_m=v["rod.offset"],
-                                  stiffness_ratio=v["skin.stiffness_ratio"], held=held)
+                                  stiffness_ratio=v["skin.stiffness_ratio"], held=held,
+                                  fingertip=fingertip)
         self.source = self.world.module_voltages
         self.emulator = Xm430Emulator(v["servo_link"], servo_id=v["servo_id"],
                                       baudrate=v["servo_baud_rate"], world=self.world,

@@ -118,6 +118,17 @@ class ArraySkin:
                      .voltage(params.gap))
         return cls(grid, rest, source=f"fem-array:{grid.digest}")
 
+    def press_skin(self) -> Any:
+        """The grid's pure press as a one-axis skin (``TabulatedSkin``): normal force and the
+        first module's voltage against indentation. A gripper whose fingertip modules come
+        from this grid takes its fingers' forces from here, so that they are the forces the
+        grid's calibration reads (the grid's mesh reads about 5 % more than the curve's)."""
+        from tactile_sensor.sim.skin_response import TabulatedSkin
+
+        press = self._table[:, 0, 0]
+        return TabulatedSkin(self._d, press[:, -1], self.rest_voltage_v - press[:, 0],
+                             source=f"{self.source}:press")
+
     # -- domain ------------------------------------------------------------------------------
 
     @property

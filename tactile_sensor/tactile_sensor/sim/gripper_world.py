@@ -7,7 +7,11 @@ guide. Servo angle ``theta`` is measured from ``open_position_rad`` (fingers ful
 ``opening`` is the distance between the two skin surfaces. A rod of ``rod_diameter_m`` is held
 fixed at ``rod_offset_m`` from the gripper centre (positive towards finger B). Each
 fingertip is a skin block (``sim/skin_block.py``), the same skin model the bench presses:
-finger A's carries the tactile module, finger B's the same skin without a module.
+finger A's carries the tactile module, finger B's the same skin without a module. A
+fingertip that feels shear (``fingertip``: the FEM array grid, ``sim/array_world.ArraySkin``)
+puts modules on finger A's side faces: they read the press and the object's shear of the
+skin (finger A's elastic deflection along the fingers, the skin block's x); the fingers'
+normal forces stay the curve's, on both fingers alike.
 
 Contact: a finger's skin indentation is how far its surface has passed the rod's edge; the
 skin's response (force and photoreflector voltage against indentation) comes from the physics
@@ -28,6 +32,7 @@ from __future__ import annotations
 import bisect
 import threading
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -60,14 +65,16 @@ class GripperWorld:
     def __init__(self, skin: SkinResponse, geometry: GripperGeometry | None = None,
                  rod_diameter_m: float | None = 0.020, rod_offset_m: float = 0.0,
                  history_s: float = 5.0, stiffness_ratio: float = 1.0,
-                 held: HeldObject | None = None) -> None:
+                 held: HeldObject | None = None, fingertip: Any = None) -> None:
         self.geometry = geometry or GripperGeometry()
         if rod_diameter_m is not None and rod_diameter_m <= 0:
             raise ValueError("rod_diameter_m must be positive (or None for no rod)")
-        #: Finger A's fingertip (its modules are the world's) and finger B's, without one.
+        #: Finger A's and finger B's skins (their normal forces) and finger A's modules:
+        #: the skin's own module, or a fingertip's several (the world's channels).
         self.finger_a = SkinBlock(skin, stiffness_ratio=stiffness_ratio)
         self.finger_b = SkinBlock(skin, faces=(), stiffness_ratio=stiffness_ratio)
-        self.faces = self.finger_a.faces
+        self.fingertip = self.finger_a if fingertip is None else SkinBlock(fingertip)
+        self.faces = self.fingertip.faces
         if held is not None and rod_diameter_m is None:
             raise ValueError("an object with mass needs a rod diameter (its size)")
         self.held = held
@@ -136,21 +143,32 @@ class GripperWorld:
         # each rack pushes its finger with the skin force; the pinion feels both
         return g.pitch_radius_m * force
 
-    def _sample(self, t_s: float, position_rad: float) -> WorldSample:
+    def _sample(self, t_s: float, position_rad: float, shear_m: float = 0.0) -> WorldSample:
         d_a, d_b = self.indentations_m(position_rad)
         return WorldSample(t_s, position_rad, self.geometry.opening_m(position_rad), d_a, d_b,
                            self.finger_a.load(d_a) if d_a else 0.0,
                            self.finger_b.load(d_b) if d_b else 0.0,
-                           tuple(self.finger_a.module_voltages(d_a).tolist()))
+                           self._voltages(d_a, shear_m))
+
+    def _voltages(self, indentation_m: float, shear_m: float) -> tuple[float, ...]:
+        """Finger A's modules at that press and that deflection along the fingers."""
+        tip = self.fingertip
+        if tip.axes > 1:
+            return tuple(np.asarray(tip.module_voltages(indentation_m, shear_m, 0.0),
+                                    dtype=float).tolist())
+        return tuple(tip.module_voltages(indentation_m).tolist())
 
     def update(self, t_s: float, position_rad: float) -> WorldSample:
         """Record the fingers at ``position_rad`` at time ``t_s`` (emulator thread)."""
         sample = self._sample(t_s, position_rad)
         with self._lock:
             if self.held is not None:
-                sample = replace(sample, held=self.held.step(
-                    t_s, (sample.force_a_n, sample.force_b_n),
-                    (sample.indentation_a_m, sample.indentation_b_m)))
+                held = self.held.step(t_s, (sample.force_a_n, sample.force_b_n),
+                                      (sample.indentation_a_m, sample.indentation_b_m))
+                sample = replace(sample, held=held)
+                if self.fingertip.axes > 1 and held.deflection_a_m:
+                    sample = replace(sample, voltages_v=self._voltages(
+                        sample.indentation_a_m, held.deflection_a_m))
             self._latest = sample
             self._times.append(t_s)
             self._forces.append(sample.force_a_n)

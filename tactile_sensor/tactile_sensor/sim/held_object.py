@@ -173,6 +173,9 @@ class ObjectState:
     lifted: bool = False
     #: It slipped off the skins and fell out of the fingers.
     dropped: bool = False
+    #: Finger A's skin surface, displaced along +x by the object (its elastic deflection,
+    #: what a fingertip with modules on its side faces reads) [m].
+    deflection_a_m: float = 0.0
 
 
 class HeldObject:
@@ -278,7 +281,7 @@ class HeldObject:
     def state(self) -> ObjectState:
         a, b = self.contacts
         return ObjectState(self.x_m, self.v_m_s, 0.5 * (a.slid_m + b.slid_m), a.force_n,
-                           b.force_n, self.lifted, self.dropped)
+                           b.force_n, self.lifted, self.dropped, self.x_m - a.anchor_m)
 
 
 def object_from_values(mass_kg: float, friction_static: float, friction_kinetic: float,

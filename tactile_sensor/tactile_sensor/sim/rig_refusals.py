@@ -28,7 +28,8 @@ class RigSettings:
 
     @property
     def array(self) -> bool:
-        return self.world == "bench" and self.modules > 1
+        """Several modules: the skin is the FEM array grid (the bench's, or finger A's)."""
+        return self.modules > 1
 
     @property
     def wrench(self) -> bool:

@@ -91,3 +91,18 @@ def test_the_module_layouts_are_drawn_from_the_configurations_without_a_result(t
     assert (out / "module_layouts.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "drawn by `make docs` from the package's configuration" in (
         out / "array.md").read_text()
+
+
+def test_the_slip_study_draws_its_trace_on_the_gripper_page(tmp_path):
+    published, out = tmp_path / "results", tmp_path / "generated"
+    t = np.arange(-0.2, 0.3, 0.001)
+    n = t.size
+    ft = np.where(t < 0.05, 1.5 + 10 * np.clip(t, 0, None), 2.0)
+    series = {"t_s": t, "ft_true_n": ft, "ft_sensed_n": ft + 0.1, "limit_n": np.full(n, 2.0),
+              "margin_n": 2.0 - ft, "threshold_n": np.full(n, 0.3), "slip_mm": np.zeros(n),
+              "onset_s": np.full(n, 0.05), "alarm_s": np.full(n, 0.03)}
+    results.write_results("slip_study", [], argv=["benchmarks/bench_slip_study.py"],
+                          directory=published, series=series)
+    docs_figures.write_pages(published, out)
+    assert (out / "slip_study.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "benchmark slip_study" in (out / "gripper.md").read_text()

@@ -77,3 +77,18 @@ def test_a_bad_object_is_refused_in_one_sentence(ros, tmp_path, values, sentence
         start(tmp_path, **values)
     assert sentence in str(error.value) and "\n" not in str(error.value)
     assert not (tmp_path / "adc").exists() and not (tmp_path / "xm430").exists()
+
+
+def test_a_fingertip_that_feels_shear_streams_its_modules_from_the_grid(ros, tmp_path):
+    node = start(tmp_path, modules="front,back,left,right", **{"object.mass_kg": 0.1})
+    try:
+        world = node.world
+        assert world.faces == ("front", "back", "left", "right")
+        assert world.module_voltages(0.0).shape == (4,)
+        # the fingers' forces are the grid's press, as its calibration reads them
+        assert world.finger_a.response.source.endswith(":press")
+        assert world.fingertip.response.source.startswith("fem-array:")
+        assert world.held is not None
+    finally:
+        node.close_devices()
+        node.destroy_node()

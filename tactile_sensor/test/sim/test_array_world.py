@@ -218,3 +218,13 @@ def test_rate_filter_matches_the_streaming_model():
 def test_loop_repeats(skin):
     world = ArrayBenchWorld(ShearProfile(directions=4), skin, loop=True)
     np.testing.assert_allclose(world.stage_m(10.0 + world.duration_s), world.stage_m(10.0))
+
+
+def test_the_press_skin_is_the_grids_pure_press(grid, skin):
+    press = skin.press_skin()
+    pure = grid.level == 0
+    d, fz = grid.indentation_m[pure], grid.force_n[pure]
+    assert [press.force_n(float(x)) for x in d] == pytest.approx(fz.tolist())
+    assert press.force_n(0.0) == 0.0
+    assert [press.voltage_v(float(x)) for x in d] == pytest.approx(
+        skin.voltages_v(d)[:, 0].tolist())

@@ -162,3 +162,40 @@ def test_an_object_that_fell_out_leaves_the_fingers_nothing_to_press():
 def test_an_object_needs_a_rod():
     with pytest.raises(ValueError, match="needs a rod diameter"):
         GripperWorld(skin(), rod_diameter_m=None, held=held_object())
+
+
+class ShearTip:
+    """A fingertip with a module on each side face: every output follows the press, the
+    left and right ones the shear along x too (right bulges toward its reader)."""
+
+    faces = ("front", "back", "left", "right")
+    axes = 3
+
+    def voltages_v(self, indentation_m, shear_x_m=0.0, shear_y_m=0.0):
+        press = 20.0 * np.asarray(indentation_m, float)
+        shear = 30.0 * np.asarray(shear_x_m, float)
+        return 2.0 - np.stack([press, press, press - shear, press + shear], axis=-1)
+
+
+def test_a_fingertip_that_feels_shear_reads_the_object_pulling_along_the_fingers():
+    stiffness = TangentialStiffness([0.001], [340.0])
+    held = HeldObject(ObjectSpec(0.1, 1.0, 1.0), stiffness)
+    world = GripperWorld(skin(), held=held, fingertip=ShearTip())
+    plain = GripperWorld(skin())
+    assert world.faces == ShearTip.faces and world.module_voltages(0.0).shape == (4,)
+    position = world.geometry.position_rad(0.018)       # 1 mm each side: holds 100 g
+    rest = world.update(0.0, position)
+    front, _, left, right = rest.voltages_v
+    assert left == right == front                       # on its support: press only
+    assert world.lift()
+    held_sample = [world.update(0.001 * i, position) for i in range(1, 400)][-1]
+    assert held_sample.held.slip_m == 0.0               # it sticks
+    deflection = held_sample.held.deflection_a_m
+    # the force is the last sub-step's, the deflection after it: the object rings
+    assert deflection == pytest.approx(held_sample.held.force_a_n / 340.0, rel=0.1)
+    assert deflection > 0
+    front, _, left, right = held_sample.voltages_v
+    assert right < front < left                         # the shear, both ways round
+    assert left - right == pytest.approx(60.0 * deflection)
+    # the fingers' forces are the skin's, as without the fingertip
+    assert held_sample.force_a_n == plain.update(0.0, position).force_a_n

@@ -18,6 +18,7 @@ WRENCH = 8
     (RigSettings("gripper", WRENCH, tilt_rad=0.05), "needs the bench world"),
     (RigSettings("bench", 4, twist_rad=0.05), "at least 6 modules"),
     (RigSettings("bench", 4, stiffness_ratio=1.15), "single-module skin"),
+    (RigSettings("gripper", 4, stiffness_ratio=1.15), "single-module skin"),
     (RigSettings("bench", 1, shear_m=0.001), "needs a module array"),
 ])
 def test_each_impossible_rig_is_one_sentence_naming_the_fix(rig, names):
@@ -31,6 +32,7 @@ def test_each_impossible_rig_is_one_sentence_naming_the_fix(rig, names):
     RigSettings("bench", 1, stiffness_ratio=1.15, scenario="office"),
     RigSettings("gripper", 1, has_object=True, rod_diameter_m=0.02, stiffness_ratio=0.9),
     RigSettings("bench", 4, shear_m=0.001),
+    RigSettings("gripper", 4, has_object=True, rod_diameter_m=0.02),
     RigSettings("bench", WRENCH, shear_m=0.001, tilt_rad=0.05, twist_rad=0.05),
 ])
 def test_the_rigs_that_can_run_are_accepted(rig):
