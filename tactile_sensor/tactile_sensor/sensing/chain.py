@@ -410,7 +410,7 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
             self._update_gain()
 
     def reconfigure(self, config: ChainConfig) -> None:
-        """Take new filter, tare and contact settings while samples flow; baseline and
+        """Take new filter, tare, contact and rest settings while samples flow; baseline and
         calibration stay. A part whose settings changed starts afresh (a new filter has no
         history). The ADC settings (``FIXED_FIELDS``) cannot change here."""
         changed = changed_parts(self.config, config)  # validates
