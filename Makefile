@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate demo-wrench bench bench-publish bench-report clean
+.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate demo-wrench demo-ambient bench bench-publish bench-report clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -44,6 +44,9 @@ demo-rate: setup  ## fit force across speeds on 'speeds', check it on unseen spe
 
 demo-wrench: setup  ## press, shear, tilt and twist on the 8-module layout; print the six errors
 	@bash scripts/demo.sh wrench
+
+demo-ambient: setup  ## force error in the dark, under light and drift: today's driver beside each kind of module
+	@bash scripts/demo.sh ambient
 
 bench: setup  ## every benchmark in benchmarks/: prints its figures, writes build/benchmarks/results/
 	@. scripts/env.sh && skipped=""; for b in benchmarks/bench_*.py; do echo "== $$b"; \

@@ -5,6 +5,7 @@
 #   scripts/demo.sh gripper
 #   scripts/demo.sh rate [SPEEDS_PROTOCOL]   (default speeds:cycles=1,hold=2)
 #   scripts/demo.sh wrench [WRENCH_PROTOCOL]   (default wrench)
+#   scripts/demo.sh ambient
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -103,6 +104,14 @@ PY
     ls -1 "$run"/analysis/*.png
     echo "== report: $run/analysis/report.md, metrics: $run/analysis/metrics.json"
     ;;
+  ambient)
+    # Outside the dark room (docs/ambient.md): the ambient protocol's presses on the mock's
+    # physics under each light scenario and drift, through today's driver and through the
+    # driver following each kind of module at rest, side by side (about a minute).
+    echo "== force error: dark room, light and drift; today's driver beside each kind of module"
+    python benchmarks/bench_ambient.py --demo | tee "$run/ambient.txt"
+    echo "== table: $run/ambient.txt"
+    ;;
   gripper)
     echo "== gripper grasp/hold/release on mock hardware -> $run/bag"
     tactile-sensor bringup gripper --protocol grasp --record "$run/bag" \
@@ -111,7 +120,7 @@ PY
     ;;
   *)
     echo "usage: scripts/demo.sh bench [compression|repeatability|speeds] | gripper |" \
-      "rate [SPEEDS_PROTOCOL] | wrench [WRENCH_PROTOCOL]" >&2
+      "rate [SPEEDS_PROTOCOL] | wrench [WRENCH_PROTOCOL] | ambient" >&2
     exit 2
     ;;
 esac

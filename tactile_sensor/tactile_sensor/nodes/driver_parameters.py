@@ -8,6 +8,11 @@ from tactile_sensor.nodes.parameters import ParamSpec
 from tactile_sensor.sensing.array_chain import TORQUE_CUTOFF_HZ, parse_modules
 from tactile_sensor.sensing.errors import SensingError
 from tactile_sensor.sensing.filters import FILTERS
+from tactile_sensor.sensing.rest_gain import (
+    DEFAULT_GAIN_BOUND,
+    DEFAULT_RETARE_TIME_CONSTANT_S,
+    MAX_RETARE_TIME_CONSTANT_S,
+)
 
 
 def _modules_problem(text: str) -> str | None:
@@ -76,6 +81,21 @@ SPECS = [
     ParamSpec("tare_max_spread", 0.05, "tare is refused if the voltage spread in the window "
               "exceeds this [V] (not at rest)", minimum=0.0, exclusive_minimum=True),
     ParamSpec("auto_tare", True, "tare by itself on the first window found at rest"),
+    ParamSpec("rest_retare_time_constant", DEFAULT_RETARE_TIME_CONSTANT_S, "re-tare at rest: "
+              "while sure nothing touches the skin (a whole tare_window without contact, the "
+              "force under contact_off_force, the detector not blind, the level within "
+              "tare_max_spread) the baseline follows the level with this time constant [s], "
+              "so slow changes of light and of the emitter are followed; a press that stays "
+              "under contact_off_force this long is taken for light; 0 = re-tare only on "
+              "~/tare and the first auto_tare (single module)", minimum=0.0,
+              maximum=MAX_RETARE_TIME_CONSTANT_S),
+    ParamSpec("gain_tracking", True, "modulated module: read the calibration at the optical "
+              "gain measured at rest (the emitter's drop against the one when the "
+              "calibration arrived), so the sensitivity holds as the emitter dims or warms; "
+              "a stock module cannot measure it (its drop at rest holds the room's light)"),
+    ParamSpec("gain_warn_bound", DEFAULT_GAIN_BOUND, "/diagnostics warns 'recalibrate' once "
+              "the optical gain is off its calibration's by more than this fraction [1] "
+              "(0.15 = +-15 %)", minimum=0.0, exclusive_minimum=True, maximum=0.99),
     ParamSpec("reader_backlog", DEFAULT_BACKLOG, "samples read from the port but not yet "
               "processed that the driver may hold while starved of CPU; beyond it new ones "
               "are dropped and counted (diagnostics 'frames_overflowed')", minimum=1,

@@ -2,7 +2,7 @@
 
 Priority of the one-sentence message: the connection first, then the device's info frame
 and whether it contradicts the configuration, then a detector blinded by light, then tare
-and calibration, then frames lost
+and calibration, then an optical gain past its bound ("recalibrate"), then frames lost
 since the last report. Lost frames are also counted here so they are never silent: each
 report names how many went missing since the previous one.
 """
@@ -78,6 +78,9 @@ def _level_message(stats: ReaderStats, adc: AdcSettings | None,
         return Level.WARN, "not tared yet"
     if chain.calibration is None:
         return Level.WARN, "no calibration yet"
+    recalibrate = chain.gain_warning() if isinstance(chain, SignalChain) else None
+    if recalibrate is not None:
+        return Level.WARN, recalibrate
     if lost_now:
         return Level.WARN, f"streaming; {lost_now} ADC frame(s) lost since the last report"
     return Level.OK, "streaming"
@@ -130,6 +133,7 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         else:
             values["ambient_v"] = f"{ambient[0]:.3f}"
             values["ambient_ratio"] = "none" if ambient[1] is None else f"{ambient[1]:.3f}"
+        values.update(_rest_values(chain))
     if isinstance(chain, ArrayChain):
         baselines = chain.baselines_v or (None,) * len(chain.faces)
         values.update({f"baseline_v.{face}": "none" if b is None else f"{b:.4f}"
@@ -139,3 +143,22 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
             values["unobserved"] = cal.unobserved_reason() or "none"
             values["torque_cutoff_hz"] = f"{chain.torque_cutoff_hz:g}"
     return Health(level, message, {k: str(v) for k, v in values.items()})
+
+
+def _rest_values(chain: SignalChain) -> dict[str, object]:
+    """What following the module at rest found (sensing/rest_gain.py): the optical gain
+    against the calibration's, and how often the baseline followed the level at rest."""
+    config = chain.config
+    values: dict[str, object] = {
+        "rest_retares": chain.rest_retares if config.rest_retare_time_constant_s > 0
+        else "off (rest_retare_time_constant 0)"}
+    gain = chain.optical_gain()
+    if gain is None:
+        values["optical_gain"] = ("not measured (stock module: its level at rest holds the "
+                                  "room's light too)")
+        return values
+    values["optical_gain"] = "none" if gain[1] is None else f"{gain[0]:.3f}"
+    values["optical_gain_reference_drop_v"] = "none" if gain[1] is None else f"{gain[1]:.3f}"
+    values["optical_gain_applied"] = "yes" if config.gain_tracking else "no (gain_tracking off)"
+    values["optical_gain_bound"] = f"{config.gain_warn_bound:g}"
+    return values

@@ -15,6 +15,12 @@ and off; the chain's voltage is then the emitter's light alone, as the output a 
 would give (``sensing.modulation.PairSignal``), and blindness is judged on the detector's
 own lower sample.
 
+While it is sure nothing touches the skin the chain follows the level at rest
+(``sensing.rest_gain``): the baseline steps toward each quiet window's mean (re-tare at
+rest; the rate terms keep running through these small steps), and for a modulated module
+the force is read at the optical gain the baseline shows (``Reading.output_v`` stays the
+unscaled output).
+
 Threading: ``process`` and ``process_batch`` run in one thread (the reader's); ``tare``,
 ``set_calibration`` and the properties may be called from another (a service callback). A
 lock guards the shared state, taken once per batch.
@@ -39,6 +45,12 @@ from tactile_sensor.sensing.errors import SensingError, TareError
 from tactile_sensor.sensing.filters import DEFAULT_FILTER, make_filter
 from tactile_sensor.sensing.modulation import Modulation, PairSignal
 from tactile_sensor.sensing.rate_calibration import RateCalibration, RateForceEstimator
+from tactile_sensor.sensing.rest_gain import (
+    DEFAULT_GAIN_BOUND,
+    DEFAULT_RETARE_TIME_CONSTANT_S,
+    RestGain,
+    RestRetare,
+)
 from tactile_sensor.sensing.tare import TareResult, TareWindow
 
 NAN = float("nan")
@@ -156,6 +168,10 @@ class ChainConfig:
     contact_on_n: float = 0.5
     contact_off_n: float = 0.3
     contact_debounce_s: float = 0.01
+    # at rest the baseline follows the level with this time constant; 0 = off
+    rest_retare_time_constant_s: float = DEFAULT_RETARE_TIME_CONSTANT_S
+    gain_tracking: bool = True  # modulated: scale the calibration by the gain at rest
+    gain_warn_bound: float = DEFAULT_GAIN_BOUND
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, Any]) -> ChainConfig:
@@ -172,8 +188,10 @@ class ChainConfig:
         """Build every part once; each part raises ``SensingError`` naming its parameter."""
         if not isinstance(self.channel, int) or not 0 <= self.channel < 8:
             raise SensingError(f"channel must be 0..7, got {self.channel!r}.")
-        if not isinstance(self.auto_tare, bool):
-            raise SensingError(f"auto_tare must be true or false, got {self.auto_tare!r}.")
+        for name in ("auto_tare", "gain_tracking"):
+            if not isinstance(getattr(self, name), bool):
+                raise SensingError(f"{name} must be true or false, got "
+                                   f"{getattr(self, name)!r}.")
         _Parts(self)
 
 
@@ -182,7 +200,7 @@ FIXED_FIELDS = ("rate_hz", "adc_bits", "vref_v", "channel")
 
 
 def changed_parts(old: ChainConfig, new: ChainConfig) -> set[str]:
-    """Which of 'filter', 'tare' and 'contact' a reconfiguration from ``old`` to ``new``
+    """Which of 'filter', 'tare', 'contact' and 'rest' a reconfiguration from ``old`` to ``new``
     rebuilds; ``SensingError`` if a ``FIXED_FIELDS`` setting changes or ``new`` is bad."""
     fixed = [name for name in FIXED_FIELDS if getattr(new, name) != getattr(old, name)]
     if fixed:
@@ -191,7 +209,8 @@ def changed_parts(old: ChainConfig, new: ChainConfig) -> set[str]:
     new.validate()
     keys = {"filter": ("filter_name", "filter_params"),
             "tare": ("tare_window_s", "tare_max_spread_v"),
-            "contact": ("contact_on_n", "contact_off_n", "contact_debounce_s")}
+            "contact": ("contact_on_n", "contact_off_n", "contact_debounce_s"),
+            "rest": ("rest_retare_time_constant_s", "gain_tracking", "gain_warn_bound")}
     return {part for part, names in keys.items()
             if any(getattr(new, n) != getattr(old, n) for n in names)}
 
@@ -207,6 +226,9 @@ class _Parts:
         window = getattr(self.filter, "window", None)
         self.blind = BlindDetector(window if isinstance(window, int)
                                    else max(1, round(config.rate_hz * 0.01)))
+        self.retare = RestRetare(config.rest_retare_time_constant_s, config.rate_hz,
+                                 self.tare.size)
+        self.gain = RestGain(config.gain_warn_bound)
 
 
 class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
@@ -223,6 +245,10 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
         self._tare = parts.tare
         self._contact = parts.contact
         self._blind = parts.blind
+        self._retare = parts.retare
+        self._gain = parts.gain
+        self._output_scale = 1.0  # 1 / the optical gain the calibration is read at
+        self._quiet = 0  # samples in a row sure to be at rest (re-tare at rest)
         self._filtered_v = NAN
         self._pair: PairSignal | None = None
         self._detector_v = NAN  # modulated: the lower of the last on and off samples
@@ -263,6 +289,23 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
             self._filtered_v if self._pair is None else self._detector_v)  # none while blind
         return headroom(volts, self._baseline_v, self._conversion.vref_v)
 
+    def optical_gain(self) -> tuple[float, float | None] | None:
+        """(the optical gain against the calibration's, the emitter's drop at rest it is
+        measured against [V], None until known); None for a stock module, whose drop at
+        rest holds the room's light too (sensing/rest_gain.py)."""
+        if self._pair is None:
+            return None
+        return self._gain.gain, self._gain.reference_drop_v
+
+    def gain_warning(self) -> str | None:
+        """One sentence asking for a recalibration once the optical gain left its bound."""
+        return None if self._pair is None else self._gain.warning()
+
+    @property
+    def rest_retares(self) -> int:
+        """How many steps the baseline took at rest since the re-tare was last configured."""
+        return self._retare.retares
+
     @property
     def top_channel(self) -> int:
         """The highest ADC channel read (the device must send at least one more)."""
@@ -287,6 +330,8 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
         with self._lock:
             self._calibration = calibration
             self._static, self._estimator = _force_parts(calibration)
+            self._gain.forget()  # the new calibration belongs to the optics as they are
+            self._update_gain()
 
     def tare(self) -> TareResult:
         """Set the baseline from the last ``tare_window_s`` at rest, or raise ``TareError``."""
@@ -297,6 +342,7 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
             self._baseline_v = result.baseline_v
             self._contact.reset()
             self._restart_rate_terms()
+            self._update_gain()
             return result
 
     def set_baseline(self, baseline_v: float) -> None:
@@ -306,6 +352,7 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
         with self._lock:
             self._baseline_v = float(baseline_v)
             self._restart_rate_terms()
+            self._update_gain()
 
     @property
     def conversion(self) -> AdcConversion:
@@ -324,6 +371,8 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
             self._filter.reset()
             self._tare.clear()
             self._restart_rate_terms()
+            self._gain.forget()
+            self._update_gain()
 
     def ambient(self) -> tuple[float, float | None] | None:
         """The room's light on the detector as (drop below the supply [V], ratio of the
@@ -357,9 +406,11 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
             self._tare.clear()
             self._blind.reset()
             self._restart_rate_terms()
+            self._gain.forget()
+            self._update_gain()
 
     def reconfigure(self, config: ChainConfig) -> None:
-        """Take new filter, tare and contact settings while samples flow; baseline and
+        """Take new filter, tare, contact and rest settings while samples flow; baseline and
         calibration stay. A part whose settings changed starts afresh (a new filter has no
         history). The ADC settings (``FIXED_FIELDS``) cannot change here."""
         changed = changed_parts(self.config, config)  # validates
@@ -373,7 +424,11 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
                 self._auto_tare_every = max(1, self._tare.size // 10)
             if "contact" in changed:
                 self._contact = parts.contact
+            if changed & {"tare", "rest"}:
+                self._retare, self._quiet = parts.retare, 0
+                self._gain.bound = parts.gain.bound
             self.config = config
+            self._update_gain()
 
     def reset(self) -> None:
         """Forget filter, tare window, contact state and rate terms' history (after a
@@ -383,6 +438,7 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
             self._tare.clear()
             self._contact.reset()
             self._blind.reset()
+            self._quiet = 0
             if self._pair is not None:
                 self._pair.reset()
             self._restart_rate_terms()
@@ -392,6 +448,33 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
         baseline (tare), conversion or connection. Call with the lock held."""
         if self._estimator is not None:
             self._estimator.reset()
+
+    def _update_gain(self) -> None:
+        """A modulated module's optical gain from its baseline, and the scale the force is
+        read at; 1 for a stock module (call with the lock held)."""
+        baseline = self._baseline_v
+        if self._pair is None or baseline is None or self._calibration is None:
+            self._output_scale = 1.0
+            return
+        gain = self._gain.observe(self._conversion.vref_v - baseline)
+        self._output_scale = 1.0 / gain if self.config.gain_tracking else 1.0
+
+    def _follow_rest(self) -> None:
+        """One step of the baseline toward the level of a window without contact, if it is
+        sure to be at rest: steady (the tare's test) and its mean under the contact's
+        release force, judged on the mean so that noise does not hide a rest (call with
+        the lock held)."""
+        try:
+            rest_v = self._tare.evaluate().baseline_v
+        except TareError:
+            return
+        cal = self._calibration
+        static = cal.static if isinstance(cal, RateCalibration) else cal
+        output = (self._baseline_v - rest_v) * self._output_scale  # type: ignore[operator]
+        if static is None or not static.force(output) < self._contact.off_n:
+            return
+        self._baseline_v = self._retare.follow(self._baseline_v, rest_v)  # type: ignore[arg-type]
+        self._update_gain()
 
     # -- per sample ------------------------------------------------------------------------
 
@@ -426,6 +509,7 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
             if not was_blind:  # what the contact and rate terms knew is void
                 self._contact.reset()
                 self._restart_rate_terms()
+            self._quiet = 0
             baseline = self._baseline_v
             output = NAN if baseline is None else baseline - filtered
             return Reading(volts, output, NAN, False, False, t_us, host_ns, True)
@@ -436,18 +520,28 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
                 with contextlib.suppress(TareError):  # not at rest yet: retry later
                     self._baseline_v = tare.evaluate().baseline_v
                     self._restart_rate_terms()
+                    self._update_gain()
         baseline = self._baseline_v
         if baseline is None:
             return Reading(volts, NAN, NAN, False, False, t_us, host_ns)
         output = baseline - filtered
+        scaled = output * self._output_scale
         estimator = self._estimator
         if estimator is not None:
-            force, saturated = estimator.update(output, t_us * 1e-6)
+            force, saturated = estimator.update(scaled, t_us * 1e-6)
         elif self._static is not None:
-            force, saturated = self._static.evaluate(output)
+            force, saturated = self._static.evaluate(scaled)
         else:
             force, saturated = NAN, False
         contact = self._contact.update(force, t_us * 1e-6)
+        if self._retare.enabled:  # a window without contact may be a rest (_follow_rest)
+            if contact or force != force:
+                self._quiet = 0
+            else:
+                self._quiet += 1
+                if self._quiet >= self._retare.window_samples:
+                    self._quiet = 0
+                    self._follow_rest()
         return Reading(volts, output, force, contact, saturated, t_us, host_ns)
 
 

@@ -20,7 +20,7 @@ RUNTIME_PARAMETERS = frozenset({
     "filter_type", "filter.window", "filter.cutoff_hz", "filter.order", "filter.min_cutoff_hz",
     "filter.beta", "filter.d_cutoff_hz", "contact_on_force", "contact_off_force",
     "contact_debounce", "tare_window", "tare_max_spread", "auto_tare", "publish_rate",
-    "frame_id"})
+    "frame_id", "rest_retare_time_constant", "gain_tracking", "gain_warn_bound"})
 
 #: The ``filter.*`` parameters each filter reads.
 FILTER_KEYS = {"savgol": ("window",), "savgol_mains": ("window",), "moving_average": ("window",),
@@ -48,7 +48,9 @@ def chain_config(values: Mapping[str, Any]) -> ChainConfig:
         filter_params=params, tare_window_s=values["tare_window"],
         tare_max_spread_v=values["tare_max_spread"], auto_tare=values["auto_tare"],
         contact_on_n=values["contact_on_force"], contact_off_n=values["contact_off_force"],
-        contact_debounce_s=values["contact_debounce"])
+        contact_debounce_s=values["contact_debounce"],
+        rest_retare_time_constant_s=values["rest_retare_time_constant"],
+        gain_tracking=values["gain_tracking"], gain_warn_bound=values["gain_warn_bound"])
 
 
 def publish_period_ns(values: Mapping[str, Any]) -> int:

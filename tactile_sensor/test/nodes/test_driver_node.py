@@ -155,6 +155,10 @@ def test_force_tracks_a_3mm_press_and_contact_has_hysteresis(spawn, ros, files):
     on_force, off_force = changes[0][0], changes[1][0]
     assert on_force >= 1.0 - 0.3 and off_force <= 0.5 + 0.3
     assert on_force > off_force
+    # following at rest by default; a stock module's optical gain cannot be measured
+    status = ros.diagnostics[-1][1]
+    assert _value(status, "rest_retares").isdigit(), status.values
+    assert _value(status, "optical_gain").startswith("not measured"), status.values
 
 
 def test_a_rate_aware_file_runs_its_model_on_every_sample(spawn, ros, files, tmp_path):
@@ -342,7 +346,7 @@ def _value(status: DiagnosticStatus, key: str) -> str:
 
 @pytest.mark.parametrize(("parameter", "value"), [
     ("adc_bits", "17"), ("filter_type", "kalman"), ("contact_off_force", "2.0"),
-    ("baud_rate", "'fast'"),
+    ("baud_rate", "'fast'"), ("gain_warn_bound", "1.5"),
 ])
 def test_a_bad_parameter_fails_configure_naming_it(spawn, ros_domain, files, parameter, value):
     driver = start_driver(spawn, files["link"], files["calibration"],

@@ -26,7 +26,8 @@ VALUES = {
     "filter.beta": 0.5, "filter.d_cutoff_hz": 1.0, "publish_rate": 0.0,
     "frame_id": "tactile_sensor", "calibration_source": "model", "calibration_file": "",
     "contact_on_force": 0.5, "contact_off_force": 0.3, "contact_debounce": 0.01,
-    "tare_window": 0.5, "tare_max_spread": 0.05, "auto_tare": True}
+    "tare_window": 0.5, "tare_max_spread": 0.05, "auto_tare": True,
+    "rest_retare_time_constant": 10.0, "gain_tracking": True, "gain_warn_bound": 0.15}
 
 
 def test_defaults_map_onto_the_chain_defaults():
