@@ -122,9 +122,10 @@ def test_force_tracks_a_3mm_press_and_contact_has_hysteresis(spawn, ros, files):
     assert ros.await_driver(), driver.output()
     mock = start_mock(spawn, files)
     duration = parse_profile(PROFILE).duration_s
-    assert ros.wait_for(lambda: len(ros.wrenches) > 100, 15), driver.output()
+    assert ros.wait_for(lambda: len(ros.wrenches) > 100, PATIENCE_S), driver.output()
     first = ros.wrenches[0][0]
-    assert ros.wait_for(lambda: ros.wrenches[-1][0] - first > duration - 1.0, duration + 10)
+    assert ros.wait_for(lambda: ros.wrenches[-1][0] - first > duration - 1.0,
+                        PATIENCE_S)
     mock.stop()
 
     stamps = np.array([s for s, _ in ros.wrenches])
@@ -309,7 +310,7 @@ def test_garbage_is_rejected_and_unplug_is_survived(spawn, ros, files):
     driver = start_driver(spawn, files["link"], files["calibration"])
     assert driver.wait_for_output("active", 30), driver.output()
     start_mock(spawn, files, "ramp:depth=0.001,speed=0.001,cycles=1,hold=0,rest=1", "--loop")
-    assert ros.wait_for(lambda: len(ros.wrenches) > 500, 15)
+    assert ros.wait_for(lambda: len(ros.wrenches) > 500, PATIENCE_S)
     control = files["control"]
     for _ in range(10):
         control.write_text("garbage 10000\n")
@@ -387,9 +388,9 @@ def _steady_force(ros, volts: float, device: HostFirmware) -> float:
         return next((i for i, (_, m) in enumerate(ros.readings[start:], start)
                      if abs(m.voltage - volts) < 0.01), None)
 
-    assert ros.wait_for(lambda: first_at_level() is not None, 10)
+    assert ros.wait_for(lambda: first_at_level() is not None, PATIENCE_S)
     first = first_at_level()
-    assert ros.wait_for(lambda: len(ros.readings) > first + 200, 10)
+    assert ros.wait_for(lambda: len(ros.readings) > first + 200, PATIENCE_S)
     return float(np.median([m.force for _, m in ros.readings[first + 100:first + 200]]))
 
 
@@ -452,7 +453,7 @@ def test_a_version_1_device_works_with_one_warning(spawn, ros, files):
     assert driver.wait_for_output("active", 30), driver.output()
     start_mock(spawn, files, "ramp:depth=0.001,speed=0.001,cycles=1,hold=0,rest=1",
                "--protocol", "1", "--loop")
-    assert ros.wait_for(lambda: len(ros.wrenches) > 500, 15), driver.output()
+    assert ros.wait_for(lambda: len(ros.wrenches) > 500, PATIENCE_S), driver.output()
     files["control"].write_text("unplug 0.5\n")  # a reconnection: the same device again
     # reconnected (was: sleep 0.6 s, which a busy machine can end before the unplug)
     assert ros.wait_for(lambda: driver.output().count("ADC connected: receiving frames")
