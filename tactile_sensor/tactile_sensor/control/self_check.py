@@ -36,6 +36,7 @@ import numpy.typing as npt
 
 from tactile_sensor.control.errors import ControlError
 from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.hardware.xm430_table import A_PER_CURRENT_UNIT
 
 #: XM430-W210 at 12 V: stall torque 3.0 N m at 2.3 A (ROBOTIS e-Manual), at the output.
 XM430_TORQUE_CONSTANT_NM_PER_A = 3.0 / 2.3
@@ -109,6 +110,8 @@ class DriveTrain:
     backlash_rad: float = 0.0
     #: How far each rack lags the pinion per newton of rack force [m/N].
     compliance_m_per_n: float = 0.0
+    #: One unit of Present Current [A].
+    current_resolution_a: float = A_PER_CURRENT_UNIT
 
     def __post_init__(self) -> None:
         if not (self.torque_constant_nm_per_a > 0 and self.backlash_rad >= 0
@@ -206,7 +209,8 @@ def fit_self_check(record: ClosingRecord, prediction: SkinPrediction,
     rack = train.rack_positions_rad(record.position_rad[closing])
     # the free level from the first samples, before either finger touches: the
     # compliance's deflection needs the force from the start
-    force = train.rack_force_n(cur, float(np.median(cur[:MIN_FREE_SAMPLES])))
+    free = float(np.median(cur[:MIN_FREE_SAMPLES]))
+    force = train.rack_force_n(cur, free)
     gain, gain_sigma, contact = _fit_optical(rack, out, force, (rack[0], rack[first]),
                                              prediction, train)
     travel = train.travel_m(rack, contact, force)
@@ -216,8 +220,19 @@ def fit_self_check(record: ClosingRecord, prediction: SkinPrediction,
         raise SelfCheckError(TOO_FEW_SAMPLES, (
             f"The self-check pressed only {pressed} samples into the skin (a fit needs "
             f"{MIN_CONTACT_SAMPLES}); close more slowly or further."))
-    stiffness, stiffness_sigma = _fit_stiffness(travel[usable], force[usable], prediction,
-                                                limits.max_lead_m)
+
+    def stiffness_at(free_a: float) -> tuple[float, float]:
+        pushed = train.rack_force_n(cur, free_a)
+        moved = train.travel_m(rack, contact, pushed)
+        keep = moved <= prediction.max_indentation_m
+        return _fit_stiffness(moved[keep], pushed[keep], prediction, limits.max_lead_m)
+
+    stiffness, statistical = stiffness_at(free)
+    # a steady free current reads the same code every sample: it is known only to within
+    # one current unit, uniformly, whatever the number of samples (a systematic term)
+    half = 0.5 * train.current_resolution_a
+    spread = abs(stiffness_at(free + half)[0] - stiffness_at(free - half)[0]) / 2.0
+    stiffness_sigma = math.hypot(statistical, spread / math.sqrt(3.0))
     fit = SelfCheckFit(gain, gain_sigma, stiffness, stiffness_sigma, contact,
                        float(np.max(travel[usable])), pressed)
     _check_certain(fit, limits)

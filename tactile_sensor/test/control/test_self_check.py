@@ -35,7 +35,8 @@ RIGID = DriveTrain()
 
 def closing(gain: float, stiffness: float, *, lead_m: float = 0.0, train: DriveTrain = RIGID,
             output_noise_v: float = 0.003, current_noise_a: float = 0.0,
-            press_m: float = 0.002, seed: int = 0, rod: bool = True) -> ClosingRecord:
+            press_m: float = 0.002, seed: int = 0, rod: bool = True,
+            free_current_a: float = FREE_CURRENT_A) -> ClosingRecord:
     """A close at 1 mm/s sampled at 100 Hz: 1.5 mm free, then ``press_m`` into finger A's
     skin; finger B touches ``lead_m`` of travel before it. The racks follow the servo
     through the train's play and lag it by its compliance (solved by fixed point)."""
@@ -52,7 +53,7 @@ def closing(gain: float, stiffness: float, *, lead_m: float = 0.0, train: DriveT
         travel = r * (rack - contact) - train.compliance_m_per_n * force
         d_a, d_b = np.maximum(travel, 0.0), np.maximum(travel + lead_m, 0.0)
         force = stiffness * (PREDICTION.force(d_a) + PREDICTION.force(d_b)) if rod else 0 * d_a
-    current = FREE_CURRENT_A + force * r / train.torque_constant_nm_per_a
+    current = free_current_a + force * r / train.torque_constant_nm_per_a
     current = current + rng.normal(0.0, current_noise_a, current.size)
     current = np.round(current / 2.69e-3) * 2.69e-3
     out = 0.002 + gain * PREDICTION.output(d_a) * rod + rng.normal(0.0, output_noise_v,
@@ -82,6 +83,19 @@ def test_a_map_without_the_trains_compliance_misreads_the_stiffness():
     assert fit_self_check(record, PREDICTION, train).stiffness == pytest.approx(1.2, abs=0.01)
     rigid = fit_self_check(record, PREDICTION, DriveTrain())
     assert rigid.stiffness < 1.2 - 0.05 and rigid.optical_gain < 1.0 - 0.04
+
+
+def test_a_free_current_between_two_codes_is_an_uncertainty_not_a_bias():
+    """The mock's friction current (0.020 A) reads as 7 codes (0.0188 A): the rack force
+    comes out 0.11 N high. Finger B first pins its contact from the force alone and holds;
+    the module's finger first leaves finger B's contact to a kink the offset moves, and
+    the fit says so instead of reading a stiffer skin."""
+    b_first = fit_self_check(closing(1.0, 1.0, lead_m=0.0005, press_m=0.0015,
+                                     free_current_a=0.020), PREDICTION)
+    assert abs(b_first.stiffness - 1.0) < min(0.03, 3.0 * b_first.stiffness_sigma)
+    with pytest.raises(SelfCheckError, match="too uncertain") as err:
+        fit_self_check(closing(1.0, 1.0, lead_m=-0.001, free_current_a=0.020), PREDICTION)
+    assert err.value.outcome == TOO_UNCERTAIN
 
 
 def test_the_play_operator_lags_a_close_by_its_width_and_holds_on_a_reversal():
