@@ -114,6 +114,8 @@ class Client:
         self.node = rclpy.create_node("gripper_test_client")
         self.grasp = RaceFreeActionClient(self.node, Grasp, "/gripper/grasp")
         self.release = RaceFreeActionClient(self.node, Release, "/gripper/release")
+        #: More action clients a test adds, destroyed with these once the spin stops.
+        self.more: list[RaceFreeActionClient] = []
         self.force: list[tuple[float, float]] = []  # (header stamp, force)
         self.truth: list[tuple[float, float]] = []  # (header stamp, true force)
         self.opening: list[tuple[float, float]] = []
@@ -154,8 +156,8 @@ class Client:
         self.spin.stop()
         # destroy_node() leaves action clients to the garbage collector, which may finalize
         # them in a later test, where Fast DDS can hang waiting for its event thread
-        self.grasp.destroy()
-        self.release.destroy()
+        for action_client in (self.grasp, self.release, *self.more):
+            action_client.destroy()
         self.node.destroy_node()
 
 
@@ -462,13 +464,13 @@ def test_a_self_check_on_a_stiffer_skin_and_a_dimmer_emitter_publishes_its_corre
                 depth=5, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                 reliability=ReliabilityPolicy.RELIABLE))
         check = RaceFreeActionClient(client.node, SelfCheck, "/gripper/self_check")
+        client.more.append(check)
         assert check.wait_for_server(timeout_sec=PATIENCE_S)
         opened = _wait(client.send(client.release, Release.Goal(opening=0.024))
                        .get_result_async()).result
         assert opened.success, opened.message
         end = _wait(client.send(check, SelfCheck.Goal(apply=True)).get_result_async(),
                     2 * PATIENCE_S).result
-        check.destroy()
         assert end.outcome == "fitted", end.message + rig.gripper.output()
         assert end.stiffness == pytest.approx(1.15, abs=0.03)
         assert end.optical_gain == pytest.approx(0.8, abs=0.03)
