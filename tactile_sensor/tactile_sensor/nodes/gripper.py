@@ -2,8 +2,11 @@
 
 Wiring only: parameters, the XM430 client (hardware/), the tactile force subscription,
 the driver's latched full-scale force (the goals' force ceiling), joint states,
-diagnostics, the reboot service and four action servers (``ACTIONS``):
-``~/grasp``, ``~/release``, control_msgs ``~/gripper_cmd`` and ``~/parallel_gripper_cmd``.
+diagnostics, the reboot service and five action servers (``ACTIONS``):
+``~/grasp``, ``~/release``, control_msgs ``~/gripper_cmd`` and ``~/parallel_gripper_cmd``,
+and ``~/self_check`` (control/self_check_goal.py), which also reads the driver's module
+output (``tactile_reading``), asks the model for its prediction (``model_predict``) and
+publishes a corrected calibration (``calibration_curve``, latched, as the model does).
 What a goal means lives in control/actions.py; the goal policy (one active goal,
 preemption, cancel, hardware errors) in control/goal_runner.py; the servo the control loop,
 the goals and a cancel share in control/servo_link.py.
@@ -48,11 +51,14 @@ from tactile_sensor.control.goal_runner import (
     RunnerTiming,
     interrupted,
 )
+from tactile_sensor.control.self_check import DriveTrain, SelfCheckFit, SkinPrediction
+from tactile_sensor.control.self_check_goal import SelfCheckLinks, accept_self_check
 from tactile_sensor.control.servo_link import ServoLink, call_retrying
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.hardware.xm430_health import xm430_health
+from tactile_sensor.nodes import calibration_curve_msg, self_check_links
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
 from tactile_sensor.nodes.gripper_parameters import SPECS
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
@@ -61,7 +67,9 @@ from tactile_sensor.nodes.parameters import (
     declare_parameters,
     read_parameters,
 )
-from tactile_sensor_interfaces.action import Grasp, Release
+from tactile_sensor_interfaces.action import Grasp, Release, SelfCheck
+from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
+from tactile_sensor_interfaces.srv import PredictOutput
 
 #: The actions served, as ``~/<name>``: message type and the goal's meaning
 #: (control/actions.py). A new interface is one more entry.
@@ -105,6 +113,9 @@ class GripperNode(Node):
         self._entities: list[Any] = []
         self._joint_pub = self._diag_pub = self._timer = None
         self._force_sub: Any = None
+        self._output = self_check_links.LatestOutput()
+        self._predict_client: Any = None
+        self._calibration_pub: Any = None
 
     # -- lifecycle -------------------------------------------------------------------------
     def on_configure(self, state: State) -> TransitionCallbackReturn:
@@ -136,12 +147,25 @@ class GripperNode(Node):
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._force_sub = self.create_subscription(
             WrenchStamped, "tactile_wrench", self._on_force, 100, callback_group=self._group)
+        self._predict_client = self.create_client(PredictOutput, "model_predict",
+                                                  callback_group=self._group)
+        self._calibration_pub = self.create_publisher(
+            CalibrationCurve, "calibration_curve", FULL_SCALE_QOS)
+        links = SelfCheckLinks(
+            lambda: self._output.fresh(time.monotonic(), settings.config.stale_after_s),
+            self._predict, self._apply_calibration,
+            DriveTrain(settings.config.geometry, backlash_rad=values["self_check_backlash"],
+                       compliance_m_per_n=values["self_check_compliance"]))
+        actions = {**ACTIONS, "self_check": (SelfCheck, lambda goal, s: accept_self_check(
+            goal, s, links, values["self_check_speed"]))}
         self._entities = [
             self._force_sub,
+            self.create_subscription(TactileReading, "tactile_reading", self._on_reading, 10,
+                                     callback_group=self._group),
             self.create_subscription(Float64, "tactile_full_scale", self._on_full_scale,
                                      FULL_SCALE_QOS, callback_group=self._group),
             *(self._action_server(name, action_type, accept)
-              for name, (action_type, accept) in ACTIONS.items()),
+              for name, (action_type, accept) in actions.items()),
             self.create_service(Trigger, "~/reboot", self._on_reboot,
                                 callback_group=self._group),
         ]
@@ -194,6 +218,11 @@ class GripperNode(Node):
                 self.destroy_service(entity)
         self._entities = []
         self._force_sub = None
+        if self._predict_client is not None:
+            self.destroy_client(self._predict_client)
+        if self._calibration_pub is not None:
+            self.destroy_publisher(self._calibration_pub)
+        self._predict_client = self._calibration_pub = None
         if self._joint_pub is not None:
             self.destroy_lifecycle_publisher(self._joint_pub)
         if self._diag_pub is not None:
@@ -270,6 +299,20 @@ class GripperNode(Node):
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         self._forces.add(msg.wrench.force.z, stamp, total, count,
                          first.sec + first.nanosec * 1e-9)
+
+    def _on_reading(self, msg: TactileReading) -> None:
+        self._output.add(msg.output, time.monotonic())
+
+    # -- self-check ---------------------------------------------------------------------------
+    def _predict(self) -> SkinPrediction:
+        return self_check_links.fetch_prediction(self._predict_client, PredictOutput.Request())
+
+    def _apply_calibration(self, fit: SelfCheckFit, prediction: SkinPrediction) -> None:
+        msg = calibration_curve_msg.to_msg(self_check_links.corrected_calibration(
+            fit, prediction))
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._calibration_pub.publish(msg)
+        self.get_logger().info(f"self-check applied: {msg.source}")
 
     def _on_full_scale(self, msg: Float64) -> None:
         settings = self._settings

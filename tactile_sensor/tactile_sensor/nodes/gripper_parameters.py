@@ -55,4 +55,12 @@ SPECS = [
               minimum=0.0, exclusive_minimum=True, maximum=100.0),
     ParamSpec("allow_stalling", True, "a stalled GripperCommand (tactile force limit or "
               "current limit) succeeds; false: it aborts"),
+    ParamSpec("self_check_speed", 0.001, "finger speed of a SelfCheck goal that gives 0 "
+              "[m/s] (slow: the fit takes a sample per control tick)", minimum=0.0,
+              exclusive_minimum=True, maximum=0.05),
+    ParamSpec("self_check_backlash", 0.0, "play between pinion and racks the self-check's "
+              "indentation map allows for [rad of the pinion]", minimum=0.0, maximum=0.2),
+    ParamSpec("self_check_compliance", 0.0, "how far a rack lags the pinion per newton of "
+              "rack force, in the self-check's indentation map [m/N]", minimum=0.0,
+              maximum=1e-3),
 ]

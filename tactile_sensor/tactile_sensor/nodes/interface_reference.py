@@ -175,9 +175,15 @@ def _gripper() -> NodeInterface:
                      "its speed [m/s] and the tactile force [N] as effort"),
             Endpoint("/diagnostics", _DIAGNOSTICS, "the servo's connection, hardware "
                      "error bits, temperature, voltage and the running goal"),
+            Endpoint("calibration_curve", "tactile_sensor_interfaces/msg/CalibrationCurve",
+                     "latched: the self-check's corrected output -> force curve, published "
+                     "when a SelfCheck goal asks `apply` and the fit is certain"),
         ],
         subscriptions=[Endpoint("tactile_wrench", _WRENCH, "the tactile force (remap to "
                                 "the driver's `~/wrench`)"),
+                       Endpoint("tactile_reading", "tactile_sensor_interfaces/msg/"
+                                "TactileReading", "the module output [V] the self-check "
+                                "records (remap to the driver's `~/reading`)"),
                        Endpoint("tactile_full_scale", "std_msgs/msg/Float64",
                                 "the tactile sensor's latched full-scale force [N] (remap "
                                 "to the driver's `~/full_scale_force`): with "
@@ -194,10 +200,14 @@ def _gripper() -> NodeInterface:
                      "tactile force limit [N] (0 = position only)"),
             Endpoint("~/parallel_gripper_cmd", "control_msgs/action/ParallelGripperCommand",
                      "ros2_controllers' parallel gripper action, joint `joint_name`"),
+            Endpoint("~/self_check", "tactile_sensor_interfaces/action/SelfCheck",
+                     "close slowly on a rigid object; fit the optical gain and the skin "
+                     "stiffness against the model's prediction (docs/ambient.md)"),
         ],
         notes="A new goal of any kind preempts the running one; see the gripper page "
-              "for the goal policy. Without control_msgs installed, `~/gripper_cmd` and "
-              "`~/parallel_gripper_cmd` are not served.")
+              "for the goal policy. The self-check calls the model's `~/predict` as "
+              "`model_predict` (remap it to the model node's). Without control_msgs "
+              "installed, `~/gripper_cmd` and `~/parallel_gripper_cmd` are not served.")
 
 
 def _mock_hardware() -> NodeInterface:

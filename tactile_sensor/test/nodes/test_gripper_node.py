@@ -32,7 +32,8 @@ from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import load_or_compute_curve
 from tactile_sensor.sensing.calibration import Calibration
-from tactile_sensor_interfaces.action import Grasp, Release
+from tactile_sensor_interfaces.action import Grasp, Release, SelfCheck
+from tactile_sensor_interfaces.msg import CalibrationCurve
 
 CONFIG = config_dir()
 # Upper bound of every wait on a condition (a wait ends as soon as its condition holds; a
@@ -59,7 +60,8 @@ def overrides(tmp_path: Path, node: str, **values: object) -> str:
 
 class Rig:
     def __init__(self, spawn, tmp_path: Path, calibration: Path,
-                 full_scale_topic: str = "/driver/full_scale_force") -> None:
+                 full_scale_topic: str = "/driver/full_scale_force",
+                 world: dict[str, object] | None = None) -> None:
         self.adc = tmp_path / "adc"
         self.servo = tmp_path / "xm430"
         self.control = tmp_path / "xm430.ctl"
@@ -69,7 +71,8 @@ class Rig:
             "--params-file", str(CONFIG / "gripper.yaml"),
             "--params-file", overrides(tmp_path, "gripper_world", adc_link=str(self.adc),
                                        servo_link=str(self.servo),
-                                       servo_control=str(self.control), seed=3),
+                                       servo_control=str(self.control), seed=3,
+                                       **(world or {})),
             module="tactile_sensor.nodes.mock_hardware")
         assert self.mock.wait_for_output("mock gripper ready", 120), self.mock.output()
         self.driver = spawn(
@@ -82,6 +85,7 @@ class Rig:
         self.gripper = spawn(
             "--ros-args", "-r", "__node:=gripper", "-r", "tactile_wrench:=/driver/wrench",
             "-r", f"tactile_full_scale:={full_scale_topic}",
+            "-r", "tactile_reading:=/driver/reading", "-r", "model_predict:=/model/predict",
             "--params-file", str(CONFIG / "gripper.yaml"),
             # tactile_timeout: on a loaded 2-core machine the driver's 250 Hz stream stalls
             # for more than the configured 0.2 s now and then, and the grasp aborts
@@ -110,6 +114,8 @@ class Client:
         self.node = rclpy.create_node("gripper_test_client")
         self.grasp = RaceFreeActionClient(self.node, Grasp, "/gripper/grasp")
         self.release = RaceFreeActionClient(self.node, Release, "/gripper/release")
+        #: More action clients a test adds, destroyed with these once the spin stops.
+        self.more: list[RaceFreeActionClient] = []
         self.force: list[tuple[float, float]] = []  # (header stamp, force)
         self.truth: list[tuple[float, float]] = []  # (header stamp, true force)
         self.opening: list[tuple[float, float]] = []
@@ -150,8 +156,8 @@ class Client:
         self.spin.stop()
         # destroy_node() leaves action clients to the garbage collector, which may finalize
         # them in a later test, where Fast DDS can hang waiting for its event thread
-        self.grasp.destroy()
-        self.release.destroy()
+        for action_client in (self.grasp, self.release, *self.more):
+            action_client.destroy()
         self.node.destroy_node()
 
 
@@ -441,3 +447,35 @@ def test_a_grasp_on_a_stale_tactile_force_is_refused_in_one_sentence(
     assert gripper.wait_for_output("grasp goal rejected: the tactile force is ", PATIENCE_S), \
         gripper.output()
     assert "the sensor is blind or its stream stopped" in gripper.output()
+
+
+def test_a_self_check_on_a_stiffer_skin_and_a_dimmer_emitter_publishes_its_correction(
+        spawn, ros_domain, tmp_path, calibration_file):
+    """The rod on a skin at 1.15 x the FEM's stiffness read by an emitter at 0.8: from
+    2 mm short of the rod, one slow close fits both and latches the corrected curve."""
+    rig = Rig(spawn, tmp_path, calibration_file,
+              world={"skin.stiffness_ratio": 1.15, "emitter.output_ratio": 0.8})
+    model = spawn("--ros-args", "-r", "__node:=model", "-p", "autostart:=true",
+                  "--params-file", str(CONFIG / "physics.yaml"),
+                  module="tactile_sensor.nodes.model")
+    assert model.wait_for_output("prediction ready", PATIENCE_S), model.output()
+    with connected(rig) as client:
+        curves: list[CalibrationCurve] = []
+        client.node.create_subscription(
+            CalibrationCurve, "/calibration_curve", curves.append, QoSProfile(
+                depth=5, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                reliability=ReliabilityPolicy.RELIABLE))
+        check = RaceFreeActionClient(client.node, SelfCheck, "/gripper/self_check")
+        client.more.append(check)
+        assert check.wait_for_server(timeout_sec=PATIENCE_S)
+        opened = _wait(client.send(client.release, Release.Goal(opening=0.024))
+                       .get_result_async()).result
+        assert opened.success, opened.message
+        end = _wait(client.send(check, SelfCheck.Goal(apply=True)).get_result_async(),
+                    2 * PATIENCE_S).result
+        assert end.outcome == "fitted", end.message + rig.gripper.output()
+        assert end.stiffness == pytest.approx(1.15, abs=0.03)
+        assert end.optical_gain == pytest.approx(0.8, abs=0.03)
+        assert end.applied
+        _until(lambda: any(c.source.startswith("self_check:") for c in curves),
+               "no corrected calibration was latched")
