@@ -175,9 +175,13 @@ def _gripper() -> NodeInterface:
                      "its speed [m/s] and the tactile force [N] as effort"),
             Endpoint("/diagnostics", _DIAGNOSTICS, "the servo's connection, hardware "
                      "error bits, temperature, voltage and the running goal"),
+            Endpoint("~/slip", "tactile_sensor_interfaces/msg/SlipEvent", "the adaptive "
+                     "hold's events: a friction learned, an onset of slip (grip raised), "
+                     "slipping at the force ceiling"),
         ],
         subscriptions=[Endpoint("tactile_wrench", _WRENCH, "the tactile force (remap to "
-                                "the driver's `~/wrench`)"),
+                                "the driver's `~/wrench`; force x and y feed the adaptive "
+                                "hold)"),
                        Endpoint("tactile_full_scale", "std_msgs/msg/Float64",
                                 "the tactile sensor's latched full-scale force [N] (remap "
                                 "to the driver's `~/full_scale_force`): with "
@@ -186,7 +190,8 @@ def _gripper() -> NodeInterface:
                            "error; ends the running goal")],
         actions=[
             Endpoint("~/grasp", "tactile_sensor_interfaces/action/Grasp",
-                     "close until the tactile force reaches `target_force` [N], then hold"),
+                     "close until the tactile force reaches `target_force` [N], then hold "
+                     "(`hold_mode` fixed or adaptive)"),
             Endpoint("~/release", "tactile_sensor_interfaces/action/Release",
                      "open to `opening` [m] (0 = fully open)"),
             Endpoint("~/gripper_cmd", "control_msgs/action/GripperCommand",
