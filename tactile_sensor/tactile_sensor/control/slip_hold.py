@@ -7,15 +7,16 @@ it warns while the load still rises, before the contact breaks away, but it need
 hold therefore runs in three phases:
 
 1. *waiting*: mu unknown, the grip stays where the grasp settled. Once the shear |Ft| is
-   resolved (3 k sigma_t: 0.78 N on each skin at 20 Hz, an object of about 160 g) and
-   steady for ``steady_s``, the object hangs on the skins:
+   resolved (3 k sigma_t: 0.78 N on each skin at 20 Hz, an object of about 160 g), its
+   mean steady over two windows of ``steady_s`` and no longer ringing, the object hangs on
+   the skins:
 2. *probing*: lower the grip at ``probe_rate_n_s``. While the object sticks, |Ft| stays at
-   its load; once it slides, |Ft| = mu_k Fn falls with the grip. When |Ft| has fallen k
-   sigma_t below its steady level, mu = |Ft| / Fn over the last 100 ms (the kinetic
-   friction, what the margin needs; stuck ticks and the noise's allowance make it err
-   low), and the grip goes at once to the least grip plus the detector's least margin:
-   (|Ft| + 2 k sigma_m) / mu. A probe that reaches ``max_friction`` without a slip takes
-   the ratio it saw, a lower bound (more grip, the safe side).
+   its load; once it slides, |Ft| = mu_k Fn falls with the grip. When |Ft| (its mean over
+   the last 200 ms) has fallen 4 sigma of that mean (0.08 N) below its level, mu = |Ft| /
+   Fn over the last 100 ms (the kinetic friction, what the margin needs; stuck ticks and
+   the noise's allowance make it err low), and the grip goes at once to the least grip
+   plus the detector's least margin: (|Ft| + 2 k sigma_m) / mu. A probe that reaches
+   ``max_friction`` without a slip takes the ratio it saw, a lower bound (more grip).
 3. *holding*: whenever the margin is below k sigma_m (an onset) the grip goes to (|Ft| +
    2 k sigma_m) / mu in one command: the reflex. Never above ``ceiling_n``; when the grip
    at the ceiling has had ``settle_s`` and the margin is still closed, the hold says
@@ -40,6 +41,9 @@ from tactile_sensor.sensing.slip_margin import MarginFilter, MarginNoise, thresh
 
 #: The ticks over which a probe's slip gives the friction (100 ms at 100 Hz).
 RATIO_TICKS = 10
+#: The ticks whose mean |Ft| a probe watches for its fall (200 ms at 100 Hz: an object
+#: ringing at 8 Hz on the skins leaves an eighth of its amplitude in it).
+PROBE_TICKS = 20
 #: The hold modes a goal may ask for: today's fixed force, or the slip-aware hold.
 HOLD_MODES = ("fixed", "adaptive")
 #: The shear fingertip's force noise (docs/gripper.md, "Can the sensor see slip?": 38.9 mN
@@ -149,6 +153,18 @@ class SlipHoldConfig:
     def threshold_n(self, friction: float) -> float:
         return self.noise.threshold_n(friction, self.bandwidth_hz)
 
+    @property
+    def tick_shear_sigma_n(self) -> float:
+        """The noise of one tick's mean |Ft| (the 1 kHz stream over half the control
+        rate) [N]."""
+        return self.noise.shear_density * math.sqrt(self.control_rate_hz / 2.0)
+
+    @property
+    def probe_threshold_n(self) -> float:
+        """A fall of the probe window's mean |Ft| this large is a slip: 4 sigma of that
+        mean (a false one makes the friction err low, toward more grip) [N]."""
+        return 4.0 * self.tick_shear_sigma_n / math.sqrt(PROBE_TICKS)
+
 
 @dataclass(frozen=True)
 class SlipEvent:
@@ -187,9 +203,12 @@ class SlipHold:
         self._goal_rad = position_rad
         self._commanded_s: float | None = None
         self._rest_sum, self._rest_count = 0.0, 0
-        self._steady = (math.nan, 0.0, 0.0, 0)  # (|Ft| level, since, sum, count)
+        # (the last window's mean |Ft|, this window's start, its sum, sum of squares, count)
+        self._steady: tuple[float, float | None, float, float, int] = (
+            math.nan, None, 0.0, 0.0, 0)
         self._probe = (0.0, 0.0, 0.0)  # (steady |Ft|, grip at start, start time)
         self._recent: deque[tuple[float, float]] = deque(maxlen=RATIO_TICKS)
+        self._shear_window: deque[float] = deque(maxlen=PROBE_TICKS)
         self._ceiling_since: float | None = None
         #: The filtered margin at the last tick [N] (NaN while the friction is unknown).
         self.last_margin_n = math.nan
@@ -202,6 +221,7 @@ class SlipHold:
         """One control tick: the mean forces since the last tick [N], the servo."""
         fn, ft = self._filter.update(fn_n, fx_n, fy_n)
         self._recent.append((fn_n, math.hypot(fx_n, fy_n)))
+        self._shear_window.append(math.hypot(fx_n, fy_n))
         event, slipping = None, None
         if self.phase is HoldPhase.WAITING:
             self._wait(now_s, fn, ft)
@@ -215,28 +235,38 @@ class SlipHold:
 
     # -- phases --------------------------------------------------------------------------
     def _wait(self, now_s: float, fn: float, ft: float) -> None:
-        """The probe starts once |Ft| has stayed within k sigma_t of where it began for
-        ``steady_s``, at a level the probe's fall can show (3 k sigma_t); its reference
-        is the mean over that time."""
-        cfg, (level, since, total, count) = self.config, self._steady
-        if not abs(ft - level) <= cfg.shear_threshold_n:
-            self._steady = (ft, now_s, ft, 1)
+        """The probe starts once two consecutive windows of ``steady_s`` hold mean |Ft|
+        within k sigma_t of each other at a level the probe's fall can show (3 k sigma_t),
+        and the later one's tick means spread no more than twice their noise: an object
+        ringing on stuck skins after a sudden lift (7-19 Hz in the model, for seconds)
+        could slip at a ring's peak before the probe sees it. The later window's mean is
+        the probe's reference."""
+        cfg = self.config
+        last, since, total, squares, count = self._steady
+        raw = self._shear_window[-1]
+        if since is None or now_s - since < cfg.steady_s:
+            self._steady = (last, now_s if since is None else since, total + raw,
+                            squares + raw * raw, count + 1)
             return
-        self._steady = (level, since, total + ft, count + 1)
-        mean = (total + ft) / (count + 1)
-        if mean >= 3.0 * cfg.shear_threshold_n and now_s - since >= cfg.steady_s:
+        mean = total / count
+        spread = math.sqrt(max(squares / count - mean * mean, 0.0))
+        self._steady = (mean, now_s, raw, raw * raw, 1)
+        if (abs(mean - last) <= cfg.shear_threshold_n and mean >= 3.0 * cfg.shear_threshold_n
+                and spread <= 2.0 * cfg.tick_shear_sigma_n):
             self.phase = HoldPhase.PROBING
             self._probe = (mean, fn, now_s)
 
     def _probe_tick(self, now_s: float, fn: float, ft: float) -> SlipEvent | None:
         cfg = self.config
         level, start_grip, start_s = self._probe
-        if ft > level + cfg.shear_threshold_n:  # the load rose: wait for it to settle
-            self.phase, self._steady = HoldPhase.WAITING, (ft, now_s, ft, 1)
+        window = self._shear_window
+        shear = sum(window) / len(window)
+        if shear > level + cfg.shear_threshold_n:  # the load rose: wait for it to settle
+            self.phase, self._steady = HoldPhase.WAITING, (math.nan, None, 0.0, 0.0, 0)
             self.grip_n = start_grip
             return None
         floor = level / cfg.max_friction
-        slid = level - ft > cfg.shear_threshold_n
+        slid = level - shear > cfg.probe_threshold_n
         if not slid and start_grip - cfg.probe_rate_n_s * (now_s - start_s) > floor:
             self.grip_n = start_grip - cfg.probe_rate_n_s * (now_s - start_s)
             return None
@@ -308,7 +338,10 @@ class SlipHold:
             if self._rest_count * (1.0 / cfg.control_rate_hz) >= cfg.settle_s:
                 mean = self._rest_sum / self._rest_count
                 self._rest_sum, self._rest_count = 0.0, 0
-                if abs(mean - self.grip_n) > cfg.tolerance * self.grip_n:
+                # a mean under half the grip: the object is gone (dropped, pulled out);
+                # chasing the grip would close the fingers on nothing
+                if (abs(mean - self.grip_n) > cfg.tolerance * self.grip_n
+                        and mean > 0.5 * self.grip_n):
                     self._anchor = (position_rad, mean)
         anchor_rad, anchor_n = self._anchor
         goal = min(cfg.closed_position_rad,

@@ -103,8 +103,8 @@ def test_the_probe_learns_the_friction_and_holds_near_the_least_grip(
     assert 0.4 * mu_k <= hold.friction <= 1.1 * mu_s
     least = load / 2 / mu_k
     needed = (load / 2 + 2 * hold.config.threshold_n(hold.friction)) / hold.friction
-    assert least <= world.grip_n <= 1.05 * needed + 0.06
-    assert world.slid_ticks < 30  # the probe's slip: until |Ft| fell k sigma_t
+    assert least <= world.grip_n <= 1.1 * needed + 0.06
+    assert world.slid_ticks < 40  # the probe's slip: until |Ft|'s 200 ms mean fell k sigma_t
 
 
 @settings(max_examples=25, deadline=None)
@@ -149,6 +149,20 @@ def test_a_shear_under_the_probe_s_resolution_keeps_the_grip() -> None:
     assert hold.phase is HoldPhase.WAITING and world.grip_n == pytest.approx(2.0, abs=0.06)
 
 
+def test_an_object_ringing_on_the_skins_is_probed_once_the_ring_died_out() -> None:
+    """After a sudden lift the model's object rings at 7-19 Hz for seconds; a probe then
+    could slip it at a ring's peak."""
+    hold = SlipHold(config(), 3.0, CONTACT + 3.0 / PER_RAD)
+
+    def ring(i: int, amplitude: float) -> HoldPhase:
+        shear = 1.0 + amplitude * math.sin(2 * math.pi * 8.0 * i * DT)
+        return hold.update(i * DT, 3.0, shear, 0.0, CONTACT + 3.0 / PER_RAD, False).phase
+
+    assert all(ring(i, 0.3) is HoldPhase.WAITING for i in range(200))
+    assert ring(270, 0.0) is HoldPhase.WAITING
+    assert [ring(i, 0.0) for i in range(271, 340)][-1] is HoldPhase.PROBING
+
+
 def test_without_a_load_the_hold_keeps_the_grip_and_learns_nothing() -> None:
     rng = np.random.default_rng(4)
     hold, world = start(2.0, 0.0, 0.5, 0.5)
@@ -161,10 +175,10 @@ def test_without_a_load_the_hold_keeps_the_grip_and_learns_nothing() -> None:
 def test_a_load_rising_during_the_probe_restarts_it_from_its_grip() -> None:
     hold, world = start(5.0, 2.0, 0.5, 0.5, noise=False)
     rng = np.random.default_rng(0)
-    steps = run(hold, world, 40, rng)
+    steps = run(hold, world, 70, rng)
     assert steps[-1].phase is HoldPhase.PROBING
     world.load_n = 3.0
-    steps = run(hold, world, 3, rng, start_s=1.0)
+    steps = run(hold, world, 15, rng, start_s=1.0)
     assert steps[-1].phase is HoldPhase.WAITING and hold.grip_n == pytest.approx(5.0, abs=0.01)
 
 
