@@ -31,7 +31,7 @@ one sentence before anything moves.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from tactile_sensor.control.back_off import SATURATION_BAND, BackOff
@@ -49,6 +49,7 @@ from tactile_sensor.control.grasp import (
 )
 from tactile_sensor.control.hold import ForceSettler
 from tactile_sensor.control.move import MoveController, MoveRequest
+from tactile_sensor.control.slip_hold import HoldSettings, SlipHold, SlipHoldConfig
 
 Fields = dict[str, Any]
 
@@ -75,6 +76,10 @@ class GoalSettings:
     max_grasp_force_n: float = 10.0
     #: The tactile sensor's full-scale force [N] as the driver latched it; None until then.
     full_scale_force_n: float | None = None
+    #: The hold a goal gets when it asks for none (``hold_mode``, ``hold_time``, ...).
+    hold: HoldSettings = field(default_factory=HoldSettings)
+    #: The control loop's rate, at which the adaptive hold filters the forces [Hz].
+    control_rate_hz: float = 100.0
 
     def with_full_scale(self, force_n: float) -> GoalSettings:
         """These settings once the driver stated its full scale; InvalidRequest (one
@@ -136,7 +141,10 @@ def settings_from_parameters(values: dict[str, Any]) -> GoalSettings:
         goal_tolerance_m=values["goal_tolerance"], stall_time_s=values["stall_timeout"],
         allow_stalling=values["allow_stalling"],
         skin_stiffness_n_per_m=values["skin_stiffness"],
-        max_grasp_force_n=values["max_grasp_force"])
+        max_grasp_force_n=values["max_grasp_force"],
+        hold=HoldSettings(values["hold_mode"], values["hold_time"], values["shear_sensing"],
+                          values["slip_bandwidth"]),
+        control_rate_hz=values["control_rate"])
 
 
 @dataclass(frozen=True)
@@ -157,6 +165,11 @@ class Snapshot:
 class ActiveGoal:
     """One accepted goal: its controller, and how its feedback and result read."""
 
+    #: How long an adaptive hold runs (0: until a cancel or a newer goal) [s].
+    hold_time_s = 0.0
+    #: The adaptive hold once it runs.
+    hold: SlipHold | None = None
+
     def __init__(self, settings: GoalSettings, controller: BaseController) -> None:
         self.settings = settings
         self.controller = controller
@@ -174,6 +187,11 @@ class ActiveGoal:
     def settler(self, step: Step) -> ForceSettler | None:
         """A force regulation to run after ``step`` finished, or None."""
         del step
+        return None
+
+    def slip_hold(self, held_n: float | None, servo: ServoReading | None) -> SlipHold | None:
+        """The adaptive hold to run after the settle (None: the fixed hold alone)."""
+        del held_n, servo
         return None
 
     def back_off(self, full_scale_force_n: float | None) -> BackOff | None:
@@ -203,9 +221,11 @@ class TactileGoal(ActiveGoal):
     settle_after: Outcome
 
     def __init__(self, settings: GoalSettings, controller: GraspController | MoveController,
-                 request: GraspRequest | MoveRequest, target_force_n: float) -> None:
+                 request: GraspRequest | MoveRequest, target_force_n: float,
+                 adaptive: bool = False, hold_time_s: float = 0.0) -> None:
         super().__init__(settings, controller)
         self.request, self.target_force_n = request, target_force_n
+        self.adaptive, self.hold_time_s = adaptive, hold_time_s
         self.controller: GraspController | MoveController = controller
 
     def start(self, now_s: float, servo: ServoReading) -> Step:
@@ -221,11 +241,26 @@ class TactileGoal(ActiveGoal):
         return ForceSettler(self.settings.config.geometry, self.target_force_n,
                             self.settings.skin_stiffness_n_per_m)
 
+    def slip_hold(self, held_n: float | None, servo: ServoReading | None) -> SlipHold | None:
+        if not self.adaptive or servo is None:
+            return None
+        s, geometry = self.settings, self.settings.config.geometry
+        config = SlipHoldConfig(
+            s.hold.noise, ceiling_n=s.force_ceiling_n,
+            newton_per_rad=s.skin_stiffness_n_per_m * geometry.pitch_radius_m,
+            closed_position_rad=geometry.closed_position_rad,
+            bandwidth_hz=s.hold.bandwidth_hz, control_rate_hz=s.control_rate_hz)
+        self.hold = SlipHold(config, held_n or self.target_force_n, servo.position_rad)
+        return self.hold
+
     def back_off(self, full_scale_force_n: float | None) -> BackOff | None:
         if self.target_force_n <= 0:
             return None  # a position-only move: no force was asked for
         s = self.settings
-        return BackOff(s.config.geometry, self.target_force_n, full_scale_force_n,
+        # an adaptive hold may have raised the grip to keep the object: back off only
+        # above the ceiling it never passes
+        target = s.force_ceiling_n if self.adaptive else self.target_force_n
+        return BackOff(s.config.geometry, target, full_scale_force_n,
                        s.config.geometry.finger_speed_to_rad_s(s.closing_speed_m_s),
                        s.config.hold_current_a, s.config.stop_velocity_rad_s)
 
@@ -233,16 +268,20 @@ class TactileGoal(ActiveGoal):
 class GraspGoal(TactileGoal):
     settle_after = Outcome.CONTACT
 
-    def __init__(self, settings: GoalSettings, request: GraspRequest) -> None:
+    def __init__(self, settings: GoalSettings, request: GraspRequest, adaptive: bool = False,
+                 hold_time_s: float = 0.0) -> None:
         super().__init__(settings, GraspController(settings.config), request,
-                         request.target_force_n)
+                         request.target_force_n, adaptive, hold_time_s)
 
     def feedback(self, snap: Snapshot) -> Fields:
-        return {"force": snap.force_n, "opening": snap.opening_m}
+        margin = self.hold.last_margin_n if self.hold is not None else math.nan
+        return {"force": snap.force_n, "opening": snap.opening_m, "slip_margin": margin}
 
     def result(self, snap: Snapshot, message: str) -> Fields:
-        return {"contact_detected": snap.step.outcome is Outcome.CONTACT,
-                "force": snap.force_n, "opening": snap.opening_m, "message": message}
+        friction = self.hold.friction if self.hold is not None else None
+        return {"contact_detected": snap.step.outcome in (Outcome.CONTACT, Outcome.SLIPPING),
+                "force": snap.force_n, "opening": snap.opening_m, "message": message,
+                "friction": math.nan if friction is None else friction}
 
 
 class ReleaseGoal(ActiveGoal):
@@ -282,7 +321,9 @@ class MoveGoal(TactileGoal):
         request.validate(settings.config, controller.max_speed_m_s)
         if request.max_effort_n > 0:
             settings.check_force("Effort limit", request.max_effort_n)
-        super().__init__(settings, controller, request, request.max_effort_n)
+        super().__init__(settings, controller, request, request.max_effort_n,
+                         settings.hold.mode == "adaptive" and request.max_effort_n > 0,
+                         settings.hold.hold_time_s)
         self.request: MoveRequest = request
 
     def succeeded(self, step: Step) -> bool:
@@ -325,13 +366,16 @@ class ParallelMoveGoal(MoveGoal):
 
 
 def accept_grasp(goal: Any, settings: GoalSettings) -> GraspGoal:
-    """``Grasp``: 0 speed or timeout means the node's default."""
+    """``Grasp``: 0 speed or timeout, '' hold mode and 0 hold time mean the node's
+    default."""
+    mode, hold_time_s = settings.hold.resolve(getattr(goal, "hold_mode", ""),
+                                              getattr(goal, "hold_time", 0.0))
     request = GraspRequest(target_force_n=goal.target_force,
                            speed_m_s=goal.closing_speed or settings.closing_speed_m_s,
                            timeout_s=goal.timeout or settings.timeout_s)
     request.validate(GraspController(settings.config).max_speed_m_s)
     settings.check_force("Grasp target force", request.target_force_n)
-    return GraspGoal(settings, request)
+    return GraspGoal(settings, request, mode == "adaptive", hold_time_s)
 
 
 def accept_release(goal: Any, settings: GoalSettings) -> ReleaseGoal:

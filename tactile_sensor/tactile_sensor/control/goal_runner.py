@@ -28,9 +28,10 @@ from enum import StrEnum
 from tactile_sensor.control.actions import ActiveGoal, Fields, Snapshot
 from tactile_sensor.control.back_off import BackOff
 from tactile_sensor.control.errors import ControlError
-from tactile_sensor.control.grasp import Outcome, Phase, Step
+from tactile_sensor.control.grasp import Outcome, Phase, ServoCommand, Step
 from tactile_sensor.control.hold import ForceSettler
 from tactile_sensor.control.servo_link import ServoLink
+from tactile_sensor.control.slip_hold import SlipEvent, SlipHold
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError, ServoHardwareError
 from tactile_sensor.hardware.xm430 import ServoState
@@ -120,10 +121,12 @@ class GoalRunner:
                  timing: RunnerTiming, *,
                  on_hardware_error: Callable[[frozenset[str]], None],
                  log_error: Callable[[str], None],
+                 on_slip: Callable[[SlipEvent], None] = lambda event: None,
                  wall_clock: Callable[[], float] = time.time,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.servo, self.forces, self.slot, self.timing = servo, forces, slot, timing
         self._on_hardware_error, self._log_error = on_hardware_error, log_error
+        self._on_slip = on_slip
         self._wall, self._clock = wall_clock, clock
 
     def snapshot(self, step: Step, force_n: float | None = None) -> Snapshot:
@@ -245,6 +248,13 @@ class GoalRunner:
             tail = (", settled at {force:.2f} N" if settled else
                     f", not settled within settle_time ({self.timing.settle_time_s:g} s): "
                     "holding {force:.2f} N")
+            hold = goal.slip_hold(held_n, servo.state)
+            if hold is not None:
+                tail = tail.format(force=self.snapshot(step, held_n).force_n)
+                ended = self._adaptive(link, goal, hold, step)
+                if isinstance(ended, Finish):
+                    return ended
+                tail, held_n = tail + ended, None
         if step.outcome is Outcome.HARDWARE_ERROR and servo.state is not None:
             self._on_hardware_error(servo.state.hardware_error)
         failure = goal.failure(step)
@@ -368,6 +378,70 @@ class GoalRunner:
         if state is None:
             return step
         return replace(step, opening_m=self.servo.config.geometry.opening_m(state.position_rad))
+
+    def _adaptive(self, link: GoalLink, goal: ActiveGoal, hold: SlipHold,
+                  step: Step) -> Finish | str:
+        """Run the slip-aware hold for the goal's hold time (0: until a cancel or a newer
+        goal); the message's tail when it ran out, else how the goal ends."""
+        aborted, slipping = self._hold_adaptive(link, goal, hold, step)
+        if aborted is not None:
+            return self._finish(goal, step, False, aborted)
+        if slipping is not None:
+            self.slot.release(link.token)
+            return self._finish(goal, replace(step, outcome=Outcome.SLIPPING), False,
+                                f"{Outcome.SLIPPING}: {slipping}")
+        if self.slot.superseded(link.token):
+            return self._finish(goal, goal.cancel(self._wall(), self.servo.state), False,
+                                self.slot.abort_reason)
+        if link.cancel_requested():
+            return self._canceled(link, goal)
+        learned = ("friction not learned (no load to probe)" if hold.friction is None
+                   else f"friction {hold.friction:.2f}")
+        return (f"; adaptive hold for {goal.hold_time_s:g} s ({learned}): holding "
+                "{force:.2f} N")
+
+    def _hold_adaptive(self, link: GoalLink, goal: ActiveGoal, hold: SlipHold,
+                       step: Step) -> tuple[str | None, str | None]:
+        """(an abort reason or None, the slipping sentence or None); both None when the
+        hold time ran out, a cancel came or a newer goal took the fingers over."""
+        servo, config, period = self.servo, self.servo.config, self.timing.control_period_s
+        start = last_fresh = last_feedback = self._clock()
+        self.forces.wrench_means_since_last_call()  # what came before the hold
+        while goal.hold_time_s <= 0 or self._clock() - start < goal.hold_time_s:
+            if link.cancel_requested() or self.slot.superseded(link.token):
+                return None, None
+            servo.await_sample(2 * period)
+            state, now = servo.state, self._clock()
+            if servo.comm_error:
+                return f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}", None
+            if state is None:
+                return None, None
+            if state.hardware_error:
+                self._on_hardware_error(state.hardware_error)
+                return (f"{Outcome.HARDWARE_ERROR}: " + ", ".join(sorted(state.hardware_error)),
+                        None)
+            means = self.forces.wrench_means_since_last_call()
+            if means is None:
+                if now - last_fresh > config.stale_after_s:
+                    return (f"{Outcome.TACTILE_STALE}: no tactile force for "
+                            f"{now - last_fresh:.3f} s while holding", None)
+                continue
+            last_fresh = now
+            held = hold.update(now, *means, state.position_rad, state.moving)
+            if held.goal_rad is not None:
+                command = ServoCommand(held.goal_rad, config.stop_velocity_rad_s,
+                                       config.hold_current_a)
+                if (error := servo.send_safely(command, link.token,
+                                               self._owner(link.token))) is not None:
+                    return f"{Outcome.SERVO_UNREACHABLE}: {error}", None
+            if held.event is not None:
+                self._on_slip(held.event)
+            if held.slipping is not None:
+                return None, held.slipping
+            if now - last_feedback >= self.timing.feedback_period_s:
+                self._feedback(link, goal, step)
+                last_feedback = now
+        return None, None
 
     def _settle(self, link: GoalLink, settler: ForceSettler, step: Step,
                 feedback: Callable[[Step], None]) -> tuple[str | None, bool]:

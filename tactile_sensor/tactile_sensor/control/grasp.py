@@ -48,6 +48,8 @@ class Outcome(StrEnum):
     REACHED = "reached_goal"
     #: A position move came to rest short of its goal (the current limit holds it there).
     STALLED = "stalled"
+    #: An adaptive hold (control/slip_hold.py) whose force ceiling cannot keep the object.
+    SLIPPING = "slipping"
     #: Ends the runner decides rather than a controller (control/goal_runner.py).
     PREEMPTED = "preempted"
     INTERRUPTED = "interrupted"

@@ -26,6 +26,7 @@ class TactileForce:
         self.full_scale_n: float | None = None
         self._sum_n, self._count = 0.0, 0
         self._after_s = -math.inf
+        self._wrench_sums = (0.0, 0.0, 0.0, 0)
 
     def add(self, force_n: float, stamp_s: float, sum_n: float | None = None,
             count: int = 1, first_stamp_s: float | None = None) -> None:
@@ -41,6 +42,22 @@ class TactileForce:
                 sum_n, count = None, 1  # the batch straddles the gate: its newest force alone
             self._sum_n += force_n if sum_n is None else sum_n
             self._count += count
+
+    def add_wrench(self, fn_sum_n: float, fx_sum_n: float, fy_sum_n: float,
+                   count: int) -> None:
+        """Sums of ``count`` forces along z (the grip), x and y (the shear), for the
+        adaptive hold (control/slip_hold.py), which reads every force, not the newest."""
+        with self._lock:
+            n, x, y, c = self._wrench_sums
+            self._wrench_sums = (n + fn_sum_n, x + fx_sum_n, y + fy_sum_n, c + count)
+
+    def wrench_means_since_last_call(self) -> tuple[float, float, float] | None:
+        """Mean (Fz, Fx, Fy) [N] of the forces added since the previous call; None when
+        none came."""
+        with self._lock:
+            n, x, y, count = self._wrench_sums
+            self._wrench_sums = (0.0, 0.0, 0.0, 0)
+        return None if count == 0 else (n / count, x / count, y / count)
 
     def count_after(self, stamp_s: float) -> None:
         """From now on the mean takes only forces stamped after ``stamp_s`` [s]; what it

@@ -2,11 +2,12 @@
 
 Wiring only: parameters, the XM430 client (hardware/), the tactile force subscription,
 the driver's latched full-scale force (the goals' force ceiling), joint states,
-diagnostics, the reboot service and five action servers (``ACTIONS``):
-``~/grasp``, ``~/release``, control_msgs ``~/gripper_cmd`` and ``~/parallel_gripper_cmd``,
-and ``~/self_check`` (control/self_check_goal.py), which also reads the driver's module
-output (``tactile_reading``), asks the model for its prediction (``model_predict``) and
-publishes a corrected calibration (``calibration_curve``, latched, as the model does).
+diagnostics, the reboot service, the adaptive hold's ``~/slip`` events and five
+action servers (``ACTIONS``): ``~/grasp``, ``~/release``, control_msgs ``~/gripper_cmd``
+and ``~/parallel_gripper_cmd``, and ``~/self_check`` (control/self_check_goal.py),
+which also reads the driver's module output (``tactile_reading``), asks the model for
+its prediction (``model_predict``) and publishes a corrected calibration
+(``calibration_curve``, latched, as the model does).
 What a goal means lives in control/actions.py; the goal policy (one active goal,
 preemption, cancel, hardware errors) in control/goal_runner.py; the servo the control loop,
 the goals and a cancel share in control/servo_link.py.
@@ -54,6 +55,7 @@ from tactile_sensor.control.goal_runner import (
 from tactile_sensor.control.self_check import DriveTrain, SelfCheckFit, SkinPrediction
 from tactile_sensor.control.self_check_goal import SelfCheckLinks, accept_self_check
 from tactile_sensor.control.servo_link import ServoLink, call_retrying
+from tactile_sensor.control.slip_hold import SlipEvent as SlipSeen
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError
 from tactile_sensor.hardware.xm430 import Xm430Client
@@ -68,7 +70,7 @@ from tactile_sensor.nodes.parameters import (
     read_parameters,
 )
 from tactile_sensor_interfaces.action import Grasp, Release, SelfCheck
-from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
+from tactile_sensor_interfaces.msg import CalibrationCurve, SlipEvent, TactileReading
 from tactile_sensor_interfaces.srv import PredictOutput
 
 #: The actions served, as ``~/<name>``: message type and the goal's meaning
@@ -111,7 +113,7 @@ class GripperNode(Node):
         self._group = ReentrantCallbackGroup()
         self._loop_group = MutuallyExclusiveCallbackGroup()
         self._entities: list[Any] = []
-        self._joint_pub = self._diag_pub = self._timer = None
+        self._joint_pub = self._diag_pub = self._timer = self._slip_pub = None
         self._force_sub: Any = None
         self._output = self_check_links.LatestOutput()
         self._predict_client: Any = None
@@ -142,9 +144,11 @@ class GripperNode(Node):
         self._runner = GoalRunner(
             servo, self._forces, self._slot,
             RunnerTiming(period, 1.0 / values["feedback_rate"], values["settle_time"]),
-            on_hardware_error=self._on_hardware_error, log_error=self.get_logger().error)
+            on_hardware_error=self._on_hardware_error, log_error=self.get_logger().error,
+            on_slip=self._on_slip)
         self._joint_pub = self.create_lifecycle_publisher(JointState, "~/joint_states", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._slip_pub = self.create_publisher(SlipEvent, "~/slip", 10)
         self._force_sub = self.create_subscription(
             WrenchStamped, "tactile_wrench", self._on_force, 100, callback_group=self._group)
         self._predict_client = self.create_client(PredictOutput, "model_predict",
@@ -225,9 +229,10 @@ class GripperNode(Node):
         self._predict_client = self._calibration_pub = None
         if self._joint_pub is not None:
             self.destroy_lifecycle_publisher(self._joint_pub)
-        if self._diag_pub is not None:
-            self.destroy_publisher(self._diag_pub)
-        self._joint_pub = self._diag_pub = None
+        for publisher in (self._diag_pub, self._slip_pub):
+            if publisher is not None:
+                self.destroy_publisher(publisher)
+        self._joint_pub = self._diag_pub = self._slip_pub = None
         if self._servo is not None:
             self._servo.client.close()  # type: ignore[attr-defined]
         self._servo = self._runner = None
@@ -287,6 +292,7 @@ class GripperNode(Node):
         # else is already waiting and keep only the newest.
         sub = self._force_sub
         total, count, first = msg.wrench.force.z, 1, msg.header.stamp
+        shear_x, shear_y = msg.wrench.force.x, msg.wrench.force.y
         if sub is not None:
             with sub.handle:
                 for _ in range(256):
@@ -295,10 +301,21 @@ class GripperNode(Node):
                         break
                     msg = item[0]
                     total += msg.wrench.force.z
+                    shear_x += msg.wrench.force.x
+                    shear_y += msg.wrench.force.y
                     count += 1
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         self._forces.add(msg.wrench.force.z, stamp, total, count,
                          first.sec + first.nanosec * 1e-9)
+        self._forces.add_wrench(total, shear_x, shear_y, count)
+
+    def _on_slip(self, event: SlipSeen) -> None:
+        if self._slip_pub is None:
+            return
+        msg = SlipEvent(kind=str(event.kind), margin=event.margin_n,
+                        friction=event.friction, grip=event.grip_n)
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._slip_pub.publish(msg)
 
     def _on_reading(self, msg: TactileReading) -> None:
         self._output.add(msg.output, time.monotonic())

@@ -63,4 +63,15 @@ SPECS = [
     ParamSpec("self_check_compliance", 0.0, "how far a rack lags the pinion per newton of "
               "rack force, in the self-check's indentation map [m/N]", minimum=0.0,
               maximum=1e-3),
+    ParamSpec("hold_mode", "fixed", "the hold after contact when a goal names none: "
+              "'fixed' (the target force) or 'adaptive' (the least grip that keeps the "
+              "object plus a margin, raised on slip; needs shear_sensing); control_msgs "
+              "goals with a max_effort always take this", choices=("fixed", "adaptive")),
+    ParamSpec("hold_time", 0.0, "an adaptive hold runs this long before the goal's result "
+              "[s] (0 = until a cancel or a newer goal)", minimum=0.0),
+    ParamSpec("shear_sensing", False, "the tactile wrench carries the force along and across "
+              "the fingers (configuration gripper_shear); an adaptive hold needs it"),
+    ParamSpec("slip_bandwidth", 20.0, "low-pass cutoff of the adaptive hold's friction margin "
+              "[Hz] (the slip study's choice; under half control_rate)", minimum=1.0,
+              maximum=200.0),
 ]

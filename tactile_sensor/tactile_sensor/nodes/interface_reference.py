@@ -178,9 +178,13 @@ def _gripper() -> NodeInterface:
             Endpoint("calibration_curve", "tactile_sensor_interfaces/msg/CalibrationCurve",
                      "latched: the self-check's corrected output -> force curve, published "
                      "when a SelfCheck goal asks `apply` and the fit is certain"),
+            Endpoint("~/slip", "tactile_sensor_interfaces/msg/SlipEvent", "the adaptive "
+                     "hold's events: a friction learned, an onset of slip (grip raised), "
+                     "slipping at the force ceiling"),
         ],
         subscriptions=[Endpoint("tactile_wrench", _WRENCH, "the tactile force (remap to "
-                                "the driver's `~/wrench`)"),
+                                "the driver's `~/wrench`; force x and y feed the adaptive "
+                                "hold)"),
                        Endpoint("tactile_reading", "tactile_sensor_interfaces/msg/"
                                 "TactileReading", "the module output [V] the self-check "
                                 "records (remap to the driver's `~/reading`)"),
@@ -192,7 +196,8 @@ def _gripper() -> NodeInterface:
                            "error; ends the running goal")],
         actions=[
             Endpoint("~/grasp", "tactile_sensor_interfaces/action/Grasp",
-                     "close until the tactile force reaches `target_force` [N], then hold"),
+                     "close until the tactile force reaches `target_force` [N], then hold "
+                     "(`hold_mode` fixed or adaptive)"),
             Endpoint("~/release", "tactile_sensor_interfaces/action/Release",
                      "open to `opening` [m] (0 = fully open)"),
             Endpoint("~/gripper_cmd", "control_msgs/action/GripperCommand",

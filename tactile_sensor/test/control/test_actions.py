@@ -27,6 +27,7 @@ from tactile_sensor.control.back_off import SATURATION_BAND
 from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import GraspConfig, Outcome, Phase, Step
+from tactile_sensor.control.slip_hold import HoldSettings
 
 G = GripperGeometry()
 SETTINGS = GoalSettings(GraspConfig(), joint_name="finger_opening")
@@ -248,8 +249,9 @@ def test_grasp_and_release_results_keep_their_fields():
     snap = Snapshot(finished(Outcome.CONTACT, 0.0195), 2.01, 0.0)
     assert grasp.result(snap, "contact: contact at 2.2 N, settled at 2.01 N") == {
         "contact_detected": True, "force": 2.01, "opening": 0.0195,
-        "message": "contact: contact at 2.2 N, settled at 2.01 N"}
-    assert grasp.feedback(snap) == {"force": 2.01, "opening": 0.0195}
+        "message": "contact: contact at 2.2 N, settled at 2.01 N", "friction": math.nan}
+    assert grasp.feedback(snap) == {"force": 2.01, "opening": 0.0195,
+                                    "slip_margin": math.nan}
     assert grasp.succeeded(snap.step) and grasp.failure(snap.step) is None
     release = accept_release(NS(opening=0.0), SETTINGS)
     snap = Snapshot(finished(Outcome.OPENED, 0.06), math.nan, 0.0)
@@ -276,7 +278,8 @@ PARAMETERS = {
     "default_closing_speed": 0.01, "release_speed": 0.02, "default_timeout": 10.0,
     "tactile_timeout": 0.2, "skin_stiffness": 2500.0, "joint_name": "finger_opening",
     "goal_tolerance": 0.0005, "stall_timeout": 0.2, "allow_stalling": True,
-    "max_grasp_force": 10.0}
+    "max_grasp_force": 10.0, "hold_mode": "fixed", "hold_time": 0.0, "shear_sensing": False,
+    "slip_bandwidth": 20.0, "control_rate": 100.0}
 
 
 def test_settings_from_the_node_parameters():
@@ -299,3 +302,38 @@ def test_a_closing_current_above_the_limit_is_refused_naming_both():
 def test_a_travel_without_room_is_refused():
     with pytest.raises(ValueError, match="closed_opening_m"):
         settings_from_parameters({**PARAMETERS, "geometry.closed_opening": 0.06})
+
+
+SHEAR = replace(SETTINGS, hold=HoldSettings(shear_sensing=True))
+
+
+def test_an_adaptive_hold_without_shear_sensing_is_refused_in_one_sentence():
+    goal = NS(target_force=2.0, closing_speed=0.0, timeout=0.0, hold_mode="adaptive",
+              hold_time=0.0)
+    with pytest.raises(InvalidRequest, match="needs a fingertip that feels shear"):
+        accept_grasp(goal, SETTINGS)
+    with pytest.raises(InvalidRequest, match="not one of fixed, adaptive"):
+        accept_grasp(NS(**{**vars(goal), "hold_mode": "soft"}), SHEAR)
+    with pytest.raises(InvalidConfiguration, match="'shear_sensing' is false"):
+        settings_from_parameters({**PARAMETERS, "hold_mode": "adaptive"})
+
+
+def test_an_adaptive_grasp_holds_with_the_slip_hold_and_backs_off_only_above_the_ceiling():
+    goal = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0,
+                           hold_mode="adaptive", hold_time=3.0), SHEAR)
+    assert goal.adaptive and goal.hold_time_s == 3.0
+    hold = goal.slip_hold(1.9, at(0.02))
+    assert hold is not None and hold.grip_n == 1.9
+    assert hold.config.ceiling_n == SHEAR.force_ceiling_n
+    assert goal.back_off(None).target_force_n == SHEAR.force_ceiling_n
+    fixed = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0), SHEAR)
+    assert fixed.slip_hold(1.9, at(0.02)) is None
+    assert fixed.back_off(None).target_force_n == 2.0
+
+
+def test_control_msgs_moves_take_the_node_s_hold_mode():
+    adaptive = replace(SETTINGS, hold=HoldSettings("adaptive", 2.0, shear_sensing=True))
+    move = accept_gripper_command(gripper_command(0.002, 2.0), adaptive)
+    assert move.adaptive and move.hold_time_s == 2.0
+    assert not accept_gripper_command(gripper_command(0.002, 0.0), adaptive).adaptive
+    assert not accept_gripper_command(gripper_command(0.002, 2.0), SETTINGS).adaptive

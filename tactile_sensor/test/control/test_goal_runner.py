@@ -8,6 +8,7 @@ import math
 import re
 import threading
 import time
+from dataclasses import replace
 from types import SimpleNamespace
 
 import pytest
@@ -32,6 +33,7 @@ from tactile_sensor.control.goal_runner import (
 from tactile_sensor.control.grasp import GraspConfig
 from tactile_sensor.control.hold import ForceSettler
 from tactile_sensor.control.servo_link import ServoLink
+from tactile_sensor.control.slip_hold import HoldSettings
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import CommunicationTimeout, PortLost
 from tactile_sensor.hardware.xm430 import ServoState
@@ -193,7 +195,7 @@ def test_a_grasp_closes_to_contact_settles_and_reports():
                         + re.escape(f"{end.result['force']:.2f}") + " N", end.message)
     assert end.result["contact_detected"] and end.result["force"] >= 1.8
     assert end.result["opening"] < 0.030
-    assert rig.feedback and set(rig.feedback[0]) == {"force", "opening"}
+    assert rig.feedback and set(rig.feedback[0]) == {"force", "opening", "slip_margin"}
     assert rig.slot.superseded("goal")  # the slot is free again
 
 
@@ -603,3 +605,66 @@ def test_a_correction_that_cannot_be_written_aborts_the_settle(never_settled):
         thread.join()
     assert (out["end"].status, out["end"].message) == (
         GoalStatus.ABORTED, "servo_unreachable: unplugged")
+
+
+class ObjectRig(Rig):
+    """The rig's rod as a hanging object: finger A's skin carries its load's half, up to mu
+    times the grip (sliding: mu times the grip)."""
+
+    def __init__(self, load_n: float, mu: float, **kw) -> None:
+        super().__init__(**kw)
+        self.load_n, self.mu = load_n, mu
+        self.slips: list = []
+        self.runner._on_slip = self.slips.append
+
+    def _control_loop(self) -> None:
+        while self._running:
+            poll = self.servo.poll()
+            if poll.state is not None and self.sensing.is_set():
+                force = self.true_force(poll.state.position_rad)
+                self.forces.add(force, self._wall())
+                self.forces.add_wrench(force, min(self.load_n / 2, self.mu * force), 0.0, 1)
+            time.sleep(TICK_S)
+
+
+ADAPTIVE = replace(SETTINGS, hold=HoldSettings(shear_sensing=True), max_grasp_force_n=5.0)
+
+
+def adaptive(hold_time: float) -> SimpleNamespace:
+    return SimpleNamespace(**vars(grasp()), hold_mode="adaptive", hold_time=hold_time)
+
+
+def test_an_adaptive_grasp_learns_the_friction_and_holds_for_its_hold_time():
+    with ObjectRig(load_n=1.8, mu=0.5) as rig:
+        end = rig.runner.run(rig.link(), lambda: accept_grasp(adaptive(1.0), ADAPTIVE))
+    assert end.status is GoalStatus.SUCCEEDED, end.message
+    assert re.fullmatch(r"contact: contact at .* N, settled at .* N; adaptive hold for 1 s "
+                        r"\(friction 0\.\d\d\): holding (.*) N", end.message)
+    assert 0.3 < end.result["friction"] <= 0.55
+    assert rig.slips and rig.slips[0].kind == "learned"
+    assert "slip_margin" in rig.feedback[-1] and not math.isnan(rig.feedback[-1]["slip_margin"])
+    assert 0.9 / 0.5 <= end.result["force"] <= 5.0
+
+
+def test_an_adaptive_hold_the_ceiling_cannot_keep_says_slipping_and_holds_there():
+    with ObjectRig(load_n=4.4, mu=0.5) as rig:
+        end = rig.runner.run(rig.link(), lambda: accept_grasp(adaptive(5.0), ADAPTIVE))
+        force = rig.true_force(rig.client.position)
+    assert end.status is GoalStatus.ABORTED
+    assert re.fullmatch(r"slipping: the object needs \d\.\d\d N of grip at friction 0\.\d\d, "
+                        r"above the force ceiling of 5\.00 N; holding at the ceiling",
+                        end.message), end.message
+    assert [e.kind for e in rig.slips][-1] == "slipping"
+    assert force == pytest.approx(5.0, abs=0.15)
+
+
+def test_an_adaptive_hold_without_tactile_force_ends_stale():
+    goal = accept_grasp(adaptive(0.0), ADAPTIVE)
+    with ObjectRig(load_n=0.0, mu=0.5) as rig:
+        thread, out = in_thread(lambda: rig.runner.run(rig.link(), lambda: goal))
+        while goal.hold is None and thread.is_alive():
+            rig.servo.await_sample(1.0)
+        rig.sensing.clear()
+        thread.join(10.0)
+    assert out["end"].status is GoalStatus.ABORTED
+    assert out["end"].message.startswith("tactile_stale: no tactile force for ")

@@ -200,11 +200,12 @@ def rig(spawn, ros_domain, tmp_path, calibration_file):
         yield rig, client
 
 
-def test_a_target_beyond_the_ceiling_is_refused_one_within_is_reached_and_reported(
+def test_goals_the_gripper_cannot_hold_are_refused_one_within_is_reached_and_reported(
         rig, calibration_file):
     """A 1e9 N target was once accepted, and the fingers squeezed 27.9 N until the
     timeout while the sensor read its 6.77 N full scale. The driver's latched full scale
-    and max_grasp_force now bound the target; a result states the force its field holds."""
+    and max_grasp_force now bound the target; an adaptive hold on this one-module fingertip
+    (no shear) is refused too; a result states the force its field holds."""
     devices, client = rig
     full_scale = Calibration.from_file(calibration_file).full_scale_force_n
     assert devices.gripper.wait_for_output(f"tactile full scale {full_scale:.3g} N",
@@ -216,6 +217,13 @@ def test_a_target_beyond_the_ceiling_is_refused_one_within_is_reached_and_report
                 f"force ceiling of {ceiling} (the smaller of max_grasp_force 10 N and "
                 f"{ceiling}, from where the tactile sensor's readings saturate below its "
                 f"{full_scale:.3g} N full scale); request at most {ceiling}.\n")
+    assert devices.gripper.wait_for_output(sentence, PATIENCE_S), devices.gripper.output()
+    adaptive = _wait(client.grasp.send_goal_async(Grasp.Goal(target_force=2.0,
+                                                             hold_mode="adaptive")))
+    assert not adaptive.accepted
+    sentence = ("grasp goal rejected: An adaptive hold needs a fingertip that feels shear, "
+                "and this gripper has none (shear_sensing is false); use configuration "
+                "gripper_shear or hold_mode fixed.\n")
     assert devices.gripper.wait_for_output(sentence, PATIENCE_S), devices.gripper.output()
 
     feedback_times: list[float] = []

@@ -27,6 +27,7 @@ import numpy as np
 from tactile_sensor.analysis.errors import AnalysisError
 from tactile_sensor.analysis.slip.resolution import Resolution
 from tactile_sensor.analysis.slip.signature import SAMPLE_RATE_HZ
+from tactile_sensor.sensing.slip_margin import margin_sigma_n
 
 
 @dataclass(frozen=True)
@@ -49,7 +50,7 @@ class MarginDetector:
     @classmethod
     def for_resolution(cls, friction: float, res: Resolution) -> MarginDetector:
         """The threshold k sigma_m of ``res`` (its bandwidth, noise and k) at ``friction``."""
-        sigma = math.hypot(res.sigma_n[0], friction * res.sigma_n[2])
+        sigma = margin_sigma_n(friction, res.sigma_n[0], res.sigma_n[2])
         return cls(friction, res.bandwidth_hz, res.k * sigma)
 
     def least_margin_n(self) -> float:

@@ -29,6 +29,8 @@ import numpy as np
 
 from tactile_sensor.analysis.errors import AnalysisError
 from tactile_sensor.physics.output_noise import SAMPLE_NOISE_V, noise_at_bandwidth
+from tactile_sensor.sensing import slip_margin
+from tactile_sensor.sensing.errors import SensingError
 
 #: The bandwidths [Hz] a reflex needs (10 to 100 Hz), at which resolution is reported.
 REFLEX_BANDWIDTHS_HZ = (10.0, 20.0, 30.0, 50.0, 100.0)
@@ -76,12 +78,12 @@ def force_covariance(sensitivity: np.ndarray, noise_v: float) -> np.ndarray:
 def threshold_sigmas(false_alarms_per_hour: float, bandwidth_hz: float,
                      two_sided: bool = False) -> float:
     """k such that 2nd-order Butterworth noise at cutoff ``bandwidth_hz`` crosses k sigma
-    (either sign when ``two_sided``) ``false_alarms_per_hour`` times an hour (Rice)."""
-    if not (false_alarms_per_hour > 0 and bandwidth_hz > 0):
-        raise AnalysisError("A false-alarm rate and a bandwidth must be > 0; give both.")
-    per_second = false_alarms_per_hour / 3600.0 / (2.0 if two_sided else 1.0)
-    ratio = bandwidth_hz / per_second
-    return math.sqrt(2.0 * math.log(ratio)) if ratio > 1.0 else 0.0
+    (either sign when ``two_sided``) ``false_alarms_per_hour`` times an hour (Rice; the
+    hold uses the same, sensing/slip_margin.py)."""
+    try:
+        return slip_margin.threshold_sigmas(false_alarms_per_hour, bandwidth_hz, two_sided)
+    except SensingError as exc:
+        raise AnalysisError(str(exc)) from exc
 
 
 def crossing_rate_hz(k: float, bandwidth_hz: float) -> float:

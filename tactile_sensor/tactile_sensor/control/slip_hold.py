@@ -1,0 +1,353 @@
+"""The slip-aware hold: grip at a margin over the least force that keeps the object, learn
+the friction from a probe's slip, raise the grip when the friction margin closes.
+
+Why this way (docs/gripper.md, "The adaptive hold"): the slip study chose the friction
+margin m = mu Fn - |Ft|, low-passed at 20 Hz, against k sigma_m (sensing/slip_margin.py);
+it warns while the load still rises, before the contact breaks away, but it needs mu. The
+hold therefore runs in three phases:
+
+1. *waiting*: mu unknown, the grip stays where the grasp settled. Once the shear |Ft| is
+   resolved (3 k sigma_t: 0.78 N on each skin at 20 Hz, an object of about 160 g), its
+   mean steady over two windows of ``steady_s`` and no longer ringing, the object hangs on
+   the skins:
+2. *probing*: lower the grip at ``probe_rate_n_s``. While the object sticks, |Ft| stays at
+   its load; once it slides, |Ft| = mu_k Fn falls with the grip. When |Ft| (its mean over
+   the last 200 ms) has fallen 4 sigma of that mean (0.08 N) below its level, mu = |Ft| /
+   Fn over the last 100 ms (the kinetic friction, what the margin needs; stuck ticks and
+   the noise's allowance make it err low), and the grip goes at once to the least grip
+   plus the detector's least margin: (|Ft| + 2 k sigma_m) / mu. A probe that reaches
+   ``max_friction`` without a slip takes the ratio it saw, a lower bound (more grip).
+3. *holding*: whenever the margin is below k sigma_m (an onset) the grip goes to (|Ft| +
+   2 k sigma_m) / mu in one command: the reflex. Never above ``ceiling_n``; when the grip
+   at the ceiling has had ``settle_s`` and the margin is still closed, the hold says
+   ``slipping`` and stays at the ceiling.
+
+Grip to position: the skin's stiffness at the pinion (``newton_per_rad``) from an anchor,
+the servo position and the mean force over the last rest; re-anchored after each rest of
+``settle_s``, so the grip converges on its target as the fixed hold does (within
+``tolerance``). Pure: one ``update`` a control tick, no clock, no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+from enum import StrEnum
+
+from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
+from tactile_sensor.hardware.xm430_table import RAD_PER_PULSE
+from tactile_sensor.sensing.slip_margin import MarginFilter, MarginNoise, threshold_sigmas
+
+#: The ticks over which a probe's slip gives the friction (100 ms at 100 Hz).
+RATIO_TICKS = 10
+#: The ticks whose mean |Ft| a probe watches for its fall (200 ms at 100 Hz: an object
+#: ringing at 8 Hz on the skins leaves an eighth of its amplitude in it).
+PROBE_TICKS = 20
+#: The hold modes a goal may ask for: today's fixed force, or the slip-aware hold.
+HOLD_MODES = ("fixed", "adaptive")
+#: The shear fingertip's force noise (docs/gripper.md, "Can the sensor see slip?": 38.9 mN
+#: of Ft and 57.0 mN of Fn at 10 Hz, the array layout at 1 mm) [N / sqrt(Hz)].
+SHEAR_FINGERTIP_NOISE = MarginNoise(shear_density=0.0389 / math.sqrt(10.0),
+                                    normal_density=0.0570 / math.sqrt(10.0))
+
+
+@dataclass(frozen=True)
+class HoldSettings:
+    """The gripper's hold parameters (``hold_mode``, ``hold_time``, ``shear_sensing``,
+    ``slip_bandwidth``): what a goal gets when it asks for nothing."""
+
+    mode: str = "fixed"
+    #: How long an adaptive hold runs before the result; 0 = until a cancel or a newer
+    #: goal [s].
+    hold_time_s: float = 0.0
+    #: The fingertip reports the force along and across the fingers (gripper_shear).
+    shear_sensing: bool = False
+    bandwidth_hz: float = 20.0
+    noise: MarginNoise = SHEAR_FINGERTIP_NOISE
+
+    def __post_init__(self) -> None:
+        if self.mode not in HOLD_MODES or not (math.isfinite(self.hold_time_s)
+                                               and self.hold_time_s >= 0):
+            raise InvalidConfiguration(
+                f"Parameter 'hold_mode' = {self.mode!r} or 'hold_time' = {self.hold_time_s!r}"
+                f" is not valid; use one of {', '.join(HOLD_MODES)} and a time >= 0 s.")
+        if self.mode == "adaptive" and not self.shear_sensing:
+            raise InvalidConfiguration(
+                "Parameter 'hold_mode' is 'adaptive' but 'shear_sensing' is false: an "
+                "adaptive hold needs a fingertip that feels shear; use configuration "
+                "gripper_shear or hold_mode fixed.")
+
+    def resolve(self, mode: str, hold_time_s: float) -> tuple[str, float]:
+        """A goal's mode and hold time ('' and 0: these settings'); InvalidRequest in one
+        sentence for one the gripper cannot run."""
+        mode = mode or self.mode
+        if mode not in HOLD_MODES:
+            raise InvalidRequest(f"Hold mode {mode!r} is not one of {', '.join(HOLD_MODES)};"
+                                 " ask for one of them (or '' for the gripper's hold_mode).")
+        if not (math.isfinite(hold_time_s) and hold_time_s >= 0):
+            raise InvalidRequest(f"Hold time {hold_time_s} s must be >= 0 (0: the "
+                                 "gripper's hold_time); request e.g. 5 s.")
+        if mode == "adaptive" and not self.shear_sensing:
+            raise InvalidRequest("An adaptive hold needs a fingertip that feels shear, and "
+                                 "this gripper has none (shear_sensing is false); use "
+                                 "configuration gripper_shear or hold_mode fixed.")
+        return mode, hold_time_s or self.hold_time_s
+
+
+class HoldPhase(StrEnum):
+    WAITING = "waiting"
+    PROBING = "probing"
+    HOLDING = "holding"
+    SLIPPING = "slipping"
+
+
+class EventKind(StrEnum):
+    """What a ``~/slip`` event says."""
+
+    #: A probe's slip gave the friction; the grip went to the least grip plus the margin.
+    LEARNED = "learned"
+    #: The margin closed: the grip was raised.
+    ONSET = "onset"
+    #: The margin stays closed at the force ceiling: the object slips.
+    SLIPPING = "slipping"
+
+
+@dataclass(frozen=True)
+class SlipHoldConfig:
+    noise: MarginNoise
+    #: The most the grip may reach [N] (the gripper's force ceiling).
+    ceiling_n: float
+    #: The skin's force per radian of the pinion [N/rad].
+    newton_per_rad: float
+    #: Lowest closing position the grip may command (the closed limit) [rad].
+    closed_position_rad: float
+    bandwidth_hz: float = 20.0
+    control_rate_hz: float = 100.0
+    #: The grip falls this fast while probing [N/s].
+    probe_rate_n_s: float = 4.0
+    #: The shear steady this long before a probe [s].
+    steady_s: float = 0.3
+    #: A probe stops at |Ft| / Fn = this without a slip [1].
+    max_friction: float = 2.0
+    #: At rest this long after a command before the mean force is judged [s].
+    settle_s: float = 0.15
+    #: The grip is on target within this fraction [1].
+    tolerance: float = 0.05
+
+    def __post_init__(self) -> None:
+        positive = ("ceiling_n", "newton_per_rad", "bandwidth_hz", "probe_rate_n_s",
+                    "steady_s", "max_friction", "settle_s")
+        bad = [name for name in positive if not getattr(self, name) > 0]
+        if bad or not 2 * self.bandwidth_hz < self.control_rate_hz:
+            raise InvalidConfiguration(
+                f"The adaptive hold needs {', '.join(bad) or 'bandwidth_hz'} > 0 and a "
+                "slip bandwidth under half the control rate; fix the slip parameters.")
+
+    @property
+    def shear_threshold_n(self) -> float:
+        """k sigma_t: a change of |Ft| this large is not noise."""
+        k = threshold_sigmas(self.noise.false_alarms_per_hour, self.bandwidth_hz)
+        return k * self.noise.shear_sigma_n(self.bandwidth_hz)
+
+    def threshold_n(self, friction: float) -> float:
+        return self.noise.threshold_n(friction, self.bandwidth_hz)
+
+    @property
+    def tick_shear_sigma_n(self) -> float:
+        """The noise of one tick's mean |Ft| (the 1 kHz stream over half the control
+        rate) [N]."""
+        return self.noise.shear_density * math.sqrt(self.control_rate_hz / 2.0)
+
+    @property
+    def probe_threshold_n(self) -> float:
+        """A fall of the probe window's mean |Ft| this large is a slip: 4 sigma of that
+        mean (a false one makes the friction err low, toward more grip) [N]."""
+        return 4.0 * self.tick_shear_sigma_n / math.sqrt(PROBE_TICKS)
+
+
+@dataclass(frozen=True)
+class SlipEvent:
+    kind: EventKind
+    #: When the hold saw it (the goal's clock) [s].
+    time_s: float
+    #: The filtered margin mu Fn - |Ft| then [N].
+    margin_n: float
+    friction: float
+    #: The grip the hold commands after it [N].
+    grip_n: float
+
+
+@dataclass(frozen=True)
+class HoldStep:
+    #: Goal position to send this tick, or None.
+    goal_rad: float | None
+    phase: HoldPhase
+    #: The grip the hold aims at [N].
+    grip_n: float
+    #: The filtered margin [N]; NaN while the friction is unknown.
+    margin_n: float
+    event: SlipEvent | None = None
+    #: One sentence once the ceiling is not enough (the result's ``slipping: ...``).
+    slipping: str | None = None
+
+
+class SlipHold:
+    def __init__(self, config: SlipHoldConfig, grip_n: float, position_rad: float) -> None:
+        self.config = config
+        self.phase = HoldPhase.WAITING
+        self.friction: float | None = None
+        self.grip_n = min(grip_n, config.ceiling_n)
+        self._filter = MarginFilter(config.bandwidth_hz, config.control_rate_hz)
+        self._anchor = (position_rad, grip_n)
+        self._goal_rad = position_rad
+        self._commanded_s: float | None = None
+        self._rest_sum, self._rest_count = 0.0, 0
+        # (the last window's mean |Ft|, this window's start, its sum, sum of squares, count)
+        self._steady: tuple[float, float | None, float, float, int] = (
+            math.nan, None, 0.0, 0.0, 0)
+        self._probe = (0.0, 0.0, 0.0)  # (steady |Ft|, grip at start, start time)
+        self._recent: deque[tuple[float, float]] = deque(maxlen=RATIO_TICKS)
+        self._shear_window: deque[float] = deque(maxlen=PROBE_TICKS)
+        self._ceiling_since: float | None = None
+        #: The filtered margin at the last tick [N] (NaN while the friction is unknown).
+        self.last_margin_n = math.nan
+
+    def margin_n(self, fn_n: float, ft_n: float) -> float:
+        return math.nan if self.friction is None else self.friction * fn_n - ft_n
+
+    def update(self, now_s: float, fn_n: float, fx_n: float, fy_n: float,
+               position_rad: float, moving: bool) -> HoldStep:
+        """One control tick: the mean forces since the last tick [N], the servo."""
+        fn, ft = self._filter.update(fn_n, fx_n, fy_n)
+        self._recent.append((fn_n, math.hypot(fx_n, fy_n)))
+        self._shear_window.append(math.hypot(fx_n, fy_n))
+        event, slipping = None, None
+        if self.phase is HoldPhase.WAITING:
+            self._wait(now_s, fn, ft)
+        elif self.phase is HoldPhase.PROBING:
+            event = self._probe_tick(now_s, fn, ft)
+        elif self.phase is HoldPhase.HOLDING:
+            event, slipping = self._hold_tick(now_s, fn, ft)
+        goal = self._regulate(now_s, fn_n, position_rad, moving, event is not None)
+        self.last_margin_n = self.margin_n(fn, ft)
+        return HoldStep(goal, self.phase, self.grip_n, self.last_margin_n, event, slipping)
+
+    # -- phases --------------------------------------------------------------------------
+    def _wait(self, now_s: float, fn: float, ft: float) -> None:
+        """The probe starts once two consecutive windows of ``steady_s`` hold mean |Ft|
+        within k sigma_t of each other at a level the probe's fall can show (3 k sigma_t),
+        and the later one's tick means spread no more than twice their noise: an object
+        ringing on stuck skins after a sudden lift (7-19 Hz in the model, for seconds)
+        could slip at a ring's peak before the probe sees it. The later window's mean is
+        the probe's reference."""
+        cfg = self.config
+        last, since, total, squares, count = self._steady
+        raw = self._shear_window[-1]
+        if since is None or now_s - since < cfg.steady_s:
+            self._steady = (last, now_s if since is None else since, total + raw,
+                            squares + raw * raw, count + 1)
+            return
+        mean = total / count
+        spread = math.sqrt(max(squares / count - mean * mean, 0.0))
+        self._steady = (mean, now_s, raw, raw * raw, 1)
+        if (abs(mean - last) <= cfg.shear_threshold_n and mean >= 3.0 * cfg.shear_threshold_n
+                and spread <= 2.0 * cfg.tick_shear_sigma_n):
+            self.phase = HoldPhase.PROBING
+            self._probe = (mean, fn, now_s)
+
+    def _probe_tick(self, now_s: float, fn: float, ft: float) -> SlipEvent | None:
+        cfg = self.config
+        level, start_grip, start_s = self._probe
+        window = self._shear_window
+        shear = sum(window) / len(window)
+        if shear > level + cfg.shear_threshold_n:  # the load rose: wait for it to settle
+            self.phase, self._steady = HoldPhase.WAITING, (math.nan, None, 0.0, 0.0, 0)
+            self.grip_n = start_grip
+            return None
+        floor = level / cfg.max_friction
+        slid = level - shear > cfg.probe_threshold_n
+        if not slid and start_grip - cfg.probe_rate_n_s * (now_s - start_s) > floor:
+            self.grip_n = start_grip - cfg.probe_rate_n_s * (now_s - start_s)
+            return None
+        self.friction = self._ratio()
+        self.phase = HoldPhase.HOLDING
+        self.grip_n = self._needed(level)
+        return SlipEvent(EventKind.LEARNED, now_s, self.margin_n(fn, ft), self.friction,
+                         self.grip_n)
+
+    def _ratio(self) -> float:
+        """|Ft| / Fn over the last ``RATIO_TICKS`` ticks' means, each sum moved two of its
+        standard errors toward a lower ratio: sliding ticks give mu_k, stuck ones less
+        (|Ft| <= mu_s Fn), so it errs low, toward more grip."""
+        cfg = self.config
+        # a tick's mean of the 1 kHz stream: noise over half the control rate
+        spread = 2.0 * math.sqrt(len(self._recent) * cfg.control_rate_hz / 2.0)
+        fn = sum(f for f, _ in self._recent) + spread * cfg.noise.normal_density
+        ft = sum(t for _, t in self._recent) - spread * cfg.noise.shear_density
+        cap = cfg.max_friction
+        return min(max(ft / fn, 0.05), cap) if fn > 0 else cap
+
+    def _needed(self, ft: float) -> float:
+        """The least grip for ``ft`` plus the detector's least margin, under the ceiling."""
+        assert self.friction is not None
+        mu = self.friction
+        return min(self.config.ceiling_n, (ft + 2.0 * self.config.threshold_n(mu)) / mu)
+
+    def _hold_tick(self, now_s: float, fn: float,
+                   ft: float) -> tuple[SlipEvent | None, str | None]:
+        cfg = self.config
+        assert self.friction is not None
+        mu = self.friction
+        margin = mu * fn - ft
+        if margin >= cfg.threshold_n(mu):
+            self._ceiling_since = None
+            return None, None
+        event = None
+        needed = self._needed(ft)
+        # an onset raises the grip; a grip already raised and still on its way (the
+        # filtered force lags it) is not a new one
+        if needed > self.grip_n and (needed >= cfg.ceiling_n or needed > self.grip_n * (
+                1.0 + 0.5 * cfg.tolerance)):
+            self.grip_n = needed
+            event = SlipEvent(EventKind.ONSET, now_s, margin, mu, self.grip_n)
+        if self.grip_n < cfg.ceiling_n:
+            return event, None
+        if self._ceiling_since is None:
+            self._ceiling_since = now_s
+        if now_s - self._ceiling_since < cfg.settle_s + 1.0 / cfg.bandwidth_hz:
+            return event, None
+        self.phase = HoldPhase.SLIPPING
+        want = (ft + 2.0 * cfg.threshold_n(mu)) / mu
+        return (SlipEvent(EventKind.SLIPPING, now_s, margin, mu, self.grip_n),
+                f"the object needs {want:.2f} N of grip at friction {mu:.2f}, above the "
+                f"force ceiling of {cfg.ceiling_n:.2f} N; holding at the ceiling")
+
+    # -- grip -> position ------------------------------------------------------------------
+    def _regulate(self, now_s: float, fn_n: float, position_rad: float, moving: bool,
+                  urgent: bool) -> float | None:
+        """The goal for the grip: at once when the grip target moved (a probe's step, a
+        reflex); after ``settle_s`` at rest, from the mean force of that rest."""
+        cfg = self.config
+        if self._commanded_s is not None and (moving or now_s - self._commanded_s
+                                              < cfg.settle_s):
+            self._rest_sum, self._rest_count = 0.0, 0
+        else:
+            self._rest_sum += fn_n
+            self._rest_count += 1
+            if self._rest_count * (1.0 / cfg.control_rate_hz) >= cfg.settle_s:
+                mean = self._rest_sum / self._rest_count
+                self._rest_sum, self._rest_count = 0.0, 0
+                # a mean under half the grip: the object is gone (dropped, pulled out);
+                # chasing the grip would close the fingers on nothing
+                if (abs(mean - self.grip_n) > cfg.tolerance * self.grip_n
+                        and mean > 0.5 * self.grip_n):
+                    self._anchor = (position_rad, mean)
+        anchor_rad, anchor_n = self._anchor
+        goal = min(cfg.closed_position_rad,
+                   anchor_rad + (self.grip_n - anchor_n) / cfg.newton_per_rad)
+        if abs(goal - self._goal_rad) < (0.5 if urgent else 1.0) * RAD_PER_PULSE:
+            return None
+        self._goal_rad, self._commanded_s = goal, now_s
+        self._rest_sum, self._rest_count = 0.0, 0
+        return goal

@@ -1,0 +1,224 @@
+"""The slip-aware hold (control/slip_hold.py) on a toy world: a linear skin, an object
+hanging on two fingers with Coulomb friction, the fingertip's noise."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
+from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.control.slip_hold import (
+    SHEAR_FINGERTIP_NOISE,
+    EventKind,
+    HoldPhase,
+    HoldSettings,
+    SlipHold,
+    SlipHoldConfig,
+)
+
+G = GripperGeometry()
+CONTACT = G.position_rad(0.020)
+STIFFNESS = 2500.0
+PER_RAD = STIFFNESS * G.pitch_radius_m
+DT = 0.01  # the 100 Hz control tick
+
+
+def config(ceiling_n: float = 10.0) -> SlipHoldConfig:
+    return SlipHoldConfig(SHEAR_FINGERTIP_NOISE, ceiling_n=ceiling_n, newton_per_rad=PER_RAD,
+                          closed_position_rad=G.closed_position_rad)
+
+
+@dataclass
+class World:
+    """The grip follows the servo at once; the object sticks while 2 mu_s Fn holds its
+    load, else slides carrying mu_k Fn on each skin (slip: ticks spent sliding)."""
+
+    position_rad: float
+    load_n: float
+    mu_s: float
+    mu_k: float
+    noise: bool = True
+    #: The skin's true stiffness over the one the hold assumes.
+    stiffness_ratio: float = 1.0
+    sliding: bool = False
+    slid_ticks: int = 0
+
+    @property
+    def grip_n(self) -> float:
+        return self.stiffness_ratio * PER_RAD * max(0.0, self.position_rad - CONTACT)
+
+    def shear_n(self) -> float:
+        fn = self.grip_n
+        limit = (self.mu_k if self.sliding else self.mu_s) * fn
+        self.sliding = self.load_n / 2 > limit
+        self.slid_ticks += self.sliding
+        return min(self.load_n / 2, self.mu_k * fn if self.sliding else limit)
+
+
+def run(hold: SlipHold, world: World, ticks: int, rng: np.random.Generator,
+        start_s: float = 0.0) -> list:
+    """The hold ticking on the world; each tick's forces are 10 ms means of the 1 kHz
+    stream (the noise of the 10 Hz figures scaled to 50 Hz, the tick's own bandwidth)."""
+    steps = []
+    sigma_t = SHEAR_FINGERTIP_NOISE.shear_density * math.sqrt(50.0) * world.noise
+    sigma_n = SHEAR_FINGERTIP_NOISE.normal_density * math.sqrt(50.0) * world.noise
+    for i in range(ticks):
+        ft = world.shear_n() + sigma_t * rng.standard_normal()
+        fn = world.grip_n + sigma_n * rng.standard_normal()
+        step = hold.update(start_s + i * DT, fn, ft, 0.0, world.position_rad, False)
+        if step.goal_rad is not None:
+            world.position_rad = step.goal_rad
+        steps.append(step)
+    return steps
+
+
+def start(grip_n: float, load_n: float, mu_s: float, mu_k: float,
+          ceiling_n: float = 10.0, noise: bool = True) -> tuple[SlipHold, World]:
+    position = CONTACT + grip_n / PER_RAD
+    return (SlipHold(config(ceiling_n), grip_n, position),
+            World(position, load_n, mu_s, mu_k, noise))
+
+
+@settings(max_examples=25, deadline=None)
+@given(mass_kg=st.floats(0.17, 0.3), mu_s=st.floats(0.3, 1.0), kinetic=st.floats(0.8, 1.0),
+       seed=st.integers(0, 2**16))
+def test_the_probe_learns_the_friction_and_holds_near_the_least_grip(
+        mass_kg: float, mu_s: float, kinetic: float, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    load = 9.81 * mass_kg
+    mu_k = kinetic * mu_s
+    hold, world = start(load / mu_k + 1.5, load, mu_s, mu_k)
+    steps = run(hold, world, 400, rng)
+    learned = [s.event for s in steps if s.event is not None]
+    assert learned and learned[0].kind is EventKind.LEARNED
+    assert hold.phase is HoldPhase.HOLDING
+    # errs low, the safe side (more grip), the more so the lighter the object: the shear's
+    # fall shows k sigma_t below its level; never above the static friction
+    assert 0.4 * mu_k <= hold.friction <= 1.1 * mu_s
+    least = load / 2 / mu_k
+    needed = (load / 2 + 2 * hold.config.threshold_n(hold.friction)) / hold.friction
+    assert least <= world.grip_n <= 1.1 * needed + 0.06
+    assert world.slid_ticks < 40  # the probe's slip: until |Ft|'s 200 ms mean fell k sigma_t
+
+
+@settings(max_examples=25, deadline=None)
+@given(mass_kg=st.floats(0.17, 0.3), mu=st.floats(0.3, 1.0), seed=st.integers(0, 2**16))
+def test_a_doubled_load_raises_the_grip_within_the_reflex_time(
+        mass_kg: float, mu: float, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    load = 9.81 * mass_kg
+    hold, world = start(load / mu + 1.5, load, mu, mu, ceiling_n=30.0)
+    run(hold, world, 400, rng)
+    assert hold.phase is HoldPhase.HOLDING
+    before = world.grip_n
+    world.load_n = 2 * load
+    steps = run(hold, world, 100, rng, start_s=4.0)
+    onsets = [i for i, s in enumerate(steps) if s.event is not None]
+    assert onsets and steps[onsets[0]].event.kind is EventKind.ONSET
+    assert onsets[0] <= 3  # within 30 ms of the load's step, at the tick rate
+    assert world.grip_n > before
+    assert 2 * mu * world.grip_n >= world.load_n  # it holds the doubled load
+    assert world.grip_n <= 30.0 + 1e-9
+
+
+def test_a_ceiling_too_low_says_slipping_and_holds_at_the_ceiling() -> None:
+    rng = np.random.default_rng(3)
+    hold, world = start(3.0, 2.0, 0.5, 0.5, ceiling_n=3.5)
+    run(hold, world, 400, rng)
+    assert hold.phase is HoldPhase.HOLDING
+    world.load_n = 4.0  # needs 4 N of grip at mu 0.5
+    steps = run(hold, world, 100, rng, start_s=4.0)
+    ends = [s for s in steps if s.slipping is not None]
+    assert ends and ends[0].phase is HoldPhase.SLIPPING
+    assert ends[0].event is not None and ends[0].event.kind is EventKind.SLIPPING
+    assert "above the force ceiling of 3.50 N" in ends[0].slipping
+    assert max(s.grip_n for s in steps) == pytest.approx(3.5)
+    assert world.grip_n == pytest.approx(3.5, abs=0.06)
+
+
+def test_a_shear_under_the_probe_s_resolution_keeps_the_grip() -> None:
+    """100 g: 0.49 N on each skin, under 3 k sigma_t (0.78 N at 20 Hz): no probe."""
+    hold, world = start(2.0, 0.1 * 9.81, 0.5, 0.5)
+    run(hold, world, 300, np.random.default_rng(5))
+    assert hold.phase is HoldPhase.WAITING and world.grip_n == pytest.approx(2.0, abs=0.06)
+
+
+def test_an_object_ringing_on_the_skins_is_probed_once_the_ring_died_out() -> None:
+    """After a sudden lift the model's object rings at 7-19 Hz for seconds; a probe then
+    could slip it at a ring's peak."""
+    hold = SlipHold(config(), 3.0, CONTACT + 3.0 / PER_RAD)
+
+    def ring(i: int, amplitude: float) -> HoldPhase:
+        shear = 1.0 + amplitude * math.sin(2 * math.pi * 8.0 * i * DT)
+        return hold.update(i * DT, 3.0, shear, 0.0, CONTACT + 3.0 / PER_RAD, False).phase
+
+    assert all(ring(i, 0.3) is HoldPhase.WAITING for i in range(200))
+    assert ring(270, 0.0) is HoldPhase.WAITING
+    assert [ring(i, 0.0) for i in range(271, 340)][-1] is HoldPhase.PROBING
+
+
+def test_without_a_load_the_hold_keeps_the_grip_and_learns_nothing() -> None:
+    rng = np.random.default_rng(4)
+    hold, world = start(2.0, 0.0, 0.5, 0.5)
+    steps = run(hold, world, 200, rng)
+    assert hold.friction is None and all(s.event is None for s in steps)
+    assert all(math.isnan(s.margin_n) for s in steps)
+    assert world.grip_n == pytest.approx(2.0, abs=0.06)
+
+
+def test_a_load_rising_during_the_probe_restarts_it_from_its_grip() -> None:
+    hold, world = start(5.0, 2.0, 0.5, 0.5, noise=False)
+    rng = np.random.default_rng(0)
+    steps = run(hold, world, 70, rng)
+    assert steps[-1].phase is HoldPhase.PROBING
+    world.load_n = 3.0
+    steps = run(hold, world, 15, rng, start_s=1.0)
+    assert steps[-1].phase is HoldPhase.WAITING and hold.grip_n == pytest.approx(5.0, abs=0.01)
+
+
+def test_a_probe_without_slip_stops_at_the_largest_friction() -> None:
+    hold, world = start(3.0, 2.0, 5.0, 5.0, noise=False)
+    steps = run(hold, world, 300, np.random.default_rng(0))
+    assert 1.0 <= hold.friction <= 2.0  # what it saw stuck, up to max_friction: a lower bound
+    assert steps[-1].phase is HoldPhase.HOLDING
+
+
+def test_the_rest_re_anchors_a_grip_the_skin_model_missed() -> None:
+    """A skin 20 % softer than assumed: the rest's mean force moves the anchor."""
+    hold, world = start(2.0, 0.0, 0.5, 0.5)
+    world.stiffness_ratio = 0.8
+    run(hold, world, 200, np.random.default_rng(0))
+    assert world.grip_n == pytest.approx(2.0, rel=0.05)
+
+
+def test_bad_configurations_are_refused_in_one_sentence() -> None:
+    with pytest.raises(InvalidConfiguration, match="ceiling_n"):
+        SlipHoldConfig(SHEAR_FINGERTIP_NOISE, ceiling_n=0.0, newton_per_rad=PER_RAD,
+                       closed_position_rad=1.0)
+    with pytest.raises(InvalidConfiguration, match="half the control rate"):
+        SlipHoldConfig(SHEAR_FINGERTIP_NOISE, ceiling_n=5.0, newton_per_rad=PER_RAD,
+                       closed_position_rad=1.0, bandwidth_hz=60.0)
+    with pytest.raises(InvalidConfiguration, match="'hold_mode'"):
+        HoldSettings(mode="gentle")
+    with pytest.raises(InvalidConfiguration, match="'hold_time'"):
+        HoldSettings(hold_time_s=-1.0)
+    with pytest.raises(InvalidConfiguration, match="shear_sensing' is false"):
+        HoldSettings(mode="adaptive")
+
+
+def test_a_goal_s_hold_mode_resolves_against_the_settings() -> None:
+    shear = HoldSettings(shear_sensing=True, hold_time_s=2.0)
+    assert shear.resolve("", 0.0) == ("fixed", 2.0)
+    assert shear.resolve("adaptive", 1.0) == ("adaptive", 1.0)
+    with pytest.raises(InvalidRequest, match="gripper_shear or hold_mode fixed"):
+        HoldSettings().resolve("adaptive", 0.0)
+    with pytest.raises(InvalidRequest, match="not one of fixed, adaptive"):
+        shear.resolve("firm", 0.0)
+    with pytest.raises(InvalidRequest, match="must be >= 0"):
+        shear.resolve("adaptive", math.nan)
