@@ -19,8 +19,13 @@ from rclpy.action import ActionClient
 
 class RaceFreeActionClient(ActionClient):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
+        # Both before the base class adds the client to its node: an executor already
+        # spinning that node may take it up at once. Kilted's rclpy creates its own '_lock'
+        # only after adding it (an AttributeError in the spinning thread, which then stops);
+        # this one stands in until the base class replaces it.
         self._filing = threading.RLock()
+        self._lock = threading.Lock()
+        super().__init__(*args, **kwargs)
 
     def send_goal_async(self, *args: Any, **kwargs: Any) -> Any:
         with self._filing:

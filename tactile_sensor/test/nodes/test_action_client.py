@@ -91,3 +91,27 @@ def test_an_answer_before_the_future_is_filed_is_not_lost(ros_domain):
         if spin is not None:
             spin.stop()
         rclpy.try_shutdown(context=context)
+
+
+def test_a_client_added_to_a_node_being_spun_is_ready_for_its_executor(ros_domain):
+    """An executor spinning the node may take a new client up as soon as it is added to the
+    node, before its constructor returns (Kilted's rclpy then lacked the lock its
+    get_num_entities holds, and the spinning thread stopped). Made certain here: the node
+    asks the client for its entities the moment it is added, as that executor would."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    try:
+        node = Node("spun_probe", context=context)
+        asked: list[object] = []
+        add_waitable = node.add_waitable
+
+        def add_then_ask(waitable: Any) -> None:
+            add_waitable(waitable)
+            asked.append(waitable.get_num_entities())
+
+        node.add_waitable = add_then_ask  # type: ignore[method-assign]
+        client = RaceFreeActionClient(node, Grasp, "grasp")
+        assert len(asked) == 1
+        client.destroy()
+    finally:
+        rclpy.try_shutdown(context=context)
