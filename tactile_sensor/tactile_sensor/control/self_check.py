@@ -205,13 +205,15 @@ def fit_self_check(record: ClosingRecord, prediction: SkinPrediction,
     """The two factors from one close; ``SelfCheckError`` (one sentence) when it has none."""
     closing = record.velocity_rad_s > 0.0
     out, cur = record.output_v[closing], record.current_a[closing]
-    first = _contact_index(out, limits)
+    _contact_index(out, limits)  # refuses a close that never touched
     rack = train.rack_positions_rad(record.position_rad[closing])
     # the free level from the first samples, before either finger touches: the
     # compliance's deflection needs the force from the start
     free = float(np.median(cur[:MIN_FREE_SAMPLES]))
     force = train.rack_force_n(cur, free)
-    gain, gain_sigma, contact = _fit_optical(rack, out, force, (rack[0], rack[first]),
+    # finger A's contact anywhere in the close: where the output first crosses its
+    # threshold is no bound, a noise excursion of the free output can cross it early
+    gain, gain_sigma, contact = _fit_optical(rack, out, force, (rack[0], rack[-1]),
                                              prediction, train)
     travel = train.travel_m(rack, contact, force)
     usable = travel <= prediction.max_indentation_m
@@ -285,19 +287,27 @@ def _fit_optical(rack: FloatArray, out: FloatArray, force: FloatArray,
                  bracket: tuple[float, float], prediction: SkinPrediction,
                  train: DriveTrain) -> tuple[float, float, float]:
     """(gain, its sigma, finger A's contact position [rad]): the output is a free level
-    plus the gain times the FEM's output at finger A's indentation."""
-    def columns(contact: float) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
-        d = train.travel_m(rack, contact, force)
-        keep = d <= prediction.max_indentation_m
-        d = np.maximum(d[keep], 0.0)
-        return np.column_stack([prediction.output(d), np.ones_like(d)]), keep
+    plus the gain times the FEM's output at finger A's indentation. Every candidate contact
+    is judged on the same samples, those within the prediction's range at the latest one
+    (``bracket[1]``); an earlier contact that would press one of them past the range is no
+    candidate. (Judged on the samples each keeps, a contact early enough to leave out every
+    pressed sample fitted the flat free output best: a gain of 0.47 for 1.0.)"""
+    keep = train.travel_m(rack, bracket[1], force) <= prediction.max_indentation_m
+
+    def columns(contact: float) -> FloatArray | None:
+        d = train.travel_m(rack[keep], contact, force[keep])
+        if np.any(d > prediction.max_indentation_m):
+            return None
+        d = np.maximum(d, 0.0)
+        return np.column_stack([prediction.output(d), np.ones_like(d)])
 
     def residual(contact: float) -> float:
-        cols, keep = columns(contact)
-        return _linear_fit(cols, out[keep])[1] / max(np.count_nonzero(keep), 1)
+        cols = columns(contact)
+        return math.inf if cols is None else _linear_fit(cols, out[keep])[1]
 
     contact = _scan(residual, *bracket)
-    cols, keep = columns(contact)
+    cols = columns(contact)
+    assert cols is not None  # the latest contact, bracket[1], always is a candidate
     (gain, _level), ssr = _linear_fit(cols, out[keep])
     d = np.maximum(train.travel_m(rack[keep], contact, force[keep]), 0.0)
     slope = -gain * prediction.output_slope(d) * (d > 0) * train.geometry.pitch_radius_m
