@@ -1,23 +1,7 @@
 """Calibration across speeds end to end, as ``make demo-rate`` runs it (shortened): record
-the paper's speeds on mock hardware, check the paper's speed effects on that record (Fig. 9,
-Sec. III-D), fit the static curve and rate terms from it, record speeds the fit never saw
-(with holds) with the fitted file in the driver, and analyse static against rate-aware per
-speed and phase.
-
-One record serves the paper's speed effects and the fit: ``speeds:cycles=1`` (0.1, 1 and
-10 mm/s, one cycle each; a 0.1 mm/s press alone takes a minute). Tolerances for the speed
-effects and why:
-
-- phase lag: one cycle's lag is as precise as the output's noise lets its onset be found: on
-  the 0.1 mm/s edge (17 mV/s) the filtered noise moves it by sigma ~0.18 s (six quiet runs:
-  0.35-0.85 s; 0.29 s once beside a busy core, against a bound of 0.706 +- 50 %), at 1 mm/s
-  by ~0.04 s and at 10 mm/s by ~0.011 s. The bounds sit at 3.3 sigma or more.
-- peak output the same at every speed within 8 %: a peak output is the mean over the samples
-  at >= 98 % of the peak indentation, which at 10 mm/s is the 12 ms around the turn, about
-  12 filtered samples: it scatters by about +-0.02 V (4 % of 0.5 V) from run to run (0.524 V
-  at 10 mm/s against 0.496-0.500 V at the slower speeds in one run, 0.501-0.508 V in the
-  next).
-"""
+several speeds on mock hardware, fit the static curve and rate terms, record speeds the fit
+never saw (with holds) with the fitted file in the driver, and analyse static against
+rate-aware per speed and phase."""
 
 from __future__ import annotations
 
@@ -33,8 +17,6 @@ from tactile_sensor.sensing.rate_calibration import MAX_RATE_TERMS
 pytestmark = pytest.mark.slow
 
 PHASES = {"loading", "hold", "unloading"}
-FIGURES = ("force_vs_indentation", "output_vs_indentation", "output_vs_force", "cycles",
-           "first_last_cycles", "speeds")
 
 
 def record(spawn, tmp_path: Path, protocol: str, bag: Path, *extra: str) -> str:
@@ -44,13 +26,11 @@ def record(spawn, tmp_path: Path, protocol: str, bag: Path, *extra: str) -> str:
     return run.output()
 
 
-def test_the_papers_speeds_recorded_fitted_and_checked_on_unseen_speeds(spawn, ros_domain,
-                                                                        tmp_path):
+def test_record_fit_record_with_the_fitted_file_and_analyse(spawn, ros_domain, tmp_path):
     speeds, fit = tmp_path / "speeds", tmp_path / "fit"
-    record(spawn, tmp_path, "speeds:cycles=1", speeds)
-    assert analyze_cli.main([str(speeds), "--out", str(fit), "--prediction", "auto",
-                             "--fit-calibration", "--quiet"]) == 0
-    assert_the_papers_speed_effects(fit)
+    record(spawn, tmp_path, "speeds:speeds=0.0005/0.002/0.01,cycles=1,rest=0.5", speeds)
+    assert analyze_cli.main([str(speeds), "--out", str(fit), "--fit-calibration",
+                             "--quiet"]) == 0
     calibration = json.loads((fit / "calibration.json").read_text())
     # The mock's output has a play (output_play), which the fit compensates (version 3)
     # when the held-out folds gain more than 5 % by it; close records may go either way, and
@@ -65,8 +45,9 @@ def test_the_papers_speeds_recorded_fitted_and_checked_on_unseen_speeds(spawn, r
     assert 1 <= len(terms) <= MAX_RATE_TERMS
     low, high = calibration["fit"]["tau_range_s"]
     assert all(t["g"] >= 0 and low <= t["tau_s"] <= high for t in terms), (terms, low, high)
-    assert set(calibration["fit"]["held_out_rmse_n"][str(len(terms))]) == {"0.1", "1.0",
+    assert set(calibration["fit"]["held_out_rmse_n"][str(len(terms))]) == {"0.5", "2.0",
                                                                              "10.0"}
+
     config = tmp_path / "driver.yaml"
     config.write_text(yaml.safe_dump({"/**/driver": {"ros__parameters": {
         "calibration_source": "file", "calibration_file": str(fit / "calibration.json")}}}))
@@ -90,23 +71,3 @@ def test_the_papers_speeds_recorded_fitted_and_checked_on_unseen_speeds(spawn, r
     # the figure: gauge, static and rate-aware force against time at each speed
     assert (out / "force_estimates.png").stat().st_size > 1000
     assert "(force_estimates.png)" in report
-
-
-def assert_the_papers_speed_effects(out: Path) -> None:
-    """Lag falls with speed, force rises while the peak output does not (Fig. 9), with the
-    figures in the report."""
-    mt = json.loads((out / "metrics.json").read_text())
-    by = mt["by_speed"]
-    assert {k: v["cycles"] for k, v in by.items()} == {"0.1": 1, "1.0": 1, "10.0": 1}
-    lag = mt["phase_lag_s"]
-    assert lag["0.1"] == pytest.approx(0.706, abs=0.6)
-    assert lag["0.1"] > max(lag["1.0"], lag["10.0"])  # falls with speed
-    assert -0.1 < lag["1.0"] < 0.2
-    assert abs(lag["10.0"]) < 0.05
-    assert by["10.0"]["peak_force_n"] > by["1.0"]["peak_force_n"] > by["0.1"]["peak_force_n"]
-    outputs = [by[k]["peak_output_v"] for k in ("0.1", "1.0", "10.0")]
-    assert max(outputs) - min(outputs) < 0.08 * max(outputs)
-    report = (out / "report.md").read_text()
-    for name in FIGURES:
-        assert (out / f"{name}.png").stat().st_size > 1000, name
-        assert f"({name}.png)" in report, name
