@@ -357,6 +357,7 @@ def test_one_goal_policy_across_all_four_servers(gripper):
 def cancel_latency(client: Client, goal, trial: int) -> float:
     """Cancel request sent -> the fingers at rest (``rest_onset``), by stamp, for a goal
     canceled while the fingers move."""
+    rest = client.opening[-1][1]
     handle = client.send_moving("gripper_cmd", goal)
     time.sleep(0.015 * trial)  # different phases of the 100 Hz loop
     moving_before = client.opening[-1][1]
@@ -366,7 +367,9 @@ def cancel_latency(client: Client, goal, trial: int) -> float:
     assert answer.status == GoalStatus.STATUS_CANCELED
     _until(lambda: rest_onset(client.opening, canceled_at, hold_s=0.3) is not None, PATIENCE_S,
            "the fingers did not come to rest after the cancel")
-    assert client.opening[-1][1] < moving_before  # it was closing
+    # it was closing (below where it started) and did not open again; a cancel that lands
+    # before the fingers' next sample leaves the opening equal (seen beside a busy core)
+    assert client.opening[-1][1] <= moving_before < rest
     return rest_onset(client.opening, canceled_at, hold_s=0.3) - canceled_at
 
 

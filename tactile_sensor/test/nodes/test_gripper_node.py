@@ -270,7 +270,9 @@ def cancel_latency(client, send, trial: int):
     assert cancel.goals_canceling, answer
     _until(lambda: rest_onset(client.opening, canceled_at, hold_s=0.3) is not None,
            "the fingers did not come to rest after the cancel")
-    assert client.opening[-1][1] < moving_before  # it was closing
+    # it was closing (below where it started) and did not open again; a cancel that lands
+    # before the fingers' next sample leaves the opening equal (seen beside a busy core)
+    assert client.opening[-1][1] <= moving_before < rest
     return answer, rest_onset(client.opening, canceled_at, hold_s=0.3) - canceled_at
 
 
