@@ -294,19 +294,27 @@ def test_tare_succeeds_at_rest_and_is_refused_while_pressing(spawn, ros, files):
     # The tare at rest must fall into the mock's first rest (device time): 10 s of it, of
     # which the test needs ~1 s when idle (3 s were missed beside a busy loop: 'not at
     # rest, moved 77 mV'). The mock has no command to start the press on cue.
-    start_mock(spawn, files, "ramp:depth=0.003,speed=0.001,cycles=1,hold=0,rest=10")
+    start_mock(spawn, files, "ramp:depth=0.003,speed=0.001,cycles=3,hold=0,rest=10")
     assert ros.wait_for(lambda: len(ros.readings) > 800, PATIENCE_S)
     assert all(m.output != m.output for _, m in ros.readings[:50])  # NaN before any tare
     at_rest = ros.call_tare()
     assert at_rest.success, at_rest.message
     assert "baseline" in at_rest.message
-    # pressing now, past the toe: the tare judges the level's move over its 0.5 s window
-    # (block means within 50 mV), and at 0.1 V the toe had moved only 24.8 mV in a window
-    # (a fresh-clone run); past 0.25 V the output moves about 0.2 V per mm (0.22 V at
-    # 1.5 mm, 0.50 V at 3 mm), about 0.1 V in 0.5 s at 1 mm/s, loading and unloading
-    assert ros.wait_for(lambda: ros.readings[-1][1].output > 0.25, PATIENCE_S)
-    pressing = ros.call_tare()
-    assert not pressing.success
+    # Asked while pressing, past the toe (past 0.25 V the output moves about 0.1 V per 0.5 s
+    # at 1 mm/s, over the tare's 50 mV bound; at 0.1 V the toe had moved only 24.8 mV). A
+    # busy core can hold this listener's readings, or the call, back past the 3 s the output
+    # stays there (a fresh-clone run: answered at rest, spread 8.8 mV): a tare answered at
+    # rest is asked again on the next of the three presses.
+    for _ in range(3):
+        seen = len(ros.readings)
+        assert ros.wait_for(lambda seen=seen: any(m.output > 0.25
+                                                  for _, m in ros.readings[seen:]),
+                            PATIENCE_S)
+        pressing = ros.call_tare()
+        if not pressing.success:
+            break
+        assert ros.wait_for(lambda: ros.readings[-1][1].output < 0.05, PATIENCE_S)
+    assert not pressing.success, pressing.message
     assert "rest" in pressing.message.lower(), pressing.message
 
 
