@@ -93,7 +93,9 @@ def test_the_probe_learns_the_friction_and_holds_near_the_least_grip(
     rng = np.random.default_rng(seed)
     load = 9.81 * mass_kg
     mu_k = kinetic * mu_s
-    hold, world = start(load / mu_k + 1.5, load, mu_s, mu_k)
+    # a ceiling out of the way (the ceiling has its own test): a friction learned low, as this
+    # test allows (0.168 for 0.375), asked 12 N of a 300 g object, over a 10 N ceiling
+    hold, world = start(load / mu_k + 1.5, load, mu_s, mu_k, ceiling_n=30.0)
     steps = run(hold, world, 400, rng)
     learned = [s.event for s in steps if s.event is not None]
     assert learned and learned[0].kind is EventKind.LEARNED
