@@ -211,7 +211,26 @@ def run(scenario: str, seed: int, filter_name: str = DEFAULT_FILTER,
             "tared": chain.tared, "headroom": room, "scene": scene,
             "at_5n": error_at(force, truth, depth),
             "full_scale": calibration.full_scale_force_n,
-            "gain": None if gain is None else gain[0], "warning": chain.gain_warning()}
+            "gain": None if gain is None else gain[0], "warning": chain.gain_warning(),
+            "trace": (t - start_s, truth, force)}
+
+
+#: The scenario whose presses the docs page draws, and the drivers drawn (table keys).
+TRACE_SCENARIO = "office"
+TRACE_STEP_S = 0.01
+
+
+def trace_series(runs: dict[str, dict[str, object]]) -> dict[str, np.ndarray]:
+    """The gauge and each driver's force under ``TRACE_SCENARIO`` on one 10 ms grid (the
+    modulated module samples at 500 Hz): the sample at or just before each grid time."""
+    t0, truth, _ = runs["today"]["trace"]  # type: ignore[misc]
+    grid = np.arange(float(t0[0]), float(t0[-1]), TRACE_STEP_S)
+    series = {"t_s": grid, "gauge_n": np.interp(grid, t0, truth)}
+    for name, r in runs.items():
+        t, _, force = r["trace"]  # type: ignore[misc]
+        at = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 1)
+        series[f"{name}_n"] = force[at]
+    return series
 
 
 def table(results: dict[str, dict[str, object]], dark: float, title: str,
@@ -336,8 +355,16 @@ def main(argv: list[str] | None = None) -> int:
                      f"(x dark: against today's driver in the dark; own dark "
                      f"{modulated['dark']['overall']:.3f} N):", "modulated, ")
     figures += drift_table(args.seed)
-    write_results("bench_ambient", figures, notes=f"seed {args.seed}; {DEFAULT_FILTER} is "
-                  "today's default driver; no driver rejects a light step during a press")
+    series = trace_series({"today": today[TRACE_SCENARIO] if TRACE_SCENARIO in today
+                           else run(TRACE_SCENARIO, args.seed),
+                           "stock": run(TRACE_SCENARIO, args.seed, NOTCH_FILTER,
+                                        driver="following"),
+                           "modulated": run(TRACE_SCENARIO, args.seed, NOTCH_FILTER,
+                                            modulated=True, driver="following")})
+    write_results("bench_ambient", figures, series=series, notes=(
+        f"seed {args.seed}; {DEFAULT_FILTER} is today's default driver; no driver rejects a "
+        f"light step during a press; series: the {TRACE_SCENARIO} scenario, today's driver, "
+        f"the stock module with {NOTCH_FILTER} and re-tare at rest, the modulated module"))
     return 0
 
 

@@ -214,6 +214,25 @@ def slip_trace(series: Series, path: Path) -> Path:
     return saved(fig, path)
 
 
+def ambient_trace(series: Series, path: Path) -> Path:
+    """The office scenario's presses as the gauge and each driver read them: today's driver
+    with the lamps' flicker and a lamp switched on while press 1 loads and off while press
+    2 unloads, the stock module notched and re-tared at rest, the modulated module."""
+    plt = pyplot()
+    t = series["t_s"]
+    fig, ax = plt.subplots(figsize=(9, 4))
+    for key, label, style in (("today_n", "today's driver", "0.65"),
+                              ("stock_n", "stock + notch + re-tare at rest", "tab:orange"),
+                              ("modulated_n", "modulated + notch + gain", "tab:blue")):
+        ax.plot(t, series[key], lw=0.7, color=style, label=label)
+    ax.plot(t, series["gauge_n"], lw=1.2, ls="--", color="k", label="gauge")
+    ax.set(xlabel="time from the protocol's start [s]", ylabel="force [N]",
+           title="Office light: flicker 0.2 at 100 Hz, a lamp +0.3 in press 1, -0.3 in press 2")
+    ax.legend(fontsize=8, loc="upper right")
+    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.13, top=0.9)
+    return saved(fig, path)
+
+
 @dataclass(frozen=True)
 class PageFigure:
     """One figure of a docs page: the benchmark result it is drawn from (empty: drawn from
@@ -240,6 +259,9 @@ FIGURES = (
                "the rate errors per speed", rate_errors),
     PageFigure("gripper-workflow", "grasp", "gripper",
                "a grasp's force and opening over time", grasp_trace),
+    PageFigure("ambient", "ambient_office", "bench_ambient",
+               "the force under office light, today's driver beside each kind of module",
+               ambient_trace),
     PageFigure("gripper", "slip_study", "slip_study",
                "a slip's tangential force and the detector's alarm", slip_trace),
 )

@@ -23,8 +23,8 @@ def _figure_placeholders() -> None:
     from pathlib import Path
 
     generated = Path(__file__).resolve().parent / "_generated"
-    pages = ("array", "bench-calibration", "design-studies", "gripper", "gripper-workflow",
-             "rate-calibration")
+    pages = ("ambient", "array", "bench-calibration", "design-studies", "gripper",
+             "gripper-workflow", "rate-calibration")
     for page in pages:
         target = generated / f"{page}.md"
         if not target.is_file():

@@ -106,3 +106,22 @@ def test_the_slip_study_draws_its_trace_on_the_gripper_page(tmp_path):
     docs_figures.write_pages(published, out)
     assert (out / "slip_study.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "benchmark slip_study" in (out / "gripper.md").read_text()
+
+
+def test_the_office_scenario_draws_each_driver_beside_the_gauge_with_blind_gaps(tmp_path):
+    bench_ambient = importlib.import_module("bench_ambient")
+    published, out = tmp_path / "results", tmp_path / "generated"
+    t = np.arange(-1.0, 10.0, 0.001)
+    truth = np.clip(np.sin(t), 0.0, None) * 5.0
+    blind = np.where((t > 2.0) & (t < 2.5), np.nan, truth + 0.2)
+    half = t[::2]  # the modulated module samples at 500 Hz
+    runs = {"today": {"trace": (t, truth, blind)}, "stock": {"trace": (t, truth, truth)},
+            "modulated": {"trace": (half, truth[::2], truth[::2] - 0.1)}}
+    series = bench_ambient.trace_series(runs)
+    assert np.isnan(series["today_n"][(series["t_s"] > 2.05) & (series["t_s"] < 2.45)]).all()
+    assert np.allclose(series["modulated_n"], series["gauge_n"] - 0.1, atol=0.02)
+    results.write_results("bench_ambient", [], argv=["benchmarks/bench_ambient.py"],
+                          directory=published, series=series)
+    docs_figures.write_pages(published, out)
+    assert (out / "ambient_office.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "benchmark bench_ambient" in (out / "ambient.md").read_text()
