@@ -38,12 +38,11 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import WrenchStamped
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
+from tactile_sensor.nodes.lifecycle_main import run_plain_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
     ParamSpec,
@@ -51,7 +50,6 @@ from tactile_sensor.nodes.parameters import (
     read_parameters,
 )
 from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
-from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.physics.detector import DetectorState, headroom_ratio
 from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.prediction import load_or_compute_curve
@@ -549,23 +547,9 @@ class MockHardwareNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     sys.setswitchinterval(5e-4)  # several device threads must each answer within ~1 ms
-    try:
-        with ros_session(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
-            try:
-                node = MockHardwareNode()
-            except MockHardwareError as exc:
-                print(f"mock_hardware: {exc}", file=sys.stderr)
-                return 2
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-            try:
-                # the gauge thread stops before the context does
-                spin_until_signal(executor, node.close_devices)
-            finally:
-                node.destroy_node()
-    except KeyboardInterrupt:  # Ctrl-C while the skin model loads
-        pass
-    return 0
+    # the gauge thread stops before the context does
+    return run_plain_node("mock_hardware", MockHardwareNode, (MockHardwareError,),
+                          MockHardwareNode.close_devices, args, refused_code=2)
 
 
 if __name__ == "__main__":

@@ -29,7 +29,6 @@ from typing import Any
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import InvalidHandle, InvalidTopicNameException
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import (
@@ -41,14 +40,13 @@ from rclpy.qos import (
 from rclpy.subscription import Subscription
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
-from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
+from tactile_sensor.nodes.lifecycle_main import run_plain_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
     ParamSpec,
     declare_parameters,
     read_parameters,
 )
-from tactile_sensor.nodes.ros_session import ros_session
 from tactile_sensor.recording import STORAGES, BagRecorder, RecordingError
 from tactile_sensor.recording.rosbag2_writer import WriterOptions
 
@@ -360,25 +358,11 @@ class RecorderNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Record until Ctrl-C; a bad parameter or path prints one sentence and exits 1."""
-    try:
-        with ros_session(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
-            try:
-                node = RecorderNode()
-            except (ParameterError, RecordingError) as exc:
-                print(f"recorder: {exc}", file=sys.stderr)
-                return 1
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-            try:
-                # The bag closes (last messages taken, index and metadata written, the
-                # count logged) while the context is valid; a second Ctrl-C cannot stop it.
-                spin_until_signal(executor, node.close_bag)
-            finally:
-                node.destroy_node()
-    except KeyboardInterrupt:
-        pass
-    return 0
+    """Record until Ctrl-C; a bad parameter or path prints one sentence and exits 1. The bag
+    closes (last messages taken, index and metadata written, the count logged) while the
+    context is valid; a second Ctrl-C cannot stop it."""
+    return run_plain_node("recorder", RecorderNode, (ParameterError, RecordingError),
+                          RecorderNode.close_bag, args)
 
 
 if __name__ == "__main__":
