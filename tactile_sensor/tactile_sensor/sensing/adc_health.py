@@ -72,7 +72,7 @@ def _level_message(stats: ReaderStats, adc: AdcSettings | None,
         return Level.WARN, message
     if not adc.usable:
         return Level.ERROR, adc.problem
-    if isinstance(chain, SignalChain) and chain.blind:
+    if chain.blind:
         return Level.ERROR, BLIND_MESSAGE
     if not chain.tared:
         return Level.WARN, "not tared yet"
@@ -117,15 +117,15 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         "reference_voltage": f"{chain.conversion.vref_v:g}" if usable else "none",
     }
     values.update({f"{name}_subscribers": n for name, n in (subscribers or {}).items()})
+    left_v, left_ratio = chain.headroom()
+    values["blind"] = "yes" if chain.blind else "no"
+    values["blind_samples"] = chain.blind_samples
+    # room left before ambient light saturates the detector (docs/ambient.md); an array's
+    # is its most lit module's
+    values["detector_headroom_v"] = "none" if left_v != left_v else f"{left_v:.3f}"
+    values["detector_headroom_ratio"] = ("none" if left_ratio is None
+                                         or left_ratio != left_ratio else f"{left_ratio:.3f}")
     if isinstance(chain, SignalChain):
-        left_v, left_ratio = chain.headroom()
-        values["blind"] = "yes" if chain.blind else "no"
-        values["blind_samples"] = chain.blind_samples
-        # room left before ambient light saturates the detector (docs/ambient.md)
-        values["detector_headroom_v"] = "none" if left_v != left_v else f"{left_v:.3f}"
-        values["detector_headroom_ratio"] = ("none" if left_ratio is None
-                                             or left_ratio != left_ratio
-                                             else f"{left_ratio:.3f}")
         # the room's light itself, from the emitter-off sample of a modulated module
         ambient = chain.ambient()
         if ambient is None:

@@ -4,9 +4,12 @@ Per sample: counts -> volts (one ``AdcConversion`` for the whole device) -> one 
 module (the single chain's filters and settings) -> outputs = baselines - filtered ->
 the wrench (Fx, Fy, Fz, Tx, Ty, Tz) by ``ArrayCalibration`` -> contact on the magnitude
 |F|. The parts are the single chain's (``sensing.chain``), one per module; only the fan-out
-lives here. Torque goes through a low-pass of its own (``Butterworth``, ``torque_cutoff_hz``):
-it is a small difference of outputs (docs/array.md: 11.5 mV per module at full twist), so
-its noise is large next to it, and that noise grows with the square root of the bandwidth.
+lives here. The array is blind (sensing/blind.py) while any module's detector is at its
+rail: one module blinded by a lamp leaves the wrench unknown, since every component is a
+sum over the modules. Torque goes through a low-pass of its own (``Butterworth``,
+``torque_cutoff_hz``): it is a small difference of outputs (docs/array.md: 11.5 mV per module
+at full twist), so its noise is large next to it, and that noise grows with the square root
+of the bandwidth.
 A component the calibration does not observe is NaN.
 
 Tare zeroes every module at once: one decision over all the channels' windows, refused if
@@ -27,6 +30,7 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration, parse_label
+from tactile_sensor.sensing.blind import BLIND_MESSAGE, SATURATION_V, headroom
 from tactile_sensor.sensing.chain import (
     ChainConfig,
     SampleSteps,
@@ -121,6 +125,7 @@ class ArrayReading(NamedTuple):
     torque_x_nm: float = NAN  # low-passed; NaN where the calibration does not observe it
     torque_y_nm: float = NAN
     torque_z_nm: float = NAN
+    blind: bool = False  # a module's detector at its rail (sensing/blind.py): wrench NaN
 
 
 class ArrayTareResult(NamedTuple):
@@ -135,7 +140,13 @@ class ArrayTareResult(NamedTuple):
         return f"baselines {each} (largest spread {self.spread_v * 1e3:.1f} mV)"
 
 
-class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
+#: What the array's step takes of one sample: every module's volts, in ``modules`` order,
+#: and the lowest voltage any module's detector shows (the on or off sample of a modulated
+#: module, whichever has more light).
+ArrayVolts = tuple[tuple[float, ...], float]
+
+
+class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
     """Stateful per-sample processing for several modules; the surface of ``SignalChain``."""
 
     def __init__(self, config: ChainConfig, modules: Sequence[Module],
@@ -157,6 +168,8 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
         self._filters = [parts.filter] + [self._new_filter() for _ in self.modules[1:]]
         self._tares = [parts.tare] + [self._new_tare() for _ in self.modules[1:]]
         self._contact = parts.contact
+        self._blind = parts.blind
+        self._detector_v = NAN  # the lowest detector voltage of the last sample
         self.torque_cutoff_hz = float(torque_cutoff_hz)
         self._torque_filters = [self._new_torque_filter() for _ in range(3)]
         self._torque_seen = (False, False, False)
@@ -207,6 +220,22 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
         return self._baselines is not None
 
     @property
+    def blind(self) -> bool:
+        """Whether a module's detector is at its rail now (wrench NaN; sensing/blind.py)."""
+        return self._blind.blind
+
+    @property
+    def blind_samples(self) -> int:
+        return self._blind.blind_samples
+
+    def headroom(self) -> tuple[float, float | None]:
+        """As ``SignalChain.headroom``, for the module with the least room: the lowest
+        detector voltage's room above saturation [V], and that as a ratio of the first
+        module's emitter drop at rest (None before a tare)."""
+        volts = SATURATION_V if self._blind.blind else self._detector_v
+        return headroom(volts, self.baseline_v, self._conversion.vref_v)
+
+    @property
     def calibration(self) -> ArrayCalibration | None:
         return self._calibration
 
@@ -243,6 +272,8 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
         """Baselines of every module from the last window, all or none: ``TareError``
         naming the first module that is not at rest."""
         with self._lock:
+            if self._blind.blind:
+                raise TareError(f"Cannot tare: {BLIND_MESSAGE}.")
             results = []
             for module, window in zip(self.modules, self._tares, strict=True):
                 try:
@@ -315,6 +346,7 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
             self._contact.reset()
 
     def _forget(self) -> None:
+        self._blind.reset()
         for f in self._filters:
             f.reset()
         for pair in self._pairs or ():
@@ -325,24 +357,37 @@ class ArrayChain(SampleSteps[tuple[float, ...], ArrayReading]):
 
     # -- per sample ------------------------------------------------------------------------
 
-    def _volts(self, counts: tuple[int, ...]) -> tuple[float, ...]:
-        """Every module's volts, in ``modules`` order."""
+    def _volts(self, counts: tuple[int, ...]) -> ArrayVolts:
         scale = self._volts_per_count
         if self._pairs is not None:  # a modulated device: each module's emitter light
-            return tuple([p.signal(counts[c] * scale, counts[p.off_index] * scale)
-                          for c, p in zip(self.channels, self._pairs)])  # noqa: B905
-        return tuple([counts[c] * scale for c in self.channels])
+            on = [counts[c] * scale for c in self.channels]
+            off = [counts[p.off_index] * scale for p in self._pairs]
+            return (tuple([p.signal(a, b) for p, a, b in zip(self._pairs, on, off)]),  # noqa: B905
+                    min(min(on), min(off)))
+        volts = tuple([counts[c] * scale for c in self.channels])
+        return volts, min(volts)
 
     def _missing_channel(self, channels: int) -> SensingError:
         return SensingError(
             f"The sample has {channels} channel(s) but the modules use channel "
             f"{max(self.channels)}; wire fewer modules or raise CHANNELS in the firmware.")
 
-    def _step(self, volts: tuple[float, ...], t_us: int, host_ns: int) -> ArrayReading:
+    def _step(self, sample: ArrayVolts, t_us: int, host_ns: int) -> ArrayReading:
         """One sample of every module (call with the lock held)."""
+        volts, self._detector_v = sample
         filtered = [f.update(v) for f, v in zip(self._filters, volts)]  # noqa: B905
         for window, v in zip(self._tares, volts):  # noqa: B905 - one per module
             window.add(v)
+        was_blind = self._blind.blind
+        if self._blind.update(self._detector_v):
+            if not was_blind:  # what the contact and the low-passes knew is void
+                self._contact.reset()
+                self._reset_torque()
+            baselines = self._baselines
+            outputs = (NAN,) * len(volts) if baselines is None else tuple(
+                [b - f for b, f in zip(baselines, filtered)])  # noqa: B905
+            return ArrayReading(volts[0], outputs[0], NAN, False, False, t_us, host_ns, NAN,
+                                NAN, volts, outputs, blind=True)
         if self._baselines is None and self.config.auto_tare and self._tares[0].ready:
             self._auto_tare_countdown -= 1
             if self._auto_tare_countdown <= 0:

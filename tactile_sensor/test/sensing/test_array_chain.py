@@ -1,5 +1,6 @@
 """Array chain: tare of all modules together, forces from the array calibration, contact on
-|F|, the modules string and every refusal."""
+|F|, blindness when any module's detector is at its rail, the modules string and every
+refusal."""
 
 from __future__ import annotations
 
@@ -12,11 +13,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tactile_sensor.hardware.adc_samples import Sample, SampleBatch
+from tactile_sensor.hardware.health import Level
+from tactile_sensor.sensing.adc_health import adc_health
+from tactile_sensor.sensing.adc_settings import AdcSettings, Source
 from tactile_sensor.sensing.array_calibration import ArrayCalibration
 from tactile_sensor.sensing.array_chain import ArrayChain, Module, parse_modules
+from tactile_sensor.sensing.blind import BLIND_MESSAGE
 from tactile_sensor.sensing.chain import ChainConfig
 from tactile_sensor.sensing.conversion import AdcConversion
 from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
+from tactile_sensor.sensing.modulation import Modulation
+
+from .test_adc_health import stats
 
 ADC = AdcConversion()
 FACES = ("front", "back", "left", "right")
@@ -336,3 +344,62 @@ def test_the_forces_slow_part_is_low_passed_with_the_torque_and_added_to_the_for
     parts = cal.wrench_parts_unchecked(after[-1].outputs_v)
     assert parts[1] + parts[7] == pytest.approx(total, rel=1e-12)
     assert parts[3] == pytest.approx(cal.wrench(after[-1].outputs_v)[3], rel=1e-12)
+
+
+def tared_array() -> ArrayChain:
+    chain = ArrayChain(ChainConfig(), MODULES, CAL)
+    run(chain, [(2.0, 2.0, 2.0, 2.0)] * 600)
+    assert chain.tared and not chain.blind
+    return chain
+
+
+def test_one_module_at_the_rail_blinds_the_array_until_the_light_goes():
+    chain = tared_array()
+    lit = run(chain, [(2.0, 0.1, 2.0, 2.0)] * 20, start=600)
+    assert all(r.blind and not r.contact for r in lit)
+    assert all(math.isnan(v) for r in lit for v in (r.force_x_n, r.force_y_n, r.force_n))
+    assert chain.blind and chain.blind_samples == 20
+    assert chain.headroom()[0] == 0.0
+    with pytest.raises(TareError) as refused:
+        chain.tare()
+    assert str(refused.value) == f"Cannot tare: {BLIND_MESSAGE}."
+    back = run(chain, [(2.0, 2.0, 2.0, 2.0)] * 60, start=620)
+    seeing = [k for k, r in enumerate(back) if not r.blind]
+    assert seeing and seeing[0] >= 1 and all(not back[k].blind for k in range(seeing[0], 60))
+    assert back[-1].force_n == pytest.approx(0.0, abs=1e-6) and not chain.blind
+
+
+def test_light_at_the_rail_before_the_first_tare_never_becomes_an_arrays_baseline():
+    chain = ArrayChain(ChainConfig(), MODULES, CAL)
+    run(chain, [(2.0, 2.0, 0.0, 2.0)] * 2000)
+    assert not chain.tared and chain.blind
+
+
+def test_a_modulated_array_is_blind_when_the_room_saturates_the_emitter_off_sample():
+    modulation = Modulation(2000, 900, 0, 0, 4)
+    chain = ArrayChain(ChainConfig(rate_hz=500.0, filter_name="none", tare_window_s=0.1),
+                       MODULES, CAL)
+    chain.set_modulation(modulation)
+    share = modulation.share
+
+    def pair_rows(on: float, off: float, n: int, start: int) -> list:
+        counts = tuple(ADC.counts(on) for _ in FACES) + tuple(ADC.counts(off) for _ in FACES)
+        return [chain.process(Sample(k & 0xFFFF, k * 2000, 0, counts, 1))
+                for k in range(start, start + n)]
+
+    rest = pair_rows(3.0 - 1.5 * share, 3.0, 120, 0)
+    assert chain.tared and not rest[-1].blind
+    assert chain.headroom()[0] == pytest.approx(3.0 - 1.5 * share - 0.3, abs=3e-3)
+    lit = pair_rows(0.05, 0.2, 5, 120)  # the room's light takes both samples to the rail
+    assert all(r.blind for r in lit) and math.isnan(lit[-1].force_n)
+
+
+def test_the_diagnostics_say_an_array_is_blind_in_one_sentence():
+    usable = AdcSettings(ADC, Source.DEVICE)
+    chain = tared_array()
+    ok = adc_health(stats(), usable, chain, 1000.0, 0, 0)
+    assert ok.values["blind"] == "no" and ok.values["detector_headroom_v"] == "1.700"
+    run(chain, [(2.0, 2.0, 2.0, 0.2)] * 5, start=600)
+    blind = adc_health(stats(), usable, chain, 1000.0, 0, 0)
+    assert (blind.level, blind.message) == (Level.ERROR, BLIND_MESSAGE)
+    assert blind.values["blind"] == "yes" and blind.values["blind_samples"] == "5"
