@@ -133,7 +133,7 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         else:
             values["ambient_v"] = f"{ambient[0]:.3f}"
             values["ambient_ratio"] = "none" if ambient[1] is None else f"{ambient[1]:.3f}"
-        values.update(_rest_values(chain))
+    values.update(_rest_values(chain))
     if isinstance(chain, ArrayChain):
         baselines = chain.baselines_v or (None,) * len(chain.faces)
         values.update({f"baseline_v.{face}": "none" if b is None else f"{b:.4f}"
@@ -145,13 +145,16 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
     return Health(level, message, {k: str(v) for k, v in values.items()})
 
 
-def _rest_values(chain: SignalChain) -> dict[str, object]:
-    """What following the module at rest found (sensing/rest_gain.py): the optical gain
-    against the calibration's, and how often the baseline followed the level at rest."""
+def _rest_values(chain: SignalChain | ArrayChain) -> dict[str, object]:
+    """What following the module at rest found (sensing/rest_gain.py): how often the
+    baseline followed the level at rest, and a module's optical gain against the
+    calibration's (an array's is not measured)."""
     config = chain.config
     values: dict[str, object] = {
         "rest_retares": chain.rest_retares if config.rest_retare_time_constant_s > 0
         else "off (rest_retare_time_constant 0)"}
+    if isinstance(chain, ArrayChain):
+        return values
     gain = chain.optical_gain()
     if gain is None:
         values["optical_gain"] = ("not measured (stock module: its level at rest holds the "

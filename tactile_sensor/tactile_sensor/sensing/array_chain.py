@@ -6,10 +6,12 @@ the wrench (Fx, Fy, Fz, Tx, Ty, Tz) by ``ArrayCalibration`` -> contact on the ma
 |F|. The parts are the single chain's (``sensing.chain``), one per module; only the fan-out
 lives here. The array is blind (sensing/blind.py) while any module's detector is at its
 rail: one module blinded by a lamp leaves the wrench unknown, since every component is a
-sum over the modules. Torque goes through a low-pass of its own (``Butterworth``,
-``torque_cutoff_hz``): it is a small difference of outputs (docs/array.md: 11.5 mV per module
-at full twist), so its noise is large next to it, and that noise grows with the square root
-of the bandwidth.
+sum over the modules. At rest it follows the level as one module does (re-tare at rest,
+sensing/rest_gain.py): a window with no contact, every module steady and the wrench of the
+window's mean under the contact's release force moves every baseline. Torque goes through a
+low-pass of its own (``Butterworth``, ``torque_cutoff_hz``): it is a small difference of
+outputs (docs/array.md: 11.5 mV per module at full twist), so its noise is large next to it,
+and that noise grows with the square root of the bandwidth.
 A component the calibration does not observe is NaN.
 
 Tare zeroes every module at once: one decision over all the channels' windows, refused if
@@ -28,6 +30,8 @@ import math
 import threading
 from collections.abc import Sequence
 from typing import NamedTuple
+
+import numpy as np
 
 from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration, parse_label
 from tactile_sensor.sensing.blind import BLIND_MESSAGE, SATURATION_V, headroom
@@ -169,6 +173,8 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
         self._tares = [parts.tare] + [self._new_tare() for _ in self.modules[1:]]
         self._contact = parts.contact
         self._blind = parts.blind
+        self._retare = parts.retare
+        self._quiet = 0  # samples in a row sure to be at rest (re-tare at rest)
         self._detector_v = NAN  # the lowest detector voltage of the last sample
         self.torque_cutoff_hz = float(torque_cutoff_hz)
         self._torque_filters = [self._new_torque_filter() for _ in range(3)]
@@ -282,6 +288,7 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
                     raise TareError(f"Module {module.face} (channel {module.channel}): "
                                     f"{exc}") from None
             self._baselines = tuple(r.baseline_v for r in results)
+            self._quiet = 0
             self._contact.reset()
             self._reset_torque()
             return ArrayTareResult(self._baselines, max(r.spread_v for r in results),
@@ -328,15 +335,18 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
         self.config = config
         filters = [self._new_filter() for _ in self.modules] if "filter" in changed else None
         tares = [self._new_tare() for _ in self.modules] if "tare" in changed else None
-        contact = _Parts(config).contact if "contact" in changed else None
+        parts = _Parts(config)
         with self._lock:
             if filters is not None:
                 self._filters = filters
+                self._blind.settle_samples = parts.blind.settle_samples
             if tares is not None:
                 self._tares = tares
                 self._auto_tare_every = max(1, tares[0].size // 10)
-            if contact is not None:
-                self._contact = contact
+            if "contact" in changed:
+                self._contact = parts.contact
+            if changed & {"tare", "rest"}:
+                self._retare, self._quiet = parts.retare, 0
 
     def reset(self) -> None:
         """Forget filters, tare windows and contact state (after a reconnect); keep the
@@ -345,8 +355,14 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
             self._forget()
             self._contact.reset()
 
+    @property
+    def rest_retares(self) -> int:
+        """How many steps the baselines took at rest since the re-tare was last configured."""
+        return self._retare.retares
+
     def _forget(self) -> None:
         self._blind.reset()
+        self._quiet = 0
         for f in self._filters:
             f.reset()
         for pair in self._pairs or ():
@@ -383,6 +399,7 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
             if not was_blind:  # what the contact and the low-passes knew is void
                 self._contact.reset()
                 self._reset_torque()
+            self._quiet = 0
             baselines = self._baselines
             outputs = (NAN,) * len(volts) if baselines is None else tuple(
                 [b - f for b, f in zip(baselines, filtered)])  # noqa: B905
@@ -427,8 +444,32 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
         if fy == fy:
             square += fy * fy
         contact = self._contact.update(math.sqrt(square), t_us * 1e-6)
+        if self._retare.enabled:  # a window without contact may be a rest (_follow_rest)
+            if contact or cal is None:
+                self._quiet = 0
+            else:
+                self._quiet += 1
+                if self._quiet >= self._retare.window_samples:
+                    self._quiet = 0
+                    self._follow_rest(baselines, cal)
         return ArrayReading(volts[0], outputs[0], fz, contact, saturated, t_us, host_ns, fx,
                             fy, volts, outputs, tx, ty, tz)
+
+
+    def _follow_rest(self, baselines: tuple[float, ...], cal: ArrayCalibration) -> None:
+        """One step of every baseline toward its module's level over a window without
+        contact, if the array is sure to be at rest: every module steady (the tare's test)
+        and the force of the window's mean outputs under the contact's release force
+        (call with the lock held)."""
+        try:
+            rest = np.array([w.evaluate().baseline_v for w in self._tares])
+        except TareError:
+            return
+        parts = cal.wrench_unchecked(np.asarray(baselines) - rest)[:3]
+        if not math.sqrt(sum(f * f for f in parts if f == f)) < self._contact.off_n:
+            return
+        self._baselines = tuple(float(b) for b in self._retare.follow(np.asarray(baselines),
+                                                                     rest))
 
 
 def build_chain(config: ChainConfig, modules: Sequence[Module],

@@ -4,6 +4,7 @@ refusal."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -403,3 +404,65 @@ def test_the_diagnostics_say_an_array_is_blind_in_one_sentence():
     blind = adc_health(stats(), usable, chain, 1000.0, 0, 0)
     assert (blind.level, blind.message) == (Level.ERROR, BLIND_MESSAGE)
     assert blind.values["blind"] == "yes" and blind.values["blind_samples"] == "5"
+
+
+# -- the array re-tares at rest (sensing/rest_gain.py) --------------------------------------
+
+def resting_array(tau_s: float = 1.0, **kw) -> ArrayChain:
+    config = ChainConfig(rate_hz=100.0, filter_name="none", rest_retare_time_constant_s=tau_s,
+                         **kw)
+    return ArrayChain(config, MODULES, CAL)
+
+
+def feed_array(chain: ArrayChain, rows, start: int = 0) -> list:
+    return [chain.process(Sample(k & 0xFFFF, k * 10_000, 0,
+                                 tuple(ADC.counts(v) for v in row), 1))
+            for k, row in enumerate(rows, start)]
+
+
+def test_slow_light_on_every_module_is_followed_at_rest_and_read_as_force_without_it():
+    """Each module 20 mV brighter over 60 s: Fz = 5 x 4 x 0.02 = 0.4 N if the baselines
+    stayed (over the release threshold, under the contact's), about 0 N followed."""
+    drift = 2.0 - 0.02 * np.clip((np.arange(7000) - 500) / 6000.0, 0.0, 1.0)
+    rows = [(v, v, v, v) for v in drift]
+    following, fixed = resting_array(), resting_array(0.0)
+    last = feed_array(following, rows)[-1]
+    assert abs(last.force_n) < 0.05 and following.rest_retares > 100
+    assert following.baselines_v == pytest.approx((1.98,) * 4, abs=0.003)
+    last = feed_array(fixed, rows)[-1]
+    assert last.force_n == pytest.approx(0.4, abs=0.02)
+    assert fixed.baselines_v == pytest.approx((2.0,) * 4, abs=0.002)
+    assert fixed.rest_retares == 0
+
+
+def test_a_held_press_on_the_array_is_never_taken_for_light():
+    chain = resting_array()
+    feed_array(chain, [(2.0,) * 4] * 100)
+    baselines, retares = chain.baselines_v, chain.rest_retares
+    held = feed_array(chain, [(1.94, 1.94, 2.0, 2.0)] * 3000, 100)  # Fz 0.6 N, Fy 0: 30 s
+    assert chain.baselines_v == baselines and chain.rest_retares == retares
+    assert held[-1].force_n == pytest.approx(0.6, abs=0.02) and held[-1].contact
+
+
+def test_an_unsteady_module_or_a_blind_one_is_never_a_rest():
+    chain = resting_array(tare_max_spread_v=0.01)
+    feed_array(chain, [(2.0,) * 4] * 100)
+    baselines, retares = chain.baselines_v, chain.rest_retares
+    feed_array(chain, [(2.0, 2.0, 0.1, 2.0)] * 500, 100)  # one detector at its rail
+    wobble = 1.999 + 0.008 * np.sign(np.sin(np.arange(1000) * 2 * math.pi / 20))
+    feed_array(chain, [(2.0, 2.0, 2.0, w) for w in wobble], 600)  # one module not steady
+    assert chain.rest_retares == retares and chain.baselines_v == baselines
+
+
+def test_switching_the_arrays_rest_follow_off_stops_it_and_the_diagnostics_say_so():
+    chain = resting_array()
+    feed_array(chain, [(2.0,) * 4] * 300)
+    assert chain.rest_retares > 0
+    usable = AdcSettings(ADC, Source.DEVICE)
+    assert adc_health(stats(), usable, chain, 100.0, 0, 0).values["rest_retares"] == str(
+        chain.rest_retares)
+    chain.reconfigure(dataclasses.replace(chain.config, rest_retare_time_constant_s=0.0))
+    feed_array(chain, [(1.99,) * 4] * 300, 300)
+    assert chain.baselines_v == pytest.approx((2.0,) * 4, abs=0.002)
+    assert adc_health(stats(), usable, chain, 100.0, 0, 0).values["rest_retares"] == (
+        "off (rest_retare_time_constant 0)")
