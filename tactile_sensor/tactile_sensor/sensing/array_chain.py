@@ -34,7 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration, parse_label
-from tactile_sensor.sensing.blind import BLIND_MESSAGE, SATURATION_V, headroom
+from tactile_sensor.sensing.blind import BLIND_MESSAGE
 from tactile_sensor.sensing.chain import (
     ChainConfig,
     SampleSteps,
@@ -225,21 +225,9 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
     def tared(self) -> bool:
         return self._baselines is not None
 
-    @property
-    def blind(self) -> bool:
-        """Whether a module's detector is at its rail now (wrench NaN; sensing/blind.py)."""
-        return self._blind.blind
-
-    @property
-    def blind_samples(self) -> int:
-        return self._blind.blind_samples
-
-    def headroom(self) -> tuple[float, float | None]:
-        """As ``SignalChain.headroom``, for the module with the least room: the lowest
-        detector voltage's room above saturation [V], and that as a ratio of the first
-        module's emitter drop at rest (None before a tare)."""
-        volts = SATURATION_V if self._blind.blind else self._detector_v
-        return headroom(volts, self.baseline_v, self._conversion.vref_v)
+    def _detector_level_v(self) -> float:
+        """The most lit module's detector voltage in the last sample."""
+        return self._detector_v
 
     @property
     def calibration(self) -> ArrayCalibration | None:

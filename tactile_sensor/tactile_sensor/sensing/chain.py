@@ -93,7 +93,34 @@ class SampleSteps(ABC, Generic[V, R]):
     held); the last reading is kept for those who poll."""
 
     _lock: threading.Lock
+    _blind: BlindDetector
+    _conversion: AdcConversion
     last: R | None
+
+    @property
+    @abstractmethod
+    def baseline_v(self) -> float | None: ...
+
+    @abstractmethod
+    def _detector_level_v(self) -> float:
+        """The lowest voltage a detector showed in the last sample (NaN: none yet)."""
+
+    @property
+    def blind(self) -> bool:
+        """Whether a detector is at its rail now (force NaN; sensing/blind.py)."""
+        return self._blind.blind
+
+    @property
+    def blind_samples(self) -> int:
+        return self._blind.blind_samples
+
+    def headroom(self) -> tuple[float, float | None]:
+        """The detector's room above saturation [V] (an array's: its most lit module's) and
+        that as a ratio of the emitter's drop at rest (an array's first module's; None
+        before a tare); the supply is taken as the ADC's reference (the module and the ADC
+        share VIN on the reference firmware)."""
+        volts = SATURATION_V if self._blind.blind else self._detector_level_v()
+        return headroom(volts, self.baseline_v, self._conversion.vref_v)
 
     @abstractmethod
     def _volts(self, counts: tuple[int, ...]) -> V:
@@ -272,22 +299,9 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
     def tared(self) -> bool:
         return self._baseline_v is not None
 
-    @property
-    def blind(self) -> bool:
-        """Whether the detector is at its rail now (force NaN; sensing/blind.py)."""
-        return self._blind.blind
-
-    @property
-    def blind_samples(self) -> int:
-        return self._blind.blind_samples
-
-    def headroom(self) -> tuple[float, float | None]:
-        """The filtered voltage's room above saturation [V] and as a ratio of the emitter's
-        drop at rest (None before a tare); the supply is taken as the ADC's reference
-        (the module and the ADC share VIN on the reference firmware)."""
-        volts = SATURATION_V if self._blind.blind else (
-            self._filtered_v if self._pair is None else self._detector_v)  # none while blind
-        return headroom(volts, self._baseline_v, self._conversion.vref_v)
+    def _detector_level_v(self) -> float:
+        """The filtered voltage (stock), or the lower of the last on and off samples."""
+        return self._filtered_v if self._pair is None else self._detector_v
 
     def optical_gain(self) -> tuple[float, float | None] | None:
         """(the optical gain against the calibration's, the emitter's drop at rest it is
