@@ -90,6 +90,8 @@ class Run:
     peak_after_doubling_n: float
     least_doubled_n: float
     onset_to_rise_ms: float | None
+    #: From the load's doubling starting to the grip rising [ms] (None: it did not rise).
+    doubling_to_rise_ms: float | None
     dropped: bool
 
     @property
@@ -212,7 +214,7 @@ def run(scenario: Scenario, adaptive: bool, seed: int) -> Run:
                float(grips[times >= double_at].max()),
                least_grip_n(2.0 * scenario.weight_n, scenario.friction_static),
                None if onset is None or rise is None else (rise - onset) * 1e3,
-               held.dropped)
+               None if rise is None else (rise - double_at) * 1e3, held.dropped)
 
 
 def floor_ratio(s: Scenario) -> float:
@@ -250,6 +252,8 @@ def summary(scenarios: list[Scenario], results: list[tuple[Run, Run]]) -> list[F
     latencies = np.asarray([a.onset_to_rise_ms for a in reachable
                             if a.onset_to_rise_ms is not None])
     ratios = np.asarray([a.grip_ratio for a in held])
+    starts = np.asarray([a.doubling_to_rise_ms for a in held
+                         if a.doubling_to_rise_ms is not None])
     slips = np.asarray([a.slip_mm for a in reachable])
     p95 = float(np.percentile(latencies, 95)) if latencies.size else math.nan
     figures = [
@@ -278,6 +282,8 @@ def summary(scenarios: list[Scenario], results: list[tuple[Run, Run]]) -> list[F
         Figure("adaptive: onset to grip rising, p95", p95, "ms",
                f"<= {LATENCY_GOAL_MS:g} ms", bool(p95 <= LATENCY_GOAL_MS)),
         Figure("adaptive: slips after the doubling timed", int(latencies.size)),
+        Figure("adaptive: doubling starting to grip rising, median",
+               float(np.median(starts)) if starts.size else math.nan, "ms"),
         Figure("fixed at the starting force: dropped", sum(f.dropped for f in fixed)),
         Figure("fixed at the starting force: slip > 2 mm",
                sum(f.slip_mm > SLIP_GOAL_MM for f in fixed)),
