@@ -6,17 +6,23 @@ margin m = mu Fn - |Ft|, low-passed at 20 Hz, against k sigma_m (sensing/slip_ma
 it warns while the load still rises, before the contact breaks away, but it needs mu. The
 hold therefore runs in three phases:
 
-1. *waiting*: mu unknown, the grip stays where the grasp settled. Once the shear |Ft| is
-   resolved (3 k sigma_t: 0.78 N on each skin at 20 Hz, an object of about 160 g), its
-   mean steady over two windows of ``steady_s`` and no longer ringing, the object hangs on
-   the skins:
+1. *waiting*: mu unknown, the grip stays where the grasp settled. Each steady shear it
+   sees (two windows of ``steady_s`` alike, not ringing, above the noise's own |Ft|)
+   shows that the grip kept it: the least grip per |Ft| so far is a ratio that keeps the
+   object, so a load that rises k sigma_t above what the grip covers raises the grip in
+   that ratio at once (``onset``, margin NaN), with no friction needed. Once the shear
+   is resolved for a probe (3 k sigma_t: 0.78 N on each skin at 20 Hz, an object of
+   about 160 g):
 2. *probing*: lower the grip at ``probe_rate_n_s``. While the object sticks, |Ft| stays at
-   its load; once it slides, |Ft| = mu_k Fn falls with the grip. When |Ft| (its mean over
-   the last 200 ms) has fallen 4 sigma of that mean (0.08 N) below its level, mu = |Ft| /
-   Fn over the last 100 ms (the kinetic friction, what the margin needs; stuck ticks and
-   the noise's allowance make it err low), and the grip goes at once to the least grip
-   plus the detector's least margin: (|Ft| + 2 k sigma_m) / mu. A probe that reaches
-   ``max_friction`` without a slip takes the ratio it saw, a lower bound (more grip).
+   its level; at the break-away it drops by (mu_s - mu_k) Fn and then falls with the grip
+   as mu_k Fn. The probe stops at the first run of its latest ticks (1 to 20) whose mean
+   |Ft| is ``PROBE_SIGMAS`` standard errors below the level: a step shows in a tick or
+   two, a slow fall in a longer run. mu is the slope of |Ft| on Fn through the origin
+   over the sliding ticks (at least 5: the ticks just before the break-away sat at mu_s),
+   two standard errors lower (the kinetic friction, what the margin needs; erring low),
+   and the grip goes at once to the least grip plus the detector's least margin: (|Ft| +
+   2 k sigma_m) / mu. A probe that reaches ``max_friction`` without a slip takes the
+   ratio it saw, a lower bound (more grip).
 3. *holding*: whenever the margin is below k sigma_m (an onset) the grip goes to (|Ft| +
    2 k sigma_m) / mu in one command: the reflex. Never above ``ceiling_n``; when the grip
    at the ceiling has had ``settle_s`` and the margin is still closed, the hold says
@@ -39,11 +45,15 @@ from tactile_sensor.control.errors import InvalidConfiguration, InvalidRequest
 from tactile_sensor.hardware.xm430_table import RAD_PER_PULSE
 from tactile_sensor.sensing.slip_margin import MarginFilter, MarginNoise, threshold_sigmas
 
-#: The ticks over which a probe's slip gives the friction (100 ms at 100 Hz).
+#: The ticks over which a probe that saw no slip takes the ratio |Ft| / Fn (100 ms at
+#: 100 Hz).
 RATIO_TICKS = 10
-#: The ticks whose mean |Ft| a probe watches for its fall (200 ms at 100 Hz: an object
-#: ringing at 8 Hz on the skins leaves an eighth of its amplitude in it).
+#: The longest run of ticks a probe tests for a fall of |Ft| (200 ms at 100 Hz).
 PROBE_TICKS = 20
+#: A probe's run of ticks slid once its mean |Ft| is this many of its standard errors
+#: below the level (about one false alarm in 10^4 probes of a second, a false one errs
+#: toward more grip).
+PROBE_SIGMAS = 4.5
 #: The hold modes a goal may ask for: today's fixed force, or the slip-aware hold.
 HOLD_MODES = ("fixed", "adaptive")
 #: The shear fingertip's force noise (docs/gripper.md, "Can the sensor see slip?": 38.9 mN
@@ -125,7 +135,7 @@ class SlipHoldConfig:
     bandwidth_hz: float = 20.0
     control_rate_hz: float = 100.0
     #: The grip falls this fast while probing [N/s].
-    probe_rate_n_s: float = 4.0
+    probe_rate_n_s: float = 8.0
     #: The shear steady this long before a probe [s].
     steady_s: float = 0.3
     #: A probe stops at |Ft| / Fn = this without a slip [1].
@@ -207,7 +217,11 @@ class SlipHold:
         self._steady: tuple[float, float | None, float, float, int] = (
             math.nan, None, 0.0, 0.0, 0)
         self._probe = (0.0, 0.0, 0.0)  # (steady |Ft|, grip at start, start time)
-        self._recent: deque[tuple[float, float]] = deque(maxlen=RATIO_TICKS)
+        self._recent: deque[tuple[float, float]] = deque(maxlen=PROBE_TICKS)
+        self._probe_ticks = 0
+        #: The least grip per |Ft| that kept the object still [1] and the |Ft| the grip
+        #: covers [N] (None: no steady shear seen yet).
+        self._reference: tuple[float, float] | None = None
         self._shear_window: deque[float] = deque(maxlen=PROBE_TICKS)
         self._ceiling_since: float | None = None
         #: The filtered margin at the last tick [N] (NaN while the friction is unknown).
@@ -224,6 +238,7 @@ class SlipHold:
         self._shear_window.append(math.hypot(fx_n, fy_n))
         event, slipping = None, None
         if self.phase is HoldPhase.WAITING:
+            event = self._follow_load(now_s, fn, ft)
             self._wait(now_s, fn, ft)
         elif self.phase is HoldPhase.PROBING:
             event = self._probe_tick(now_s, fn, ft)
@@ -251,42 +266,101 @@ class SlipHold:
         mean = total / count
         spread = math.sqrt(max(squares / count - mean * mean, 0.0))
         self._steady = (mean, now_s, raw, raw * raw, 1)
-        if (abs(mean - last) <= cfg.shear_threshold_n and mean >= 3.0 * cfg.shear_threshold_n
-                and spread <= 2.0 * cfg.tick_shear_sigma_n):
+        steady = (abs(mean - last) <= cfg.shear_threshold_n
+                  and spread <= 2.0 * cfg.tick_shear_sigma_n)
+        error = cfg.tick_shear_sigma_n / math.sqrt(count)  # of one window's mean
+        # |Ft| of two noisy axes averages 1.25 sigma with no shear at all: a level
+        # twice that is the object's
+        if (steady and mean > 2.0 * cfg.tick_shear_sigma_n + PROBE_SIGMAS * error
+                and abs(mean - last) <= PROBE_SIGMAS * math.sqrt(2.0) * error):
+            # the least grip per shear that kept the object still (a load still easing on
+            # would give more, the safe side)
+            ratio = self.grip_n / mean
+            if self._reference is not None:
+                ratio = min(ratio, self._reference[0])
+            self._reference = (ratio, mean)
+        if steady and mean >= 3.0 * cfg.shear_threshold_n:
             self.phase = HoldPhase.PROBING
-            self._probe = (mean, fn, now_s)
+            self._probe, self._probe_ticks = (mean, fn, now_s), 0
+
+    def _follow_load(self, now_s: float, fn: float, ft: float) -> SlipEvent | None:
+        """While the friction is unknown: the grip kept a steady shear ``level`` without a
+        slip, so |Ft| / Fn <= mu_s there; a grip that rises with the load in that ratio
+        keeps it too. Once the filtered |Ft| is k sigma_t above what the grip covers, the
+        grip goes to that ratio of |Ft| plus k sigma_t (the rise not yet seen) at once: a
+        reflex that needs no friction, for a load that grows before a probe, or on an
+        object too light to probe."""
+        if self._reference is None:
+            return None
+        ratio, covered = self._reference
+        threshold = self.config.shear_threshold_n
+        if ft <= covered + threshold:
+            return None
+        # the grip covers |Ft| up to here now: a raised grip stiffens the stuck skins
+        # and lifts their |Ft| a little, which is not a new load
+        self._reference = (ratio, ft + threshold)
+        needed = min(self.config.ceiling_n, ratio * (ft + threshold))
+        if needed <= self.grip_n:
+            return None
+        self.grip_n = needed
+        return SlipEvent(EventKind.ONSET, now_s, math.nan, 1.0 / ratio, self.grip_n)
 
     def _probe_tick(self, now_s: float, fn: float, ft: float) -> SlipEvent | None:
         cfg = self.config
         level, start_grip, start_s = self._probe
         window = self._shear_window
-        shear = sum(window) / len(window)
-        if shear > level + cfg.shear_threshold_n:  # the load rose: wait for it to settle
+        if sum(window) / len(window) > level + cfg.shear_threshold_n:
+            # the load rose: wait for it to settle
             self.phase, self._steady = HoldPhase.WAITING, (math.nan, None, 0.0, 0.0, 0)
             self.grip_n = start_grip
             return None
+        self._probe_ticks += 1
+        sliding = self._sliding_ticks(level)
         floor = level / cfg.max_friction
-        slid = level - shear > cfg.probe_threshold_n
-        if not slid and start_grip - cfg.probe_rate_n_s * (now_s - start_s) > floor:
+        if not sliding and start_grip - cfg.probe_rate_n_s * (now_s - start_s) > floor:
             self.grip_n = start_grip - cfg.probe_rate_n_s * (now_s - start_s)
+            if self._reference is not None:  # it sticks at this grip too
+                self._reference = (min(self._reference[0], fn / level), self._reference[1])
             return None
-        self.friction = self._ratio()
+        # a slide seen within a tick or two carries too few ticks for the friction: the
+        # ticks just before it were at the break-away, |Ft| / Fn close under mu_s
+        self.friction = self._ratio(max(sliding, RATIO_TICKS // 2) if sliding
+                                    else RATIO_TICKS)
         self.phase = HoldPhase.HOLDING
         self.grip_n = self._needed(level)
         return SlipEvent(EventKind.LEARNED, now_s, self.margin_n(fn, ft), self.friction,
                          self.grip_n)
 
-    def _ratio(self) -> float:
-        """|Ft| / Fn over the last ``RATIO_TICKS`` ticks' means, each sum moved two of its
-        standard errors toward a lower ratio: sliding ticks give mu_k, stuck ones less
-        (|Ft| <= mu_s Fn), so it errs low, toward more grip."""
+    def _sliding_ticks(self, level: float) -> int:
+        """How many of the last ticks slid (0: none seen): the shortest run of the probe's
+        latest ticks whose mean |Ft| lies ``PROBE_SIGMAS`` of its noise (and the level's)
+        below the level. Sliding, |Ft| = mu_k Fn falls with the grip, and at break-away it
+        drops at once by (mu_s - mu_k) Fn: a short run sees a step, a long one a slow
+        fall, so the probe stops within a few ticks of the break-away rather than once a
+        window's mean has fallen."""
         cfg = self.config
-        # a tick's mean of the 1 kHz stream: noise over half the control rate
-        spread = 2.0 * math.sqrt(len(self._recent) * cfg.control_rate_hz / 2.0)
-        fn = sum(f for f, _ in self._recent) + spread * cfg.noise.normal_density
-        ft = sum(t for _, t in self._recent) - spread * cfg.noise.shear_density
-        cap = cfg.max_friction
-        return min(max(ft / fn, 0.05), cap) if fn > 0 else cap
+        sigma = cfg.tick_shear_sigma_n
+        level_var = sigma * sigma / (cfg.steady_s * cfg.control_rate_hz)
+        window = list(self._shear_window)[-min(self._probe_ticks, PROBE_TICKS):]
+        total = 0.0
+        for n, shear in enumerate(reversed(window), start=1):
+            total += shear
+            if level - total / n > PROBE_SIGMAS * math.sqrt(sigma * sigma / n + level_var):
+                return n
+        return 0
+
+    def _ratio(self, ticks: int) -> float:
+        """The kinetic friction from the last ``ticks`` ticks: sliding, |Ft| = mu_k Fn, so
+        the least-squares slope of |Ft| on Fn through the origin, moved two of its standard
+        errors lower (toward more grip); stuck ticks give less (|Ft| <= mu_s Fn)."""
+        cfg = self.config
+        recent = list(self._recent)[-max(ticks, 1):]
+        fn2 = sum(f * f for f, _ in recent)
+        if fn2 <= 0:
+            return cfg.max_friction
+        slope = sum(f * t for f, t in recent) / fn2
+        error = cfg.tick_shear_sigma_n / math.sqrt(fn2)
+        return min(max(slope - 2.0 * error, 0.05), cfg.max_friction)
 
     def _needed(self, ft: float) -> float:
         """The least grip for ``ft`` plus the detector's least margin, under the ceiling."""
@@ -329,6 +403,7 @@ class SlipHold:
         """The goal for the grip: at once when the grip target moved (a probe's step, a
         reflex); after ``settle_s`` at rest, from the mean force of that rest."""
         cfg = self.config
+        grip = self.grip_n
         if self._commanded_s is not None and (moving or now_s - self._commanded_s
                                               < cfg.settle_s):
             self._rest_sum, self._rest_count = 0.0, 0
@@ -340,12 +415,12 @@ class SlipHold:
                 self._rest_sum, self._rest_count = 0.0, 0
                 # a mean under half the grip: the object is gone (dropped, pulled out);
                 # chasing the grip would close the fingers on nothing
-                if (abs(mean - self.grip_n) > cfg.tolerance * self.grip_n
-                        and mean > 0.5 * self.grip_n):
+                if (abs(mean - grip) > cfg.tolerance * grip
+                        and mean > 0.5 * grip):
                     self._anchor = (position_rad, mean)
         anchor_rad, anchor_n = self._anchor
         goal = min(cfg.closed_position_rad,
-                   anchor_rad + (self.grip_n - anchor_n) / cfg.newton_per_rad)
+                   anchor_rad + (grip - anchor_n) / cfg.newton_per_rad)
         if abs(goal - self._goal_rad) < (0.5 if urgent else 1.0) * RAD_PER_PULSE:
             return None
         self._goal_rad, self._commanded_s = goal, now_s
