@@ -14,6 +14,13 @@ its stiffness k(d) from the FEM array grid at that finger's indentation d
   in the step in which the sliding velocity reaches zero (it changes sign or vanishes):
   Karnopp's velocity band, one step's velocity change wide.
 
+A grip that changes while a contact sticks changes its stiffness, not its force: the
+annulus a firmer press adds to the patch carries no tangential traction, so a stuck
+contact's tangential force moves only with its tangential displacement, at the stiffness
+of the moment (Mindlin and Deresiewicz 1953; Johnson, *Contact Mechanics*, 1985, §7.4).
+The anchor is moved so that k (x - anchor) stays what it was; a lighter grip likewise keeps
+the force until the static limit, now lower, makes the contact slide.
+
 The spring in series with a stick state is Haessig and Friedland's reset-integrator
 friction model (1991). The rate effect is physics' Prony series, per axis as the bench
 gauge has it; it is also what damps the object's ringing while it sticks. The object's
@@ -153,6 +160,11 @@ class Contact:
         self.force_n = force
         return force
 
+    def restiffen(self, x_m: float, k_old: float, k_new: float) -> None:
+        """The grip changed the stiffness from ``k_old`` to ``k_new`` [N/m]: the skin keeps
+        its force (module docstring), so it is deflected k_old / k_new as far."""
+        self.anchor_m = x_m - (x_m - self.anchor_m) * k_old / k_new
+
     def follow(self, x_m: float, deflection_m: float) -> None:
         """Sliding: the anchor moves with the object, the skin deflected by the friction."""
         anchor = x_m - deflection_m
@@ -195,6 +207,7 @@ class HeldObject:
         self._t_s: float | None = None
         self._lift_s: float | None = None
         self._lift_wanted = False
+        self._k: tuple[float, ...] = (0.0, 0.0)  # each contact's stiffness at the last step
 
     # -- support -----------------------------------------------------------------------------
     def lift(self) -> None:
@@ -235,9 +248,12 @@ class HeldObject:
             normal_n = (0.0, 0.0)
         k = tuple(self.stiffness(d) if n > 0 else 0.0
                   for n, d in zip(normal_n, indentation_m, strict=True))
-        for contact, n in zip(self.contacts, normal_n, strict=True):
+        for contact, n, old, new in zip(self.contacts, normal_n, self._k, k, strict=True):
             if n <= 0:
                 contact.release(self.x_m)
+            elif old > 0 and new != old and contact.stuck:
+                contact.restiffen(self.x_m, old, new)
+        self._k = k
         span = t_s - self._t_s
         self._t_s = t_s
         if self._lift_s is not None and span > 0:

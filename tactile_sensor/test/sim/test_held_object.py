@@ -225,3 +225,35 @@ def test_an_object_that_slips_off_the_skins_falls_and_is_set_down_anew():
     obj.set_down()
     state = obj.step(0.4, (1.0, 1.0), DEPTH)
     assert not state.dropped and state.position_m == 0.0 and state.slip_m == 0.0
+
+
+def test_a_firmer_grip_on_a_stuck_object_keeps_the_skins_force_and_holds_it():
+    """Mindlin and Deresiewicz: the patch a firmer press adds carries no tangential
+    traction. A grip tripled while the object hangs on the skins (their stiffness 2.1 x
+    from the deeper press) leaves each skin carrying half the weight, without a slip: a
+    spring that scaled its force with its stiffness threw the object back off the skins."""
+    rising = TangentialStiffness([0.0005, 0.003], [200.0, 800.0])
+    mass, normal = 0.2, 3.0
+    weight = mass * STANDARD_GRAVITY_M_S2  # eased on over a second: no ringing to speak of
+    spec = ObjectSpec(mass, 0.6, 0.5, LoadScript((0.0, 1.0), (-weight, 0.0)))
+    obj = HeldObject(spec, rising, lambda: RateDependentForce((0.05, 0.04), (0.1, 1.5)))
+    shallow, deep = (0.001, 0.001), (0.0025, 0.0025)
+    obj.step(0.0, (normal, normal), shallow)
+    obj.lift()
+    for t in np.arange(1e-3, 3.0, 1e-3).tolist():
+        obj.step(t, (normal, normal), shallow)
+    half = weight / 2
+    assert obj.state.force_a_n == pytest.approx(half, rel=0.02)
+    before = obj.state
+    states = []
+    for k, t in enumerate(np.arange(3.0, 5.0, 1e-3).tolist()):
+        share = min(1.0, k / 500)  # the grip rises over 0.5 s
+        depth = tuple(a + share * (b - a) for a, b in zip(shallow, deep, strict=True))
+        states.append(obj.step(t, (normal * (1 + 2 * share),) * 2, depth))
+    assert all(s.slip_m == 0.0 and not s.dropped for s in states)
+    assert max(abs(s.force_a_n - half) for s in states) < 0.05 * half
+    # the object stays where it hung (the skins' creep aside); the stiffer skins carry the
+    # same force deflected less
+    assert abs(states[-1].position_m - before.position_m) < 2e-4
+    ratio = rising(shallow[0]) / rising(deep[0])
+    assert states[-1].deflection_a_m == pytest.approx(before.deflection_a_m * ratio, rel=0.05)
