@@ -53,27 +53,29 @@ class Close:
         opening = GEOMETRY.opening_m(self.position if position is None else position)
         return max(0.0, (0.020 - opening) / 2.0) if self.rod else 0.0
 
-    def output_at(self, t: float) -> float:
-        """The module's output sampled at ``t``: where the fingers were then."""
+    def output_at(self, t):
+        """The module's output sampled at ``t`` [s] (a number or an array): where the
+        fingers were then."""
         times, positions = zip(*self.history, strict=True)
-        position = float(np.interp(t, times, positions))
-        return 0.01 + self.gain * float(SKIN.output(np.array(self.indentation(position))))
+        opening = GEOMETRY.opening_m(np.interp(t, times, positions))
+        d = np.maximum(0.0, (0.020 - opening) / 2.0) * self.rod
+        return 0.01 + self.gain * SKIN.output(d)
 
     def output(self) -> float:
         """The mean of the readings received since the last tick (the last mean if none)."""
         if not self.burst_s:
-            return self.output_at(self.t)
+            return float(self.output_at(self.t))
         stamps = np.arange(0.0, self.t, 0.001)
         came = np.ceil(stamps / self.burst_s) * self.burst_s + 0.05
         new = stamps[(came > self._heard_until) & (came <= self.t)]
         self._heard_until = self.t
         if new.size:
-            self._mean = float(np.mean([self.output_at(t) for t in new]))
+            self._mean = float(np.mean(self.output_at(new)))
         return self._mean
 
     def kept_outputs(self, until_s: float) -> tuple[list[float], list[float]]:
-        stamps = np.arange(0.0, until_s + 1e-9, 0.001).tolist()
-        return stamps, [self.output_at(t) for t in stamps]
+        stamps = np.arange(0.0, until_s + 1e-9, 0.001)
+        return stamps.tolist(), self.output_at(stamps).tolist()
 
     def servo(self, velocity: float) -> NS:
         d = self.indentation()  # the skin's law, past the table too
