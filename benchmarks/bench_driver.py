@@ -13,6 +13,9 @@ CPU = the driver process's user+system time over the window, in % of one core.
 The driver runs with a static calibration file, then with the same curve and two rate
 terms (calibration across speeds: the Prony estimator on every sample), then (``all``)
 with those terms and play (two branches and the direction tracker, file version 3).
+``--model modulation`` runs the static file on a stock module and on a modulated one
+(protocol 3: an emitter-on and an emitter-off sample per period, the same ADC sample
+rate, so half as many readings; docs/ambient.md) and compares the driver's CPU.
 
 ``--floor`` measures instead what one rclpy publish of ~/reading costs at this rate, in
 this process with a subscriber in another (the limit of rclpy and the middleware, which no
@@ -77,6 +80,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CPU_RATIO_GOAL = 0.37  # at most 0.37 x b36bc06's CPU, static calibration
 P99_GOAL_MS = 1.0  # sample -> subscriber (DDS), static calibration
 RATE_OVERHEAD_GOAL = 10.0  # rate-aware (with play) at most +10 % CPU over static
+MODULATION_CPU_GOAL = 1.2  # a modulated module at most 1.2 x a stock one's driver CPU
 
 
 @dataclass
@@ -124,8 +128,10 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=20.0,
                         help="measuring window per run [s]")
     parser.add_argument("--rate", type=float, default=1000.0)
-    parser.add_argument("--model", choices=("static", "rate", "play", "both", "all"),
-                        default="both", help="both: static and rate; all: and play")
+    parser.add_argument("--model", choices=("static", "rate", "play", "both", "all",
+                                            "modulated", "modulation"),
+                        default="both", help="both: static and rate; all: and play; "
+                        "modulation: static on a stock and on a modulated module")
     parser.add_argument("--compare", metavar="REV",
                         help="also run the driver of commit REV, alternating with this one")
     parser.add_argument("--rounds", type=int, default=None,
@@ -143,8 +149,8 @@ def main() -> int:
     if rounds < 1:
         parser.error(f"--rounds must be at least 1, got {rounds}")
     isolate_ros(150 + os.getpid() % 50)
-    models = {"both": ("static", "rate"), "all": ("static", "rate", "play")}.get(
-        args.model, (args.model,))
+    models = {"both": ("static", "rate"), "all": ("static", "rate", "play"),
+              "modulation": ("static", "modulated")}.get(args.model, (args.model,))
     try:
         with variants(args.compare) as drivers:
             totals = run_all(args, drivers, models, rounds)
@@ -240,6 +246,18 @@ def report(args: argparse.Namespace, drivers: list[Variant], models: tuple[str, 
                   f"+{RATE_OVERHEAD_GOAL:g} %)")
             figures.append(Figure(f"CPU over static, {driver.label}, {name}", round(extra, 1),
                                   "%", f"<= +{RATE_OVERHEAD_GOAL:g} %"))
+    for driver in drivers:
+        stock = totals.get((driver.label, "static"))
+        modulated = totals.get((driver.label, "modulated"))
+        if stock is None or modulated is None:
+            continue
+        ratio = modulated.cpu_percent / stock.cpu_percent
+        print(f"  {driver.label}: modulated module against stock: {modulated.cpu_percent:.1f} "
+              f"% vs {stock.cpu_percent:.1f} % of one core ({ratio:.2f} x; goal: at most "
+              f"{MODULATION_CPU_GOAL:g} x); per reading received "
+              f"{modulated.cpu_per_reading_us / stock.cpu_per_reading_us:.2f} x")
+        figures.append(Figure(f"CPU modulated / stock module, {driver.label}",
+                              round(ratio, 3), "", f"<= {MODULATION_CPU_GOAL:g}"))
     figures.append(Figure("load average during the run", f"{min(loads):.1f} .. "
                           f"{max(loads):.1f}", f"on {os.cpu_count()} cores"))
     return figures
@@ -267,16 +285,19 @@ def measure(args: argparse.Namespace, model: str, variant: Variant) -> Run | Non
     tmp = Path(tempfile.mkdtemp(prefix="bench_driver_"))
     write_inputs(tmp, model)
     py = sys.executable
+    # a modulated module sends an on and an off sample per period: the same ADC rate
+    periods = args.rate / 2 if model == "modulated" else args.rate
     driver = subprocess.Popen(
         [py, "-m", "tactile_sensor.nodes.driver", "--ros-args", "-r", "__node:=driver",
          "-p", f"port:={tmp / 'adc'}", "-p", "calibration_source:=file",
          "-p", f"calibration_file:={tmp / 'cal.json'}", "-p", "autostart:=true",
-         "-p", f"sample_rate:={args.rate}"], env=variant.env(), stdout=subprocess.DEVNULL,
+         "-p", f"sample_rate:={periods}"], env=variant.env(), stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL)
     mock = subprocess.Popen(
         [py, "-m", "tactile_sensor.cli", "mock", "adc", "--link", str(tmp / "adc"),
-         "--rate", str(args.rate), "--skin-table", str(tmp / "skin.json"), "--loop",
-         "--profile", "ramp:depth=0.003,speed=0.003,cycles=1,rest=0.5"],
+         "--rate", str(periods), "--skin-table", str(tmp / "skin.json"), "--loop",
+         "--profile", "ramp:depth=0.003,speed=0.003,cycles=1,rest=0.5",
+         *(["--protocol", "3"] if model == "modulated" else [])],
         env=MOCK.env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     latencies: list[tuple[float, float]] = []  # (middleware, callback) [s]
     lock = threading.Lock()

@@ -1,19 +1,24 @@
 """The ``SelfCheck`` action's goal: one slow close recorded for the fit (control/self_check.py).
 
 The fingers close at the self-check's speed towards the closed limit. Every control tick
-records the servo's position, velocity and Present Current beside the newest module
-output. Once the output has risen ``CONTACT_RISE_V`` over its level at the start, the
-fingers close on for ``PRESS_M`` more and stop: about 2.4 mm into finger A's skin, inside
-the FEM prediction's 3 mm. Reaching the closed limit first ends
-``closed_limit_without_contact``. The fit runs when the close ends; a certain fit is
-applied through ``apply`` when the goal asks.
+records the servo's position, velocity and Present Current and the host time the servo
+took them; the module's outputs are kept with their stamps beside. Once the output (the
+mean of those received since the last tick) has risen ``CONTACT_RISE_V`` over its level at
+the start, the fingers close on for ``PRESS_M`` more and stop: about 2.4 mm into finger A's
+skin, inside the FEM prediction's 3 mm. Reaching the closed limit first ends
+``closed_limit_without_contact``. When the close ends, each servo sample takes the outputs
+stamped around it (control/stamp_pairing.py: a reading that came late still pairs with
+the position it was sampled at) and the fit runs; a certain fit is applied through
+``apply`` when the goal asks.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+
+import numpy as np
 
 from tactile_sensor.control.actions import ActiveGoal, Fields, GoalSettings, Snapshot
 from tactile_sensor.control.errors import InvalidRequest
@@ -33,6 +38,7 @@ from tactile_sensor.control.self_check import (
     SkinPrediction,
     fit_self_check,
 )
+from tactile_sensor.control.stamp_pairing import outputs_at
 
 #: Output rise over the starting level that starts the press [V] (about 0.35 mm).
 CONTACT_RISE_V = 0.05
@@ -49,12 +55,19 @@ MAX_RACK_FORCE_N = 4.0 * 6.77
 class SelfCheckLinks:
     """What the goal needs from the node: the newest module output [V] (None: none
     fresh), the FEM prediction for the skin (raises ``SelfCheckError`` when the model
-    cannot give it), and how to apply a corrected output -> force curve."""
+    cannot give it), how to apply a corrected calibration, the drive train, the host time
+    [s] a servo sample was taken (None: not known; the tick's time then), and the module
+    outputs kept with their stamps: ``keep_outputs(True)`` starts keeping them (False
+    stops), ``kept_outputs(until_s)`` gives (stamps [s], outputs [V]) once one stamped at
+    or after ``until_s`` came (or the node gives up waiting)."""
 
     output_v: Callable[[], float | None]
     prediction: Callable[[], SkinPrediction]
     apply: Callable[[SelfCheckFit, SkinPrediction], None]
     train: DriveTrain
+    sampled_at: Callable[[ServoReading], float | None]
+    keep_outputs: Callable[[bool], None]
+    kept_outputs: Callable[[float], tuple[Sequence[float], Sequence[float]]]
 
 
 class SelfCheckController(BaseController):
@@ -67,6 +80,7 @@ class SelfCheckController(BaseController):
         self._timeout_s = (g.opening_m(servo.position_rad) - g.closed_opening_m) / (
             2.0 * speed_m_s) + TIMEOUT_MARGIN_S
         self.phase = Phase.CLOSING
+        #: Per servo sample: host time [s], position [rad], velocity [rad/s], current [A].
         self.rows: list[tuple[float, float, float, float]] = []
         self._level: float | None = None
         self._rise_at: float | None = None
@@ -76,15 +90,19 @@ class SelfCheckController(BaseController):
                                self.config.closing_current_a)
         return Step(self.phase, command, None, "closing", self._opening(servo))
 
-    def tick(self, now_s: float, servo: ServoReading, output_v: float | None) -> Step:
+    def tick(self, now_s: float, servo: ServoReading, output_v: float | None,
+             sampled_at_s: float | None = None) -> Step:
+        """One servo sample (taken at ``sampled_at_s``, host time [s]; the tick's time when
+        not known) beside the mean output received since the last tick."""
         if (common := self._check_common(now_s, servo, None)) is not None:
             return common
         if output_v is None:
             return self._finish(Outcome.TACTILE_STALE, "no fresh module output; check that "
                                 "the driver runs and publishes its reading", servo)
         position = servo.position_rad
-        self.rows.append((position, getattr(servo, "velocity_rad_s", math.nan),
-                          getattr(servo, "current_a", math.nan), output_v))
+        self.rows.append((now_s if sampled_at_s is None else sampled_at_s, position,
+                          getattr(servo, "velocity_rad_s", math.nan),
+                          getattr(servo, "current_a", math.nan)))
         current = getattr(servo, "current_a", 0.0)
         if self._level is None:
             self._level, self._free_a = output_v, current
@@ -105,9 +123,20 @@ class SelfCheckController(BaseController):
                 "rigid object between the fingers and run the self-check again"), servo)
         return Step(self.phase, None, None, "closing", self._opening(servo))
 
-    def record(self) -> ClosingRecord:
-        return ClosingRecord.of(*zip(*self.rows, strict=True)) if self.rows else \
-            ClosingRecord.of([], [], [], [])
+    @property
+    def last_sample_s(self) -> float | None:
+        """Host time of the newest servo sample [s] (None before any)."""
+        return self.rows[-1][0] if self.rows else None
+
+    def record(self, stamps_s: Sequence[float], outputs_v: Sequence[float]) -> ClosingRecord:
+        """The close: each servo sample beside the mean of the outputs stamped around it
+        (samples without one are left out)."""
+        if not self.rows:
+            return ClosingRecord.of([], [], [], [])
+        times, position, velocity, current = (np.asarray(c, dtype=float)
+                                              for c in zip(*self.rows, strict=True))
+        kept, output = outputs_at(times, stamps_s, outputs_v)
+        return ClosingRecord.of(position[kept], velocity[kept], current[kept], output)
 
 
 class SelfCheckGoal(ActiveGoal):
@@ -127,19 +156,24 @@ class SelfCheckGoal(ActiveGoal):
         # before anything moves: a model that cannot predict refuses the goal
         self._prediction = self.links.prediction()
         self.links.output_v()  # outputs from before the goal are not the close's
+        self.links.keep_outputs(True)
         return self.closer.start(self.speed_m_s, now_s, servo, self.links.train)
 
     def tick(self, now_s: float, force_n: float | None, force_stamp_s: float | None,
              servo: ServoReading) -> Step:
-        return self.closer.tick(now_s, servo, self.links.output_v())
+        return self.closer.tick(now_s, servo, self.links.output_v(),
+                                self.links.sampled_at(servo))
 
     def failure(self, step: Step) -> str | None:
         """The fit, on a close that pressed; why there is none otherwise."""
         if step.outcome is not Outcome.CONTACT or self._prediction is None:
             self.outcome = str(step.outcome)
             return f"{step.outcome}: {step.message}"
+        last = self.closer.last_sample_s
+        stamps, outputs = self.links.kept_outputs(last) if last is not None else ((), ())
+        self.links.keep_outputs(False)
         try:
-            self.fit = fit_self_check(self.closer.record(), self._prediction,
+            self.fit = fit_self_check(self.closer.record(stamps, outputs), self._prediction,
                                       self.links.train)
         except SelfCheckError as exc:
             self.outcome = exc.outcome
@@ -154,6 +188,7 @@ class SelfCheckGoal(ActiveGoal):
         return {"opening": snap.opening_m}
 
     def result(self, snap: Snapshot, message: str) -> Fields:
+        self.links.keep_outputs(False)  # however the goal ended
         fit = self.fit
         return {"outcome": self.outcome or str(snap.step.outcome),
                 "optical_gain": fit.optical_gain if fit else math.nan,

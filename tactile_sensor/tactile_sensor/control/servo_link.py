@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, TypeVar
@@ -32,6 +33,9 @@ from tactile_sensor.hardware.xm430 import ServoState
 from tactile_sensor.hardware.xm430_table import OperatingMode
 
 T = TypeVar("T")
+#: Samples whose host time ``sampled_at`` still knows: a goal asks for the one it was just
+#: given, and the loop may have sampled again meanwhile.
+SAMPLE_TIMES_KEPT = 8
 
 
 class ServoClient(Protocol):
@@ -84,9 +88,10 @@ class ServoLink:
     """The servo, its latest sample and its last command, shared by loop, goals and cancel."""
 
     def __init__(self, client: ServoClient, config: GraspConfig, *, period_s: float,
-                 retries: int = 2, clock: Callable[[], float] = time.monotonic) -> None:
+                 retries: int = 2, clock: Callable[[], float] = time.monotonic,
+                 wall_clock: Callable[[], float] = time.time) -> None:
         self.client, self.config, self.period_s = client, config, period_s
-        self.retries, self._clock = retries, clock
+        self.retries, self._clock, self._wall = retries, clock, wall_clock
         self.state: ServoState | None = None
         #: The latest sample, when the servo took it (clock [s]) and half that read's round
         #: trip (how long a packet takes to reach the servo) [s].
@@ -102,6 +107,8 @@ class ServoLink:
         self._heading_to_rad: float | None = None
         self._commanded_at = 0.0
         self._sampled = threading.Event()
+        #: (sample, host time [s] the servo took it): what stamps are compared with.
+        self._sample_times: deque[tuple[ServoState, float]] = deque(maxlen=SAMPLE_TIMES_KEPT)
 
     def retrying(self, call: Callable[[], T]) -> T:
         return call_retrying(call, self.retries)
@@ -156,9 +163,10 @@ class ServoLink:
             lost = not self.comm_error
             self.comm_error = str(exc)
             return Poll(None, error=self.comm_error, lost=lost)
-        after = self._clock()
+        after, wall_after = self._clock(), self._wall()
         # the servo sampled its state between request and reply: stamp the middle
         half = 0.5 * (after - before)
+        self._sample_times.append((state, wall_after - half))
         recovered = bool(self.comm_error)
         self.comm_error = ""
         self.state = state
@@ -168,6 +176,14 @@ class ServoLink:
         new = bits if bits and bits != self.hardware_error else frozenset()
         self.hardware_error = bits
         return Poll(state, half, recovered=recovered, new_hardware_error=new)
+
+    def sampled_at(self, state: object) -> float | None:
+        """Host time [s] (``wall_clock``, the clock messages are stamped with) at which the
+        servo took ``state``, one of the last samples; None for any other."""
+        for sample, at_s in reversed(tuple(self._sample_times)):  # one step under the GIL
+            if sample is state:
+                return at_s
+        return None
 
     def await_sample(self, timeout_s: float) -> bool:
         """Wait for the loop's next sample (or ``timeout_s``); True when one came."""

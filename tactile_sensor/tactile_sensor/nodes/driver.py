@@ -1,7 +1,10 @@
 """Driver node: photoreflector ADC on a serial port -> calibrated contact force.
 
 Wiring only: parameters, the reader (hardware/), the signal chain (sensing/), topics,
-the tare service and diagnostics. The reader's thread reads the port, and the same thread
+the tare service and diagnostics. The calibration in use is the base one (a file, or the
+model's latched ``calibration_curve``) under the latest correction the gripper's
+self-check latched on ``calibration_correction`` (sensing/calibration_correction.py: their
+stamps, not the order they come in, decide). The reader's thread reads the port, and the same thread
 runs each chunk's samples through the chain and publishes them as pre-serialised CDR
 (nodes/reading_cdr.py): no executor and no thread hand-off between the serial port and
 the force topic, while the reader's drain thread keeps the port emptied if publishing is
@@ -28,7 +31,11 @@ from tactile_sensor.hardware.adc_frame import DeviceInfo
 from tactile_sensor.hardware.adc_reader import AdcStreamReader, ConnectionState
 from tactile_sensor.hardware.adc_samples import SampleBatch
 from tactile_sensor.hardware.errors import HardwareError
-from tactile_sensor.nodes import array_calibration_msg, calibration_curve_msg
+from tactile_sensor.nodes import (
+    array_calibration_msg,
+    calibration_correction_msg,
+    calibration_curve_msg,
+)
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
 from tactile_sensor.nodes.driver_parameters import SPEC_BY_NAME, SPECS
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
@@ -46,6 +53,7 @@ from tactile_sensor.sensing.array_chain import (
     build_chain,
     parse_modules,
 )
+from tactile_sensor.sensing.calibration_correction import CorrectedCalibration
 from tactile_sensor.sensing.chain import Reading, SignalChain
 from tactile_sensor.sensing.chain_parameters import (
     RUNTIME_PARAMETERS,
@@ -59,7 +67,11 @@ from tactile_sensor.sensing.errors import SensingError, TareError
 from tactile_sensor.sensing.modulation import modulation_of
 from tactile_sensor.sensing.rate_calibration import describe_model
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
-from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
+from tactile_sensor_interfaces.msg import (
+    CalibrationCorrection,
+    CalibrationCurve,
+    TactileReading,
+)
 
 #: Readings a reliable subscriber may fall behind before the publisher's KEEP_LAST history
 #: drops them unacknowledged: 10 s at 1 kHz, as deep as the recorder's own queue. With 100
@@ -94,7 +106,9 @@ class DriverNode(Node):
         self._info_logged: DeviceInfo | None = None
         self._wrench_pub = self._reading_pub = self._diag_pub = None
         self._tare_srv = self._calibration_sub = self._diag_timer = None
+        self._correction_sub: Any = None
         self._full_scale_pub: Any = None
+        self._calibrations = CorrectedCalibration()
 
     @property
     def ready(self) -> bool:
@@ -140,6 +154,11 @@ class DriverNode(Node):
         elif values["calibration_source"] == "model":
             self._calibration_sub = self.create_subscription(
                 CalibrationCurve, "calibration_curve", self._on_calibration, CALIBRATION_QOS)
+        if not modules:
+            self._calibrations = CorrectedCalibration(chain.calibration)
+            self._correction_sub = self.create_subscription(
+                CalibrationCorrection, "calibration_correction", self._on_correction,
+                CALIBRATION_QOS)
         self._diag_timer = self.create_timer(values["diagnostics_period"],
                                              self._publish_diagnostics)
         self.get_logger().info(
@@ -180,8 +199,10 @@ class DriverNode(Node):
                 self.destroy_timer(timer)
         if self._tare_srv is not None:
             self.destroy_service(self._tare_srv)
-        if self._calibration_sub is not None:
-            self.destroy_subscription(self._calibration_sub)
+        for sub in (self._calibration_sub, self._correction_sub):
+            if sub is not None:
+                self.destroy_subscription(sub)
+        self._correction_sub = None
         for pub in (self._wrench_pub, self._reading_pub):
             if pub is not None:
                 self.destroy_lifecycle_publisher(pub)
@@ -327,10 +348,39 @@ class DriverNode(Node):
         except SensingError as exc:
             self.get_logger().error(f"ignoring calibration curve: {exc}")
             return
-        self._chain.set_calibration(calibration)
+        changed, note = self._calibrations.set_base(
+            calibration, msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9)
+        if note:
+            self.get_logger().warning(note)
+        if changed:
+            self._use_calibration(f"{len(msg.output)} points")
+
+    def _on_correction(self, msg: CalibrationCorrection) -> None:
+        if self._chain is None:
+            return
+        try:
+            correction = calibration_correction_msg.from_msg(msg)
+        except SensingError as exc:
+            self.get_logger().error(f"ignoring calibration correction: {exc}")
+            return
+        changed, note = self._calibrations.set_correction(correction)
+        if note:
+            self.get_logger().warning(note)
+        elif self._calibrations.base is None:
+            self.get_logger().info(f"correction {correction.source} waits for a calibration")
+        if changed:
+            self._use_calibration(f"optical gain {correction.optical_gain:.4f}, stiffness "
+                                  f"{correction.stiffness:.4f}")
+
+    def _use_calibration(self, what: str) -> None:
+        """Put the base calibration under its correction into the chain, and say so."""
+        chain, calibration = self._chain, self._calibrations.effective
+        if chain is None or calibration is None:
+            return
+        chain.set_calibration(calibration)
         self._publish_full_scale()
         self.get_logger().info(f"calibration from {calibration.source} "
-                               f"({len(msg.output)} points, {describe_model(calibration)})")
+                               f"({what}, {describe_model(calibration)})")
 
     def _on_array_calibration(self, msg: ArrayCalibrationMsg) -> None:
         chain = self._chain

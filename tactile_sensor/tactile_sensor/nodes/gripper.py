@@ -6,8 +6,8 @@ diagnostics, the reboot service, the adaptive hold's ``~/slip`` events and five
 action servers (``ACTIONS``): ``~/grasp``, ``~/release``, control_msgs ``~/gripper_cmd``
 and ``~/parallel_gripper_cmd``, and ``~/self_check`` (control/self_check_goal.py),
 which also reads the driver's module output (``tactile_reading``), asks the model for
-its prediction (``model_predict``) and publishes a corrected calibration
-(``calibration_curve``, latched, as the model does).
+its prediction (``model_predict``) and latches its correction for the driver
+(``calibration_correction``; sensing/calibration_correction.py).
 What a goal means lives in control/actions.py; the goal policy (one active goal,
 preemption, cancel, hardware errors) in control/goal_runner.py; the servo the control loop,
 the goals and a cancel share in control/servo_link.py.
@@ -60,7 +60,7 @@ from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.hardware.xm430_health import xm430_health
-from tactile_sensor.nodes import calibration_curve_msg, self_check_links
+from tactile_sensor.nodes import calibration_correction_msg, self_check_links
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
 from tactile_sensor.nodes.gripper_parameters import SPECS
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
@@ -70,7 +70,7 @@ from tactile_sensor.nodes.parameters import (
     read_parameters,
 )
 from tactile_sensor_interfaces.action import Grasp, Release, SelfCheck
-from tactile_sensor_interfaces.msg import CalibrationCurve, SlipEvent, TactileReading
+from tactile_sensor_interfaces.msg import CalibrationCorrection, SlipEvent, TactileReading
 from tactile_sensor_interfaces.srv import PredictOutput
 
 #: The actions served, as ``~/<name>``: message type and the goal's meaning
@@ -94,6 +94,8 @@ else:
     ACTIONS["parallel_gripper_cmd"] = (ParallelGripperCommand,
                                        accept_parallel_gripper_command)
 
+#: Readings the ``tactile_reading`` subscription holds (1 s of the driver's 1 kHz).
+READING_QUEUE_DEPTH = 1000
 #: The driver's ~/full_scale_force: latched, so a gripper started later still hears it.
 FULL_SCALE_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                             reliability=ReliabilityPolicy.RELIABLE)
@@ -115,9 +117,10 @@ class GripperNode(Node):
         self._entities: list[Any] = []
         self._joint_pub = self._diag_pub = self._timer = self._slip_pub = None
         self._force_sub: Any = None
+        self._reading_sub: Any = None
         self._output = self_check_links.LatestOutput()
         self._predict_client: Any = None
-        self._calibration_pub: Any = None
+        self._correction_pub: Any = None
 
     # -- lifecycle -------------------------------------------------------------------------
     def on_configure(self, state: State) -> TransitionCallbackReturn:
@@ -151,21 +154,26 @@ class GripperNode(Node):
         self._slip_pub = self.create_publisher(SlipEvent, "~/slip", 10)
         self._force_sub = self.create_subscription(
             WrenchStamped, "tactile_wrench", self._on_force, 100, callback_group=self._group)
+        # the self-check pairs every reading by its stamp: a deep queue loses none to a
+        # busy executor (1 s at 1 kHz)
+        self._reading_sub = self.create_subscription(
+            TactileReading, "tactile_reading", self._on_reading, READING_QUEUE_DEPTH,
+            callback_group=self._group)
         self._predict_client = self.create_client(PredictOutput, "model_predict",
                                                   callback_group=self._group)
-        self._calibration_pub = self.create_publisher(
-            CalibrationCurve, "calibration_curve", FULL_SCALE_QOS)
+        self._correction_pub = self.create_publisher(
+            CalibrationCorrection, "calibration_correction", FULL_SCALE_QOS)
         links = SelfCheckLinks(
             lambda: self._output.fresh(time.monotonic(), settings.config.stale_after_s),
-            self._predict, self._apply_calibration,
+            self._predict, self._apply_correction,
             DriveTrain(settings.config.geometry, backlash_rad=values["self_check_backlash"],
-                       compliance_m_per_n=values["self_check_compliance"]))
+                       compliance_m_per_n=values["self_check_compliance"]),
+            servo.sampled_at, self._output.keep, self._output.kept)
         actions = {**ACTIONS, "self_check": (SelfCheck, lambda goal, s: accept_self_check(
             goal, s, links, values["self_check_speed"]))}
         self._entities = [
             self._force_sub,
-            self.create_subscription(TactileReading, "tactile_reading", self._on_reading, 10,
-                                     callback_group=self._group),
+            self._reading_sub,
             self.create_subscription(Float64, "tactile_full_scale", self._on_full_scale,
                                      FULL_SCALE_QOS, callback_group=self._group),
             *(self._action_server(name, action_type, accept)
@@ -221,12 +229,12 @@ class GripperNode(Node):
             else:
                 self.destroy_service(entity)
         self._entities = []
-        self._force_sub = None
+        self._force_sub = self._reading_sub = None
         if self._predict_client is not None:
             self.destroy_client(self._predict_client)
-        if self._calibration_pub is not None:
-            self.destroy_publisher(self._calibration_pub)
-        self._predict_client = self._calibration_pub = None
+        if self._correction_pub is not None:
+            self.destroy_publisher(self._correction_pub)
+        self._predict_client = self._correction_pub = None
         if self._joint_pub is not None:
             self.destroy_lifecycle_publisher(self._joint_pub)
         for publisher in (self._diag_pub, self._slip_pub):
@@ -318,18 +326,29 @@ class GripperNode(Node):
         self._slip_pub.publish(msg)
 
     def _on_reading(self, msg: TactileReading) -> None:
-        self._output.add(msg.output, time.monotonic())
+        # as _on_force: take what else is already waiting in the same executor round
+        sub, now = self._reading_sub, time.monotonic()
+        for _ in range(256):
+            stamp = msg.header.stamp
+            self._output.add(msg.output, now, stamp.sec + stamp.nanosec * 1e-9)
+            if sub is None:
+                return
+            with sub.handle:
+                item = sub.handle.take_message(TactileReading, False)
+            if item is None:
+                return
+            msg = item[0]
 
     # -- self-check ---------------------------------------------------------------------------
     def _predict(self) -> SkinPrediction:
         return self_check_links.fetch_prediction(self._predict_client, PredictOutput.Request())
 
-    def _apply_calibration(self, fit: SelfCheckFit, prediction: SkinPrediction) -> None:
-        msg = calibration_curve_msg.to_msg(self_check_links.corrected_calibration(
-            fit, prediction))
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self._calibration_pub.publish(msg)
-        self.get_logger().info(f"self-check applied: {msg.source}")
+    def _apply_correction(self, fit: SelfCheckFit, prediction: SkinPrediction) -> None:
+        del prediction  # the factors are against it; the driver scales its own curve
+        correction = self_check_links.correction_of(
+            fit, self.get_clock().now().nanoseconds * 1e-9)
+        self._correction_pub.publish(calibration_correction_msg.to_msg(correction))
+        self.get_logger().info(f"self-check applied: {correction.source}")
 
     def _on_full_scale(self, msg: Float64) -> None:
         settings = self._settings

@@ -123,6 +123,11 @@ def _driver() -> NodeInterface:
             Endpoint("calibration_curve", "tactile_sensor_interfaces/msg/CalibrationCurve",
                      "latched output -> force curve from the model node "
                      "(`calibration_source: model`, one module)", single),
+            Endpoint("calibration_correction",
+                     "tactile_sensor_interfaces/msg/CalibrationCorrection",
+                     "latched optical gain and stiffness from the gripper's self-check, "
+                     "applied over the calibration in use (file or model) unless a "
+                     "calibration stamped later came; one module (docs/ambient.md)", single),
             Endpoint("array_calibration", "tactile_sensor_interfaces/msg/ArrayCalibration",
                      "latched outputs -> (Fx, Fy, Fz) calibration from the model node "
                      "(`calibration_source: model` with `modules`)", array),
@@ -175,9 +180,11 @@ def _gripper() -> NodeInterface:
                      "its speed [m/s] and the tactile force [N] as effort"),
             Endpoint("/diagnostics", _DIAGNOSTICS, "the servo's connection, hardware "
                      "error bits, temperature, voltage and the running goal"),
-            Endpoint("calibration_curve", "tactile_sensor_interfaces/msg/CalibrationCurve",
-                     "latched: the self-check's corrected output -> force curve, published "
-                     "when a SelfCheck goal asks `apply` and the fit is certain"),
+            Endpoint("calibration_correction",
+                     "tactile_sensor_interfaces/msg/CalibrationCorrection",
+                     "latched: the self-check's optical gain and stiffness, which the "
+                     "driver applies over its calibration; published when a SelfCheck "
+                     "goal asks `apply` and the fit is certain"),
             Endpoint("~/slip", "tactile_sensor_interfaces/msg/SlipEvent", "the adaptive "
                      "hold's events: a friction learned, an onset of slip (grip raised), "
                      "slipping at the force ceiling"),

@@ -1,9 +1,10 @@
-"""What the gripper's self-check needs from ROS: the newest module output, the model's
-prediction for the skin (``~/predict``) and the corrected calibration as a curve; here
-because only nodes/ may touch message types and services."""
+"""What the gripper's self-check needs from ROS: the module outputs, the model's prediction
+for the skin (``~/predict``) and the correction it latches for the driver; here because
+only nodes/ may touch message types and services."""
 
 from __future__ import annotations
 
+import math
 import threading
 from typing import Any
 
@@ -14,31 +15,44 @@ from tactile_sensor.control.self_check import (
     SelfCheckFit,
     SkinPrediction,
 )
-from tactile_sensor.sensing.calibration import Calibration
+from tactile_sensor.sensing.calibration_correction import CalibrationCorrection
 
 #: The indentations the prediction is asked at [m]: the FEM sweep's default range.
 PREDICTION_INDENTATION_M = np.linspace(0.0, 0.003, 31)
 #: How long the model may take to answer [s] (a cached curve answers at once).
 PREDICT_TIMEOUT_S = 5.0
 MODEL_NOT_READY = "model_not_ready"
+#: How long a self-check waits, once the fingers stopped, for the module outputs stamped
+#: up to the servo's last sample [s]: readings come late on a busy machine (the driver
+#: publishes what it read in a batch); servo samples without them are left out.
+KEPT_WAIT_S = 1.0
 
 
 class LatestOutput:
     """The driver's module outputs [V] between two control ticks, and when the newest
     came (monotonic [s]): a tick takes their mean, every reading's worth of noise
-    averaged (the driver publishes faster than the gripper ticks)."""
+    averaged (the driver publishes faster than the gripper ticks). While a self-check asks
+    (``keep``), every output is also kept with its stamp (host time [s] of its ADC
+    sample), for pairing with the servo's samples once the close is over."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
+        self._came = threading.Condition(self._lock)
         self._sum, self._count = 0.0, 0
         self._mean = 0.0
         self._newest_s: float | None = None
+        self._newest_stamp_s = -math.inf
+        self._kept: list[tuple[float, float]] | None = None
 
-    def add(self, output_v: float, at_s: float) -> None:
+    def add(self, output_v: float, at_s: float, stamp_s: float = -math.inf) -> None:
         with self._lock:
             self._sum += float(output_v)
             self._count += 1
             self._newest_s = at_s
+            self._newest_stamp_s = max(self._newest_stamp_s, stamp_s)
+            if self._kept is not None:
+                self._kept.append((stamp_s, float(output_v)))
+                self._came.notify_all()
 
     def fresh(self, now_s: float, stale_after_s: float) -> float | None:
         """The mean of the outputs since the last call (the last mean when none came), or
@@ -50,6 +64,20 @@ class LatestOutput:
                 self._mean = self._sum / self._count
                 self._sum, self._count = 0.0, 0
             return self._mean
+
+    def keep(self, on: bool) -> None:
+        """Start keeping every output with its stamp (anew), or stop and forget them."""
+        with self._lock:
+            self._kept = [] if on else None
+
+    def kept(self, until_s: float, timeout_s: float = KEPT_WAIT_S
+             ) -> tuple[list[float], list[float]]:
+        """(stamps [s], outputs [V]) kept so far, once one stamped at or after ``until_s``
+        came, or after ``timeout_s`` (the ones that came by then)."""
+        with self._came:
+            self._came.wait_for(lambda: self._newest_stamp_s >= until_s, timeout_s)
+            kept = list(self._kept or ())
+        return [k[0] for k in kept], [k[1] for k in kept]
 
 
 def fetch_prediction(client: Any, request: Any) -> SkinPrediction:
@@ -76,9 +104,11 @@ def fetch_prediction(client: Any, request: Any) -> SkinPrediction:
                           tuple(response.output))
 
 
-def corrected_calibration(fit: SelfCheckFit, prediction: SkinPrediction) -> Calibration:
-    """The FEM curve scaled by the fit's factors, named for where it comes from."""
-    output, force = fit.corrected_curve(prediction)
-    return Calibration(output.tolist(), force.tolist(), (
+def correction_of(fit: SelfCheckFit, stamp_s: float) -> CalibrationCorrection:
+    """The fit's two factors as a correction over the driver's calibration, named for
+    where it comes from."""
+    return CalibrationCorrection(
         f"self_check:gain={fit.optical_gain:.4f}+-{fit.optical_gain_sigma:.4f},"
-        f"stiffness={fit.stiffness:.4f}+-{fit.stiffness_sigma:.4f}"))
+        f"stiffness={fit.stiffness:.4f}+-{fit.stiffness_sigma:.4f}",
+        fit.optical_gain, fit.stiffness, stamp_s,
+        optical_gain_sigma=fit.optical_gain_sigma, stiffness_sigma=fit.stiffness_sigma)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 from types import SimpleNamespace as NS
 
 import numpy as np
@@ -13,7 +14,8 @@ from tactile_sensor.control.errors import InvalidRequest
 from tactile_sensor.control.grasp import GraspConfig, Outcome
 from tactile_sensor.control.self_check import DriveTrain, SelfCheckError, SkinPrediction
 from tactile_sensor.control.self_check_goal import PRESS_M, SelfCheckLinks, accept_self_check
-from tactile_sensor.nodes.self_check_links import LatestOutput, corrected_calibration
+from tactile_sensor.nodes.self_check_links import LatestOutput, correction_of
+from tactile_sensor.sensing.calibration import Calibration
 
 D = np.linspace(0.0, 0.003, 16)
 SKIN = SkinPrediction(tuple(D.tolist()), tuple((1.6e3 * D + 2.6e5 * D**2).tolist()),
@@ -21,24 +23,59 @@ SKIN = SkinPrediction(tuple(D.tolist()), tuple((1.6e3 * D + 2.6e5 * D**2).tolist
 SETTINGS = GoalSettings(GraspConfig())
 GEOMETRY = SETTINGS.config.geometry
 R = GEOMETRY.pitch_radius_m
+PATIENCE_S = 30.0  # the bound of a wait that ends as soon as its reading came
 
 
 class Close:
     """A 20 mm rod centred between the fingers, a skin at ``stiffness`` and a module at
-    ``gain``; the servo follows its goal at the commanded speed, one tick at a time."""
+    ``gain``; the servo follows its goal at the commanded speed, one tick at a time. The
+    driver samples the module at 1 kHz and stamps each reading with its sample's time; the
+    readings reach the gripper at once, or (``burst_s``) held back and sent together every
+    ``burst_s``, 50 ms late (a driver starved of the CPU)."""
 
-    def __init__(self, gain: float, stiffness: float, rod: bool = True) -> None:
-        self.gain, self.stiffness, self.rod = gain, stiffness, rod
+    def __init__(self, gain: float, stiffness: float, rod: bool = True,
+                 burst_s: float = 0.0) -> None:
+        self.gain, self.stiffness, self.rod, self.burst_s = gain, stiffness, rod, burst_s
         self.position = GEOMETRY.position_rad(0.024)
+        self.t = 0.0
+        self._heard_until, self._mean = 0.0, 0.0
+        self.history = [(self.t, self.position)]  # (time [s], servo position [rad])
+        self.keeping: list[bool] = []
         self.applied: list[object] = []
-        self.links = SelfCheckLinks(self.output, lambda: SKIN,
-                                    lambda fit, skin: self.applied.append(fit), DriveTrain())
+        self.links = self.with_links(self.output)
 
-    def indentation(self) -> float:
-        return max(0.0, (0.020 - GEOMETRY.opening_m(self.position)) / 2.0) if self.rod else 0.0
+    def with_links(self, output_v, prediction=lambda: SKIN) -> SelfCheckLinks:
+        return SelfCheckLinks(output_v, prediction, lambda fit, skin: self.applied.append(fit),
+                              DriveTrain(), lambda servo: self.t, self.keeping.append,
+                              self.kept_outputs)
+
+    def indentation(self, position: float | None = None) -> float:
+        opening = GEOMETRY.opening_m(self.position if position is None else position)
+        return max(0.0, (0.020 - opening) / 2.0) if self.rod else 0.0
+
+    def output_at(self, t):
+        """The module's output sampled at ``t`` [s] (a number or an array): where the
+        fingers were then."""
+        times, positions = zip(*self.history, strict=True)
+        opening = GEOMETRY.opening_m(np.interp(t, times, positions))
+        d = np.maximum(0.0, (0.020 - opening) / 2.0) * self.rod
+        return 0.01 + self.gain * SKIN.output(d)
 
     def output(self) -> float:
-        return 0.01 + self.gain * float(SKIN.output(np.array(self.indentation())))
+        """The mean of the readings received since the last tick (the last mean if none)."""
+        if not self.burst_s:
+            return float(self.output_at(self.t))
+        stamps = np.arange(0.0, self.t, 0.001)
+        came = np.ceil(stamps / self.burst_s) * self.burst_s + 0.05
+        new = stamps[(came > self._heard_until) & (came <= self.t)]
+        self._heard_until = self.t
+        if new.size:
+            self._mean = float(np.mean(self.output_at(new)))
+        return self._mean
+
+    def kept_outputs(self, until_s: float) -> tuple[list[float], list[float]]:
+        stamps = np.arange(0.0, until_s + 1e-9, 0.001)
+        return stamps.tolist(), self.output_at(stamps).tolist()
 
     def servo(self, velocity: float) -> NS:
         d = self.indentation()  # the skin's law, past the table too
@@ -50,11 +87,12 @@ class Close:
         goal = accept_self_check(NS(closing_speed=0.0, apply=apply), SETTINGS, self.links,
                                  0.001)
         step = goal.start(0.0, self.servo(0.0))
-        speed, t = step.command.profile_velocity_rad_s, 0.0
+        speed = step.command.profile_velocity_rad_s
         while not step.finished:
-            t += 0.01
+            self.t += 0.01
             self.position = min(self.position + speed * 0.01, GEOMETRY.closed_position_rad)
-            step = goal.tick(t, None, None, self.servo(speed))
+            self.history.append((self.t, self.position))
+            step = goal.tick(self.t, None, None, self.servo(speed))
         return goal, step
 
 
@@ -68,6 +106,19 @@ def test_a_close_on_a_rod_stops_past_contact_fits_and_applies():
     assert result["outcome"] == "fitted"
     assert result["optical_gain"] == pytest.approx(0.8, abs=0.01)
     assert result["stiffness"] == pytest.approx(1.15, abs=0.01)
+
+
+def test_outputs_that_reach_the_gripper_late_pair_with_where_the_fingers_were():
+    """Readings held back and sent every 0.3 s (a busy machine): paired by arrival, the
+    output seems to rise after the touch (stiffness 1.186); paired by their stamps, both
+    factors come back."""
+    close = Close(0.8, 1.15, burst_s=0.3)
+    goal, step = close.run(apply=True)
+    assert step.outcome is Outcome.CONTACT
+    assert goal.failure(step) is None, goal.outcome
+    assert goal.fit.optical_gain == pytest.approx(0.8, abs=0.01)
+    assert goal.fit.stiffness == pytest.approx(1.15, abs=0.01)
+    assert close.keeping == [True, False]  # kept for the close only
 
 
 def test_a_fit_not_asked_to_apply_leaves_the_calibration():
@@ -104,7 +155,7 @@ def test_a_close_whose_output_never_rises_stops_at_the_force_limit():
 
 def test_no_fresh_output_ends_the_close_stale():
     close = Close(1.0, 1.0)
-    close.links = SelfCheckLinks(lambda: None, lambda: SKIN, lambda f, s: None, DriveTrain())
+    close.links = close.with_links(lambda: None)
     _goal, step = close.run(apply=True)
     assert step.outcome is Outcome.TACTILE_STALE and "driver" in step.message
 
@@ -114,7 +165,7 @@ def test_a_model_that_cannot_predict_refuses_before_anything_moves():
         raise SelfCheckError("model_not_ready", "The model cannot predict the skin yet.")
 
     close = Close(1.0, 1.0)
-    close.links = SelfCheckLinks(close.output, not_ready, lambda f, s: None, DriveTrain())
+    close.links = close.with_links(close.output, not_ready)
     goal = accept_self_check(NS(closing_speed=0.0, apply=True), SETTINGS, close.links, 0.001)
     with pytest.raises(SelfCheckError, match="cannot predict"):
         goal.start(0.0, close.servo(0.0))
@@ -126,7 +177,7 @@ def test_a_speed_out_of_range_is_refused():
                           Close(1.0, 1.0).links, 0.001)
 
 
-def test_the_latest_output_goes_stale_and_the_correction_is_a_calibration():
+def test_the_latest_output_goes_stale_and_the_fit_is_a_correction_of_the_fem_curve():
     latest = LatestOutput()
     assert latest.fresh(0.0, 0.1) is None
     latest.add(0.2, 1.0)
@@ -137,6 +188,29 @@ def test_the_latest_output_goes_stale_and_the_correction_is_a_calibration():
     close = Close(0.8, 1.15)
     goal, step = close.run(apply=False)
     goal.failure(step)
-    calibration = corrected_calibration(goal.fit, SKIN)
-    assert calibration.source.startswith("self_check:gain=0.8")
-    assert calibration.full_scale_force_n == pytest.approx(goal.fit.stiffness * SKIN.force_n[-1])
+    correction = correction_of(goal.fit, 123.0)
+    assert correction.source == (f"self_check:gain={goal.fit.optical_gain:.4f}+-"
+                                 f"{goal.fit.optical_gain_sigma:.4f},stiffness="
+                                 f"{goal.fit.stiffness:.4f}+-{goal.fit.stiffness_sigma:.4f}")
+    assert correction.optical_gain == pytest.approx(0.8, abs=0.001)
+    assert correction.stamp_s == 123.0 and not correction.keep_on_new_calibration
+    fem = Calibration.from_curve(list(SKIN.output_v[1:]), list(SKIN.force_n[1:]), "fem")
+    output, force = goal.fit.corrected_curve(SKIN)
+    corrected = correction.apply(fem)
+    assert corrected.output_v == pytest.approx(output[1:].tolist())
+    assert corrected.force_n == pytest.approx(force[1:].tolist())
+
+
+def test_outputs_are_kept_with_their_stamps_only_while_asked_and_waited_for():
+    latest = LatestOutput()
+    latest.add(0.1, 0.0, 10.0)
+    latest.keep(True)
+    latest.add(0.2, 0.01, 10.001)
+    adder = threading.Timer(0.05, lambda: latest.add(0.3, 0.02, 10.002))
+    adder.start()
+    assert latest.kept(10.002, timeout_s=PATIENCE_S) == ([10.001, 10.002], [0.2, 0.3])
+    adder.join()
+    assert latest.kept(11.0, timeout_s=0.0) == ([10.001, 10.002], [0.2, 0.3])  # none later
+    latest.keep(False)
+    latest.add(0.4, 0.03, 10.003)
+    assert latest.kept(0.0) == ([], [])

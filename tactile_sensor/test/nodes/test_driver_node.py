@@ -32,7 +32,7 @@ from tactile_sensor.sim import firmware_host
 from tactile_sensor.sim.firmware_host import PICO, UNO, HostFirmware
 from tactile_sensor.sim.profiles import parse_profile
 from tactile_sensor.sim.pty_link import PtyLink
-from tactile_sensor_interfaces.msg import CalibrationCurve, TactileReading
+from tactile_sensor_interfaces.msg import CalibrationCorrection, CalibrationCurve, TactileReading
 
 FULL_SCALE_N = 7.0
 DEPTH_M = 0.003
@@ -285,6 +285,23 @@ def test_the_model_nodes_prony_terms_make_the_driver_rate_aware(spawn, ros, file
     assert f"calibration from {curve.source} ({len(curve.output)} points, {described})" \
         in driver.output()
     assert "simulation's assumption" in model.output()
+
+    # a self-check's correction, found after the model's curve, applies over it (rate
+    # terms kept); one stamped before the curve in use is ignored in one sentence
+    correction = ros.node.create_publisher(CalibrationCorrection, "/calibration_correction",
+                                           latched)
+    found = CalibrationCorrection(source="test:found", optical_gain=0.8, stiffness=1.15)
+    found.header.stamp = ros.node.get_clock().now().to_msg()
+    correction.publish(found)
+    assert ros.wait_for(lambda: len(full_scales) > 1, PATIENCE_S), driver.output()
+    assert full_scales[-1] == pytest.approx(1.15 * curve.force[-1])
+    assert f"calibration from {curve.source} corrected by test:found (optical gain 0.8000, " \
+        f"stiffness 1.1500, {described})" in driver.output()
+    stale = CalibrationCorrection(source="test:stale", optical_gain=0.7, stiffness=1.3)
+    stale.header.stamp = curve.header.stamp
+    correction.publish(stale)
+    assert driver.wait_for_output("the correction test:stale is older than the one in use",
+                                  PATIENCE_S), driver.output()
 
 
 def test_tare_succeeds_at_rest_and_is_refused_while_pressing(spawn, ros, files):
