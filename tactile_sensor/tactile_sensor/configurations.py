@@ -90,7 +90,7 @@ GRIPPER = Configuration(
            "servo_port": ("/tmp/tactile_sensor/gripper_xm430",
                           "serial device of the U2D2 (Dynamixel bus)")},
     record_topics=("/driver/reading", "/driver/wrench", "/gripper/joint_states",
-                   "/gripper_world/ground_truth", "/diagnostics"),
+                   "/gripper_world/ground_truth", "/diagnostics", "/calibration_correction"),
 )
 
 ARRAY = Configuration(
