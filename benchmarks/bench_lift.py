@@ -33,12 +33,14 @@ from results import Figure, write_results
 
 from tactile_sensor.analysis.lift import BenchObject, bench_objects
 
-#: The adaptive hold's force ceiling on gripper_shear [N] (its result names it:
-#: "above the force ceiling of 5.00 N").
+#: The grip the objects may need at most is 0.8 of this [N]: the largest target of the
+#: contact and hold goals, well inside the gripper's force ceiling.
 CEILING_N = 5.0
 #: Lifted this long after the load doubled [s].
 HOLD_S = 1.5
 MODES = ("fixed", "adaptive")
+#: A failed run's last log lines shown.
+FAILED_LINES = 15
 GOALS = {"slip": 2.0, "ratio": 1.5, "latency_p95": 30.0}
 
 
@@ -55,16 +57,20 @@ def run_one(work: Path, obj: BenchObject, mode: str, verbose: bool) -> dict[str,
                "--config", str(config), "--port", f"adc_port={work / 'adc'}",
                "--port", f"servo_port={work / 'xm430'}"]
     found: dict[str, object] = {}
+    said: list[str] = []
     with subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL,
                           text=True) as proc:
         assert proc.stderr is not None
         for line in proc.stderr:
+            said.append(line)
             if verbose:
                 sys.stderr.write(line)
             _, sep, summary = line.partition("lift summary: ")
             if sep:
                 found = dict(item.split("=", 1) for item in summary.split())
         code = proc.wait()
+    if code != 0 and not verbose:  # why it failed: the bringup's last words
+        sys.stderr.write("".join(said[-FAILED_LINES:]))
     return found if code == 0 else {}
 
 
@@ -76,22 +82,21 @@ def number(found: dict[str, object], key: str) -> float:
 
 
 def table(rows: list[tuple[BenchObject, dict[str, dict[str, object]]]]) -> None:
-    print("object            target  least   mode      slip mm  peak N  ratio  "
+    print("object             target  least   mode      slip mm  peak N  ratio  "
           "onset->rise ms  dropped")
     for obj, by_mode in rows:
         label = (f"{obj.mass_kg * 1e3:3.0f} g mu {obj.friction_static:.2f}/"
                  f"{obj.friction_kinetic:.2f}")
         for mode in MODES:
             f = by_mode[mode]
+            head = f"{label:18s} {obj.target_n:5.2f}  {obj.least_doubled_n:5.2f}   {mode:8s}"
+            label = ""
             if not f:
-                print(f"{label:17s} {obj.target_n:5.2f}  {obj.least_doubled_n:5.2f}   "
-                      f"{mode:8s}  run failed")
+                print(f"{head}  run failed")
                 continue
-            print(f"{label:17s} {obj.target_n:5.2f}  {obj.least_doubled_n:5.2f}   "
-                  f"{mode:8s}  {number(f, 'slip_mm'):7.2f}  {number(f, 'peak_grip_n'):6.2f}"
+            print(f"{head}  {number(f, 'slip_mm'):7.2f}  {number(f, 'peak_grip_n'):6.2f}"
                   f"  {number(f, 'ratio'):5.2f}  {number(f, 'latency_ms'):14.1f}  "
                   f"{f.get('dropped')}")
-            label = ""
 
 
 def figures_of(rows: list[tuple[BenchObject, dict[str, dict[str, object]]]]
@@ -109,18 +114,20 @@ def figures_of(rows: list[tuple[BenchObject, dict[str, dict[str, object]]]]
     adaptive = [m["adaptive"] for _, m in rows]
     fixed = [m["fixed"] for _, m in rows]
     n = len(rows)
-    held = sum(f.get("dropped") == "no" and number(f, "slip_mm") <= GOALS["slip"]
-               for f in adaptive)
-    ratio_met = sum(number(f, "ratio") <= GOALS["ratio"] for f in adaptive)
+    kept = [f for f in adaptive if f.get("dropped") == "no"]
+    held = sum(number(f, "slip_mm") <= GOALS["slip"] for f in kept)
+    ratio_met = sum(number(f, "ratio") <= GOALS["ratio"] for f in kept)  # a fall meets none
     dropped = sum(f.get("dropped") == "yes" for f in fixed)
     latencies = [number(f, "latency_ms") for f in adaptive]
     latencies = [x for x in latencies if math.isfinite(x)]
     p95 = float(np.percentile(latencies, 95)) if latencies else math.nan
     figures += [
         Figure("adaptive: held with slip <= 2 mm", held, f"of {n}", f"{n} of {n}", held == n),
-        Figure("adaptive: peak grip <= 1.5 x least", ratio_met, f"of {n}", f"{n} of {n}",
+        Figure("adaptive: kept, peak grip <= 1.5 x least", ratio_met, f"of {n}", f"{n} of {n}",
                ratio_met == n),
-        Figure("adaptive: slip onset to grip rise p95", p95, "ms", "<= 30 ms",
+        Figure("adaptive: lifts with a slip onset and a grip rise", len(latencies),
+               f"of {n}"),
+        Figure("adaptive: slip onset to grip rise p95 (over those)", p95, "ms", "<= 30 ms",
                bool(latencies) and p95 <= GOALS["latency_p95"]),
         Figure("fixed at the starting force: dropped", dropped, f"of {n}", f"{n} of {n}",
                dropped == n)]
@@ -155,7 +162,7 @@ def main() -> int:
     if args.demo:
         return 0
     figures = figures_of(rows)
-    for figure in figures[-4:]:
+    for figure in figures[-5:]:
         print(f"{figure.name}: {figure.value} {figure.unit} (goal {figure.goal})")
     write_results("lift", figures, notes=(
         f"{count} objects, seed {args.seed}; each lifted, weight eased on over 0.5 s, the "

@@ -212,7 +212,7 @@ class BenchObject:
 def bench_objects(count: int, seed: int, ceiling_n: float) -> list[BenchObject]:
     """``count`` objects of 50-300 g with static friction 0.3-1.0 (kinetic equal or 0.8 of
     it, alternately), drawn with ``seed``; those whose doubled load needs more than 0.8 of
-    the force ceiling are drawn again (no hold could keep them with a margin)."""
+    ``ceiling_n`` are drawn again (a hold keeps them with a margin under it)."""
     rng = np.random.default_rng(seed)
     found: list[BenchObject] = []
     while len(found) < count:
