@@ -109,7 +109,11 @@ def figures_of(rows: list[tuple[BenchObject, dict[str, dict[str, object]]]]
         for mode in MODES:
             f = by_mode[mode]
             figures += [Figure(f"{name}, {mode}: slip", number(f, "slip_mm"), "mm"),
+                        Figure(f"{name}, {mode}: peak true grip", number(f, "peak_grip_n"),
+                               "N"),
                         Figure(f"{name}, {mode}: peak / least grip", number(f, "ratio")),
+                        Figure(f"{name}, {mode}: slip onset to grip rise",
+                               number(f, "latency_ms"), "ms"),
                         Figure(f"{name}, {mode}: dropped", str(f.get("dropped", "failed")))]
     adaptive = [m["adaptive"] for _, m in rows]
     fixed = [m["fixed"] for _, m in rows]
