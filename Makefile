@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate demo-wrench demo-ambient bench bench-publish bench-report clean
+.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate demo-wrench demo-ambient demo-lift bench bench-publish bench-report clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -47,6 +47,9 @@ demo-wrench: setup  ## press, shear, tilt and twist on the 8-module layout; prin
 
 demo-ambient: setup  ## force error in the dark, under light and drift: today's driver beside each kind of module
 	@bash scripts/demo.sh ambient
+
+demo-lift: setup  ## lift objects, double their load: slip of a fixed grasp beside the adaptive hold
+	@bash scripts/demo.sh lift
 
 bench: setup  ## every benchmark in benchmarks/: prints its figures, writes build/benchmarks/results/
 	@. scripts/env.sh && skipped=""; for b in benchmarks/bench_*.py; do echo "== $$b"; \

@@ -6,6 +6,7 @@
 #   scripts/demo.sh rate [SPEEDS_PROTOCOL]   (default speeds:cycles=1,hold=2)
 #   scripts/demo.sh wrench [WRENCH_PROTOCOL]   (default wrench)
 #   scripts/demo.sh ambient
+#   scripts/demo.sh lift
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -112,6 +113,14 @@ PY
     python benchmarks/bench_ambient.py --demo | tee "$run/ambient.txt"
     echo "== table: $run/ambient.txt"
     ;;
+  lift)
+    # An object lifted, then its load doubled (docs/gripper.md, "The lift protocol"): a
+    # fixed grasp at the adaptive hold's starting force beside the adaptive hold, three
+    # objects, through the real nodes on the mock (1-3 minutes).
+    echo "== slip with the load doubled: fixed grasp beside adaptive hold"
+    python benchmarks/bench_lift.py --demo | tee "$run/lift.txt"
+    echo "== table: $run/lift.txt"
+    ;;
   gripper)
     echo "== gripper grasp/hold/release on mock hardware -> $run/bag"
     tactile-sensor bringup gripper --protocol grasp --record "$run/bag" \
@@ -120,7 +129,7 @@ PY
     ;;
   *)
     echo "usage: scripts/demo.sh bench [compression|repeatability|speeds] | gripper |" \
-      "rate [SPEEDS_PROTOCOL] | wrench [WRENCH_PROTOCOL] | ambient" >&2
+      "rate [SPEEDS_PROTOCOL] | wrench [WRENCH_PROTOCOL] | ambient | lift" >&2
     exit 2
     ;;
 esac

@@ -4,6 +4,8 @@
   show progress, stop at its end.
 - gripper ``grasp``: grasp the rod through the gripper's action, hold, release, and print
   the grasp result with a summary of the force trace.
+- gripper ``lift``: grasp the mock's object, lift it, load, hold, set down, release
+  (``bringup_lift.py``); refused before anything moves without an object.
 - otherwise run until ``--duration`` or Ctrl-C.
 """
 
@@ -45,12 +47,21 @@ def say(message: str) -> None:
 
 
 def run_protocol(runner: RunningBringup, duration: float | None) -> int:
+    name = runner.protocol.get("protocol.name")
+    lift = "gripper" in runner.nodes and name == "lift"
+    if lift:
+        from tactile_sensor.nodes import bringup_lift  # it imports this module's helpers
+
+        if (refusal := bringup_lift.lift_refused(runner)) is not None:
+            say(refusal)
+            return 2
     driver = runner.nodes.get("driver")
     if driver is not None and not _wait_until(runner, lambda: driver.ready, READY_TIMEOUT_S,
                                               "driver streaming calibrated force"):
         say("the driver did not become ready (tare and calibration); see its log above")
         return 1
-    name = runner.protocol.get("protocol.name")
+    if lift:
+        return bringup_lift.run_lift(runner)
     bench = runner.nodes.get("bench")
     if bench is not None and name:
         return _run_bench(runner, bench, duration)
@@ -173,7 +184,7 @@ def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
                       closing_speed=float(p.get("protocol.closing_speed", 0.01)),
                       timeout=float(p.get("protocol.timeout", 10.0)))
     say(f"grasp: target {goal.target_force:.2f} N at {goal.closing_speed * 1e3:.1f} mm/s")
-    result = _call(runner, grasp, goal, goal.timeout + 5.0)
+    result = call_action(runner, grasp, goal, goal.timeout + 5.0)
     if result is None:
         return 1
     say(f"grasp result: contact={result.contact_detected} force={result.force:.3f} N "
@@ -190,7 +201,7 @@ def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
         mean = sum(held) / len(held)
         say(f"hold {hold:.1f} s: force mean {mean:.3f} N, min {min(held):.3f} N, "
             f"max {max(held):.3f} N over {len(held)} samples")
-    released = _call(runner, release, Release.Goal(opening=0.0), 15.0)
+    released = call_action(runner, release, Release.Goal(opening=0.0), 15.0)
     if released is None:
         return 1
     say(f"release: success={released.success} opening {released.opening * 1e3:.2f} mm "
@@ -201,7 +212,7 @@ def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
     return 0 if result.contact_detected and released.success else 1
 
 
-def _call(runner: RunningBringup, client: ActionClient, goal: Any, timeout_s: float) -> Any:
+def call_action(runner: RunningBringup, client: ActionClient, goal: Any, timeout_s: float) -> Any:
     done = threading.Event()
     box: dict[str, Any] = {}
 

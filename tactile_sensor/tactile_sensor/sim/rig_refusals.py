@@ -69,3 +69,16 @@ def rig_refusal(rig: RigSettings) -> str | None:
         return ("A shear protocol needs a module array; set the physics parameter modules to "
                 "several faces (e.g. front,back,left,right) or protocol.shear to 0.")
     return None
+
+
+def lift_refusal(in_process_mock: bool, has_object: bool) -> str | None:
+    """Why the gripper's lift protocol cannot run, in one sentence (None: it can); decided
+    before the fingers move."""
+    if not in_process_mock:
+        return ("The lift protocol lifts the mock's object through its servo emulator; run "
+                "it on mock hardware (without --no-mock).")
+    if not has_object:
+        return ("The lift protocol needs an object between the fingers and none is "
+                "configured (object.mass_kg is 0); give gripper_world an object with "
+                "--config, e.g. object.mass_kg: 0.1 and object.friction_static: 0.6.")
+    return None

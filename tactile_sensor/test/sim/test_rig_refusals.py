@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from tactile_sensor.sim.rig_refusals import RigSettings, rig_refusal
+from tactile_sensor.sim.rig_refusals import RigSettings, lift_refusal, rig_refusal
 
 WRENCH = 8
 
@@ -37,3 +37,14 @@ def test_each_impossible_rig_is_one_sentence_naming_the_fix(rig, names):
 ])
 def test_the_rigs_that_can_run_are_accepted(rig):
     assert rig_refusal(rig) is None
+
+
+@pytest.mark.parametrize(("mock", "has_object", "names"), [
+    (True, False, "object.mass_kg is 0"),
+    (False, True, "run it on mock hardware"),
+])
+def test_a_lift_without_an_object_or_the_mock_is_one_sentence(mock, has_object, names):
+    refusal = lift_refusal(mock, has_object)
+    assert refusal is not None and names in refusal and refusal.endswith(".")
+    assert re.search(r"\. [A-Z]", refusal) is None
+    assert lift_refusal(True, True) is None
