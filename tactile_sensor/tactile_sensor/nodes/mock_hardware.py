@@ -50,6 +50,7 @@ from tactile_sensor.nodes.parameters import (
     read_parameters,
 )
 from tactile_sensor.nodes.physics_parameters import physics_from_values, physics_specs
+from tactile_sensor.nodes.reading_cdr import JointStateCdr, WrenchCdr
 from tactile_sensor.physics.detector import DetectorState, headroom_ratio
 from tactile_sensor.physics.errors import PhysicsError
 from tactile_sensor.physics.prediction import load_or_compute_curve
@@ -423,14 +424,14 @@ class MockHardwareNode(Node):
 
     def _publish_gauge(self) -> None:
         """Stage and gauge at ``gauge_rate``, each sample stamped with its own time. The
-        world is evaluated a block of samples at a time and the two messages are reused:
-        one sample a millisecond leaves no room for per-sample numpy calls."""
+        world is evaluated a block of samples at a time and both messages go out as CDR
+        bytes (nodes/reading_cdr.py): one sample a millisecond leaves no room for per-sample
+        numpy calls or message objects."""
         period_ns = int(1e9 / self.values["gauge_rate"])
         block = max(1, int(GAUGE_BLOCK_S * 1e9) // period_ns)
         burst_ns = max(period_ns, int(GAUGE_BURST_S * 1e9))
-        stage, gauge = JointState(), WrenchStamped()
-        gauge.header.frame_id = "force_gauge"
-        force, torque = gauge.wrench.force, gauge.wrench.torque
+        stage: JointStateCdr | None = None
+        gauge = WrenchCdr("force_gauge")
         first_ns, block_start, rows = 0, None, []  # the block: samples from first_ns on
         next_ns = time.time_ns()
         while not self._stop.is_set():
@@ -448,17 +449,12 @@ class MockHardwareNode(Node):
                          else np.maximum(0.0, (times - start) * 1e-9))
                     positions, forces = stage_and_gauge_block(self.world, t)
                     rows = list(zip(positions.tolist(), forces.tolist(), strict=True))
-                    stage.name = list(WRENCH_STAGE_JOINTS[:positions.shape[1]])
+                    joints = WRENCH_STAGE_JOINTS[:positions.shape[1]]
+                    if stage is None or stage.names != joints:
+                        stage = JointStateCdr("", joints)
                 position, f = rows[i]
-                sec, nanosec = divmod(next_ns, 1_000_000_000)
-                for header in (stage.header, gauge.header):
-                    header.stamp.sec, header.stamp.nanosec = sec, nanosec
-                stage.position = position
-                force.x, force.y, force.z = f[:3]
-                if len(f) == 6:
-                    torque.x, torque.y, torque.z = f[3:]
-                self._stage_pub.publish(stage)
-                self._gauge_pub.publish(gauge)
+                self._stage_pub.publish(stage.encode(next_ns, position))
+                self._gauge_pub.publish(gauge.encode(next_ns, *f))
                 self.published_until_ns = next_ns
                 self.gauge_published += 1
                 next_ns += period_ns

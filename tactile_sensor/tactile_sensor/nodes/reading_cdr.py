@@ -1,11 +1,13 @@
-"""The driver's ~/reading and ~/wrench messages as CDR bytes, packed into one reused buffer.
+"""The driver's ~/reading and ~/wrench and the mock bench's ~/stage/joint_states and
+~/gauge/wrench messages as CDR bytes, packed into one reused buffer.
 
 Why: publishing a message object costs rclpy a Python object tree (message, Header, Time,
 Wrench, two Vector3) and a field-by-field conversion into a C message on every sample;
 publishing bytes (``Publisher.publish(bytes)``, on Jazzy and Kilted alike) hands them to
 the middleware as they are. Within one driver configuration the frame id and the faces
-never change, so every message of a topic has the same length and layout: the template is
-serialised once, and each sample packs only its stamp and its numbers into it.
+(within one bench world the stage's joints) never change, so every message of a topic has
+the same length and layout: the template is serialised once, and each sample packs only
+its stamp and its numbers into it.
 
 The encoding is the one every ROS 2 middleware writes (OMG CDR, XCDR version 1,
 little-endian): a 4-byte encapsulation header, then the fields in order, each aligned to
@@ -116,4 +118,29 @@ class WrenchCdr:
         _STAMP.pack_into(buffer, self._stamp_at, *divmod(stamp_ns, NS_PER_S))
         _WRENCH.pack_into(buffer, self._wrench_at, force_x_n, force_y_n, force_z_n,
                           torque_x_nm, torque_y_nm, torque_z_nm)
+        return bytes(buffer)
+
+
+class JointStateCdr:
+    """sensor_msgs/JointState for one frame id and set of joints: their positions, with
+    velocity and effort empty (a stage that reports where it is, as the mock bench's)."""
+
+    def __init__(self, frame_id: str, names: Sequence[str]) -> None:
+        t = _Template()
+        self._stamp_at = t.header(frame_id)
+        t.uint32(len(names))
+        for name in names:
+            t.string(name)
+        self.names = tuple(names)
+        self._positions_at = t.sequence(len(names))
+        t.uint32(0)  # velocity[]
+        t.uint32(0)  # effort[]
+        self._buffer = t.data
+        self._positions = struct.Struct(f"<{len(names)}d")
+
+    def encode(self, stamp_ns: int, positions: Sequence[float]) -> bytes:
+        """The message's bytes; ``positions`` holds one value per joint."""
+        buffer = self._buffer
+        _STAMP.pack_into(buffer, self._stamp_at, *divmod(stamp_ns, NS_PER_S))
+        self._positions.pack_into(buffer, self._positions_at, *positions)
         return bytes(buffer)

@@ -146,6 +146,17 @@ def symmetric_features(faces: Sequence[str]) -> tuple[np.ndarray, list[tuple[int
     return np.stack(rows), parity
 
 
+def monomial_factors(terms: np.ndarray) -> np.ndarray:
+    """(terms, degree) feature column of each factor of each monomial (exponents ``terms``,
+    (terms, m)); column m, a feature that is 1, pads the monomials of lower degree."""
+    m = terms.shape[1]
+    columns = np.full((terms.shape[0], max(1, int(terms.sum(axis=1).max(initial=0)))), m)
+    for t, exponents in enumerate(terms):
+        factors = np.repeat(np.arange(m), exponents)
+        columns[t, :factors.size] = factors
+    return columns
+
+
 def polynomial_terms(modules: int, degree: int) -> list[tuple[int, ...]]:
     """Exponent tuples of every monomial up to ``degree`` in ``modules`` variables."""
     terms = [e for total in range(degree + 1)
@@ -343,8 +354,16 @@ class ArrayCalibration:
         return "; ".join(parts)
 
     def _basis(self, outputs: np.ndarray) -> np.ndarray:
+        """(n, terms) monomials of the features: each a product of its few factors, as
+        multiplications (a fit evaluates tens of thousands of noisy points, and a power
+        per feature and term cost the model node seconds at every start)."""
         z = (np.atleast_2d(outputs) / self.output_scale_v) @ self.feature_matrix.T  # (n, m)
-        return np.prod(z[:, None, :] ** self.terms[None, :, :], axis=2)        # (n, terms)
+        factors = np.concatenate([z, np.ones((z.shape[0], 1))], axis=1)
+        columns = monomial_factors(self.terms)
+        basis = factors[:, columns[:, 0]]
+        for k in range(1, columns.shape[1]):
+            basis *= factors[:, columns[:, k]]
+        return basis
 
     def _checked(self, outputs: np.ndarray) -> np.ndarray:
         outputs = np.asarray(outputs, dtype=float)

@@ -1,6 +1,6 @@
-"""The driver's pre-serialised messages decode, with rclpy's own deserialiser, to the
-messages rclpy would have built, and are no longer than rclpy's serialisation of them
-(which appends room for the empty float64[] alignment to a TactileReading)."""
+"""The driver's and the mock bench's pre-serialised messages decode, with rclpy's own
+deserialiser, to the messages rclpy would have built, and are no longer than rclpy's
+serialisation of them (which appends room for the empty float64[] alignment to a TactileReading)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.time import Time
+from sensor_msgs.msg import JointState
 
-from tactile_sensor.nodes.reading_cdr import ReadingCdr, WrenchCdr
+from tactile_sensor.nodes.reading_cdr import JointStateCdr, ReadingCdr, WrenchCdr
 from tactile_sensor_interfaces.msg import TactileReading
 
 FACES = ("front", "back", "left", "right")
@@ -74,3 +75,23 @@ def test_the_buffer_is_reused_but_each_message_is_its_own_bytes():
     second = cdr.encode(2, 3.0, 0.25, 4.0, False)
     assert isinstance(first, bytes) and first != second
     assert deserialize_message(first, TactileReading).force == 2.0
+
+
+@settings(deadline=None)
+@given(frame_id=frame_ids, stamp_ns=stamps,
+       names=st.sampled_from([(), ("stage_z",), ("stage_z", "stage_x", "stage_y"),
+                              ("stage_z", "stage_x", "stage_y", "stage_rx", "stage_ry",
+                               "stage_rz")]),
+       values=st.lists(floats, min_size=6, max_size=6))
+def test_a_joint_state_decodes_to_the_message_rclpy_builds(frame_id, stamp_ns, names, values):
+    positions = values[:len(names)]
+    data = JointStateCdr(frame_id, names).encode(stamp_ns, positions)
+    msg = deserialize_message(data, JointState)
+    assert msg.header.stamp == Time(nanoseconds=stamp_ns).to_msg()
+    assert msg.header.frame_id == frame_id
+    assert list(msg.name) == list(names)
+    assert all(map(same, msg.position, positions)) and len(msg.position) == len(names)
+    assert len(msg.velocity) == 0 and len(msg.effort) == 0
+    # rclpy reserves alignment room after empty float64[], as for a TactileReading
+    assert len(data) <= len(serialize_message(msg))
+

@@ -9,7 +9,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tactile_sensor.sensing.array_calibration import ArrayCalibration, polynomial_terms
+from tactile_sensor.sensing.array_calibration import (
+    ArrayCalibration,
+    monomial_factors,
+    polynomial_terms,
+)
 from tactile_sensor.sensing.errors import CalibrationError
 
 FACES = ("front", "back", "left", "right")
@@ -30,6 +34,16 @@ def test_terms_are_every_monomial_up_to_the_degree():
     assert len(terms) == 35 and terms[0] == (0, 0, 0, 0)
     assert len(set(terms)) == 35 and max(sum(t) for t in terms) == 3
     assert len(polynomial_terms(1, 2)) == 3
+
+
+@settings(deadline=None)
+@given(modules=st.integers(1, 8), degree=st.integers(0, 5), seed=st.integers(0, 2**32 - 1))
+def test_monomials_as_products_of_their_factors_equal_the_powers(modules, degree, seed):
+    terms = np.array(polynomial_terms(modules, degree))
+    z = np.random.default_rng(seed).uniform(-2.0, 2.0, (7, modules))
+    factors = np.concatenate([z, np.ones((7, 1))], axis=1)[:, monomial_factors(terms)]
+    assert np.allclose(np.prod(factors, axis=2),
+                       np.prod(z[:, None, :] ** terms[None, :, :], axis=2), rtol=1e-14, atol=0)
 
 
 def test_a_fit_recovers_a_polynomial_force_exactly():
