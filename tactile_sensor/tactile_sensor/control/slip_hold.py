@@ -10,9 +10,10 @@ hold therefore runs in three phases:
    sees (two windows of ``steady_s`` alike, not ringing, above the noise's own |Ft|)
    shows that the grip kept it: the least grip per |Ft| so far is a ratio that keeps the
    object, so a load that rises k sigma_t above what the grip covers raises the grip in
-   that ratio at once (``onset``, margin NaN), with no friction needed. Once the shear
-   is resolved for a probe (3 k sigma_t: 0.78 N on each skin at 20 Hz, an object of
-   about 160 g):
+   that ratio at once (``onset``, margin NaN), with no friction needed. Once the steady
+   shear is four of the falls a probe resolves deep (``PROBE_LEVELS`` x 0.078 N: 0.31 N
+   on each skin, an object of about 65 g; the 20 Hz margin's 3 k sigma_t, 0.78 N, would
+   leave every object under 160 g unprobed):
 2. *probing*: lower the grip at ``probe_rate_n_s``. While the object sticks, |Ft| stays at
    its level; at the break-away it drops by (mu_s - mu_k) Fn and then falls with the grip
    as mu_k Fn. The probe stops at the first run of its latest ticks (1 to 20) whose mean
@@ -50,6 +51,8 @@ from tactile_sensor.sensing.slip_margin import MarginFilter, MarginNoise, thresh
 RATIO_TICKS = 10
 #: The longest run of ticks a probe tests for a fall of |Ft| (200 ms at 100 Hz).
 PROBE_TICKS = 20
+#: A probe starts on a steady |Ft| this many of its falls deep [1].
+PROBE_LEVELS = 4.0
 #: A probe's run of ticks slid once its mean |Ft| is this many of its standard errors
 #: below the level (about one false alarm in 10^4 probes of a second, a false one errs
 #: toward more grip).
@@ -251,7 +254,8 @@ class SlipHold:
     # -- phases --------------------------------------------------------------------------
     def _wait(self, now_s: float, fn: float, ft: float) -> None:
         """The probe starts once two consecutive windows of ``steady_s`` hold mean |Ft|
-        within k sigma_t of each other at a level the probe's fall can show (3 k sigma_t),
+        within k sigma_t of each other at a level the probe's fall can show (``PROBE_LEVELS``
+        of its falls),
         and the later one's tick means spread no more than twice their noise: an object
         ringing on stuck skins after a sudden lift (7-19 Hz in the model, for seconds)
         could slip at a ring's peak before the probe sees it. The later window's mean is
@@ -279,7 +283,7 @@ class SlipHold:
             if self._reference is not None:
                 ratio = min(ratio, self._reference[0])
             self._reference = (ratio, mean)
-        if steady and mean >= 3.0 * cfg.shear_threshold_n:
+        if steady and mean >= PROBE_LEVELS * cfg.probe_threshold_n:
             self.phase = HoldPhase.PROBING
             self._probe, self._probe_ticks = (mean, fn, now_s), 0
 
