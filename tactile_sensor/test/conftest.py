@@ -416,13 +416,31 @@ def lifecycle_states(ros2: Callable[..., subprocess.CompletedProcess[str]]
     return get
 
 
+def driver_filter_gain_db(points: int = 9) -> float:
+    """How much the driver's default filter lowers white noise after the analysis's
+    ``points``-point mean [dB]: the mock's noise is the paper's 31.49 dB behind a 9-point
+    mean alone, so the dynamic range the analysis measures on the driver's output sits
+    this much higher (1.5 dB for the Savitzky-Golay filter)."""
+    import numpy as np
+
+    from tactile_sensor.sensing.filters import DEFAULT_FILTER, make_filter
+
+    fir = make_filter(DEFAULT_FILTER, 1000.0, {})
+    for _ in range(400):  # a full window first: the filter's start-up is not its response
+        fir.update(0.0)
+    impulse = np.array([fir.update(1.0 if k == 0 else 0.0) for k in range(400)])
+    mean = np.ones(points) / points
+    return float(20 * np.log10(np.linalg.norm(mean) / np.linalg.norm(np.convolve(impulse,
+                                                                                 mean))))
+
+
 def _check_compression_metrics(mt: dict) -> None:
     """The paper's compression response (Sec. III-B), with the tolerances explained in
     test_bench_protocols.py."""
     assert mt["cycles"] == 1
     assert mt["full_scale_n"] == pytest.approx(7.0, rel=0.15)  # "approximately 7 N" at 3 mm
     assert mt["sensitivity_v_per_n"] == pytest.approx(0.07, rel=0.25)
-    assert mt["dynamic_range_db"] == pytest.approx(31.49, abs=3.0)
+    assert mt["dynamic_range_db"] == pytest.approx(31.49 + driver_filter_gain_db(), abs=3.0)
     assert 0 < mt["hysteresis_pct_fs"] < 8.0
     assert mt["prediction"]["rmse_pct_fs"] < 15.0  # Fig. 7b: model and measurement agree
 
