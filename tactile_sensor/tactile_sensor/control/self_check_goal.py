@@ -44,6 +44,11 @@ from tactile_sensor.control.stamp_pairing import outputs_at
 CONTACT_RISE_V = 0.05
 #: Finger travel past that rise [m].
 PRESS_M = 0.002
+#: Finger travel a close may make while the module's outputs come late [m]: the pairing
+#: takes them by their stamps afterwards, so only the stop waits for them; a quarter of
+#: ``PRESS_M`` (0.5 s at the default 1 mm/s, a busy machine's gap), and the rack-force
+#: stop needs no output.
+LATE_TRAVEL_M = 0.0005
 #: Seconds a close may take beyond its travel at speed.
 TIMEOUT_MARGIN_S = 5.0
 #: Rack force [N] (from the servo's current) at which a close whose output never rose
@@ -77,6 +82,8 @@ class SelfCheckController(BaseController):
               train: DriveTrain) -> Step:
         g = self.config.geometry
         self._started_s = now_s
+        self._late_s = LATE_TRAVEL_M / speed_m_s
+        self._fresh_s, self._last_output_v = now_s, None
         self._timeout_s = (g.opening_m(servo.position_rad) - g.closed_opening_m) / (
             2.0 * speed_m_s) + TIMEOUT_MARGIN_S
         self.phase = Phase.CLOSING
@@ -96,9 +103,13 @@ class SelfCheckController(BaseController):
         not known) beside the mean output received since the last tick."""
         if (common := self._check_common(now_s, servo, None)) is not None:
             return common
-        if output_v is None:
-            return self._finish(Outcome.TACTILE_STALE, "no fresh module output; check that "
-                                "the driver runs and publishes its reading", servo)
+        if output_v is None:  # late: the close goes on at the last level a while
+            output_v = self._last_output_v
+            if output_v is None or now_s - self._fresh_s > self._late_s:
+                return self._finish(Outcome.TACTILE_STALE, "no fresh module output; check "
+                                    "that the driver runs and publishes its reading", servo)
+        else:
+            self._fresh_s, self._last_output_v = now_s, output_v
         position = servo.position_rad
         self.rows.append((now_s if sampled_at_s is None else sampled_at_s, position,
                           getattr(servo, "velocity_rad_s", math.nan),

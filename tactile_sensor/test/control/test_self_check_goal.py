@@ -160,6 +160,27 @@ def test_no_fresh_output_ends_the_close_stale():
     assert step.outcome is Outcome.TACTILE_STALE and "driver" in step.message
 
 
+def gappy(close: Close, gap: tuple[float, float]):
+    """The close's outputs, none fresh between ``gap`` [s] (a driver starved of the CPU)."""
+    def output():
+        return None if gap[0] <= close.t < gap[1] else close.output()
+    return output
+
+
+def test_outputs_late_for_less_than_half_a_millimetre_of_travel_leave_the_fit_whole():
+    """0.4 s without a fresh output at 1 mm/s (0.4 mm of travel, under LATE_TRAVEL_M): the
+    close goes on and the stamps still pair every reading; 0.6 s ends it stale."""
+    close = Close(0.8, 1.15)
+    close.links = close.with_links(gappy(close, (3.0, 3.4)))
+    goal, step = close.run(apply=True)
+    assert step.outcome is Outcome.CONTACT and goal.failure(step) is None, goal.outcome
+    assert goal.fit.optical_gain == pytest.approx(0.8, abs=0.01)
+    close = Close(0.8, 1.15)
+    close.links = close.with_links(gappy(close, (3.0, 3.6)))
+    _goal, step = close.run(apply=True)
+    assert step.outcome is Outcome.TACTILE_STALE
+
+
 def test_a_model_that_cannot_predict_refuses_before_anything_moves():
     def not_ready() -> SkinPrediction:
         raise SelfCheckError("model_not_ready", "The model cannot predict the skin yet.")
