@@ -30,13 +30,14 @@ from tactile_sensor.control.goal_runner import (
     RunnerTiming,
     interrupted,
 )
-from tactile_sensor.control.grasp import GraspConfig
+from tactile_sensor.control.grasp import GraspConfig, ServoCommand
 from tactile_sensor.control.hold import ForceSettler
 from tactile_sensor.control.servo_link import ServoLink
 from tactile_sensor.control.slip_hold import HoldSettings
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import CommunicationTimeout, PortLost
 from tactile_sensor.hardware.xm430 import ServoState
+from tactile_sensor.hardware.xm430_table import RAD_PER_PULSE
 
 CONFIG = GraspConfig()
 GEOMETRY = CONFIG.geometry
@@ -555,13 +556,19 @@ def test_a_servo_unreachable_at_the_start_aborts_the_goal():
 
 @pytest.fixture
 def never_settled(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The hold's regulator never says settled (it still corrects): on a stiff skin a
+    """The hold's regulator never says settled and keeps correcting: on a stiff skin a
     correction overshoots, but a window's mean can still land inside the tolerance by
-    chance (settled at 1.96 N once), and these tests need a hold that is still settling."""
+    chance (settled at 1.96 N once; a contact at 2.01 N on a 2 N target once left the
+    hold with nothing to correct for its whole settle_time), and these tests need a hold
+    that is still writing corrections. A window judged inside the tolerance moves the
+    fingers one pulse closer."""
     command = ForceSettler.command
 
-    def unsettled(self, *args, **kwargs):  # type: ignore[no-untyped-def]
-        return command(self, *args, **kwargs)[0], False
+    def unsettled(self, now_s, servo, current_a, velocity_rad_s):  # type: ignore[no-untyped-def]
+        step, settled = command(self, now_s, servo, current_a, velocity_rad_s)
+        if settled:
+            step = ServoCommand(servo.position_rad + RAD_PER_PULSE, velocity_rad_s, current_a)
+        return step, False
 
     monkeypatch.setattr(ForceSettler, "command", unsettled)
 
