@@ -103,7 +103,7 @@ def run_lift(runner: RunningBringup) -> int:
                       closing_speed=float(p.get("protocol.closing_speed", 0.01)),
                       timeout=float(p.get("protocol.timeout", 10.0)),
                       hold_mode=str(p.get("protocol.hold_mode", "")))
-    goal.hold_time = goal.timeout + lifted_s + 5.0  # the release takes over before
+    goal.hold_time = goal.timeout + lifted_s + 5.0  # canceled before the release
     now = lambda: node.get_clock().now().nanoseconds * 1e-9  # noqa: E731
     say(f"lift: object {spec.mass_kg * 1e3:.0f} g, friction {spec.friction_static:.2f} / "
         f"{spec.friction_kinetic:.2f}; grasp at {goal.target_force:.2f} N, hold "
@@ -117,6 +117,7 @@ def run_lift(runner: RunningBringup) -> int:
     dropped = _hold_lifted(runner, mock, truth, marks["lift"], lifted_s)
     marks["set down"] = now()
     say(mock.emulator.control("object down"))
+    _end_hold(runner, answer)
     released = call_action(runner, release, Release.Goal(opening=0.0), 15.0)
     marks["end"] = now()
     if released is None:
@@ -139,11 +140,25 @@ def _send(client: Any, goal: Any) -> dict[str, Any]:
         if not handle.accepted:
             box["rejected"] = True
             return
+        box["handle"] = handle
         handle.get_result_async().add_done_callback(
             lambda f: box.setdefault("result", f.result().result))
 
     client.send_goal_async(goal).add_done_callback(on_goal)
     return box
+
+
+def _end_hold(runner: RunningBringup, answer: dict[str, Any], timeout_s: float = 5.0) -> None:
+    """Cancel the grasp that still holds (the fingers stay where they are) and wait for its
+    answer before the release: a release sent over it would preempt it, which the gripper
+    reports as an aborted goal (a WARN in a normal run)."""
+    handle = answer.get("handle")
+    if handle is None or "result" in answer:
+        return
+    handle.cancel_goal_async()
+    deadline = runner.now() + timeout_s
+    while "result" not in answer and runner.now() < deadline and runner.wait(0.02):
+        pass
 
 
 def _settle(runner: RunningBringup, truth: _Truth, goal: Any, answer: dict[str, Any]
