@@ -249,6 +249,12 @@ class GoalRunner:
                     f", not settled within settle_time ({self.timing.settle_time_s:g} s): "
                     "holding {force:.2f} N")
             hold = goal.slip_hold(held_n, servo.state)
+            if not settled and self._reads_full_scale(goal):
+                # the target lies beyond what the sensor reads (a goal accepted before the
+                # driver stated its range): the true force may be anything above it
+                tail = tail.format(force=self.snapshot(step).force_n)
+                step, backed_off = self._safe_end(link, goal, step)
+                tail, hold = tail + " at the sensor's full scale" + backed_off, None
             if hold is not None:
                 tail = tail.format(force=self.snapshot(step, held_n).force_n)
                 ended = self._adaptive(link, goal, hold, step)
@@ -293,6 +299,10 @@ class GoalRunner:
 
     def _feedback(self, link: GoalLink, goal: ActiveGoal, step: Step) -> None:
         link.publish_feedback(goal.feedback(self.snapshot(step)))
+
+    def _reads_full_scale(self, goal: ActiveGoal) -> bool:
+        back_off, latest = goal.back_off(self.forces.full_scale_n), self.forces.latest
+        return back_off is not None and latest is not None and back_off.saturated(latest[0])
 
     def _safe_end(self, link: GoalLink, goal: ActiveGoal, step: Step) -> tuple[Step, str]:
         """Back off a force above the goal's target after it ended without success (no

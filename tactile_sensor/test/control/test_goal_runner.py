@@ -462,6 +462,31 @@ def test_a_grasp_that_times_out_at_the_full_scale_backs_off_to_its_target():
     assert end.result["opening"] == pytest.approx(GEOMETRY.opening_m(rig.client.position))
 
 
+def test_a_hold_left_unsettled_at_the_full_scale_backs_off():
+    """A grasp accepted before the driver stated its range, whose target turns out to sit in
+    the readings' saturated band: once the hold runs out of settle_time reading the full
+    scale (the true force unknown above it), the fingers open until the reading is below the
+    band, as an aborted goal's would. Below the band an unsettled hold stays where it is
+    (``test_a_hold_that_runs_out_of_settle_time_says_so``)."""
+    with Rig(settle_time_s=0.0, full_scale_n=2.1) as rig:
+        thread, out = in_thread(lambda: rig.run(accept_grasp, grasp(force_n=2.0)))
+        while not rig.feedback:
+            assert thread.is_alive(), out
+            rig.servo.await_sample(1.0)
+        rig.forces.full_scale_n = rig.full_scale_n
+        thread.join()
+        held = held_force(rig)
+    end = out["end"]
+    assert end.status is GoalStatus.SUCCEEDED and end.result["contact_detected"]
+    backed_off = re.fullmatch(r"contact: contact at \d+\.\d\d N, not settled within "
+                              r"settle_time \(0 s\): holding (\S+) N at the sensor's full "
+                              r"scale; backed off from (\S+) N to "
+                              + re.escape(f"{end.result['force']:.2f}") + " N", end.message)
+    assert backed_off, end.message
+    assert float(backed_off[1]) >= 0.9 * 2.1
+    assert end.result["force"] < 0.9 * 2.1 and held < 0.9 * 2.1
+
+
 def test_a_cancel_above_the_target_backs_off_and_holds():
     with Rig(full_scale_n=3.0) as rig:
         thread, out = saturated_grasp(rig)

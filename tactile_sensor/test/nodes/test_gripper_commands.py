@@ -357,6 +357,13 @@ def test_one_goal_policy_across_all_four_servers(gripper):
 def cancel_latency(client: Client, goal, trial: int) -> float:
     """Cancel request sent -> the fingers at rest (``rest_onset``), by stamp, for a goal
     canceled while the fingers move."""
+    # where the fingers are once still, by samples stamped from now on: a goal that ended
+    # reached (within its tolerance) may leave them creeping on, and the last sample this
+    # listener took may be older than that end (seen beside a busy core: "at rest" read
+    # 1.4 mm short of where the fingers then stopped)
+    waited = time.time()
+    _until(lambda: rest_onset(client.opening, waited, hold_s=0.3) is not None, PATIENCE_S,
+           "the fingers did not come to rest before the goal")
     rest = client.opening[-1][1]
     handle = client.send_moving("gripper_cmd", goal)
     time.sleep(0.015 * trial)  # different phases of the 100 Hz loop
