@@ -25,10 +25,16 @@ IntArray = npt.NDArray[np.intp]
 
 def outputs_at(sample_times_s: Sequence[float], stamps_s: Sequence[float],
                outputs_v: Sequence[float]) -> tuple[IntArray, FloatArray]:
-    """For each servo sample, the mean of the outputs stamped inside its window: from half
-    way to the sample before to half way to the sample after (the end windows as wide as
-    their neighbours'). Returns the indices of the samples whose window holds a reading,
-    and those means; samples with none (readings lost or not yet come) are left out."""
+    """For each servo sample, the mean of the outputs stamped inside its window: centred on
+    the sample, as wide as the nearer of half way to the sample before and half way to the
+    sample after (the end windows as wide as their neighbours'). Returns the indices of the
+    samples whose window holds a reading, and those means; samples with none (readings lost
+    or not yet come) are left out.
+
+    Centred, because the fingers move while the window lasts: a sample the control loop took
+    just before a gap (a starved machine once left 0.12-0.38 s between samples) would
+    otherwise average the outputs of the next tenths of a second with its own position, and
+    the close's output curve would stretch toward the closed fingers."""
     t = np.asarray(sample_times_s, dtype=float)
     stamps = np.asarray(stamps_s, dtype=float)
     outputs = np.asarray(outputs_v, dtype=float)
@@ -41,8 +47,9 @@ def outputs_at(sample_times_s: Sequence[float], stamps_s: Sequence[float],
     middles = 0.5 * (t[1:] + t[:-1])
     first = t[0] - (middles[0] - t[0]) if t.size > 1 else t[0]
     last = t[-1] + (t[-1] - middles[-1]) if t.size > 1 else t[-1]
-    low = np.concatenate(([first], middles))
-    high = np.concatenate((middles, [last]))
+    half = np.minimum(t - np.concatenate(([first], middles)),
+                      np.concatenate((middles, [last])) - t)
+    low, high = t - half, t + half
     order = np.argsort(stamps, kind="stable")
     stamps, outputs = stamps[order], outputs[order]
     sums = np.concatenate(([0.0], np.cumsum(outputs)))

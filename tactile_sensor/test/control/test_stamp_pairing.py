@@ -23,6 +23,20 @@ def test_each_sample_takes_the_mean_of_the_outputs_stamped_around_it(
     assert means == pytest.approx(slope * (ticks - 1000.0), abs=1e-9)
 
 
+@given(st.floats(0.1, 1.0), st.lists(st.floats(0.005, 0.4), min_size=2, max_size=30))
+def test_a_gap_between_samples_does_not_lend_later_outputs_to_the_sample_before(
+        slope: float, gaps: list[float]):
+    """Servo samples as a starved control loop takes them (gaps of 5 ms to 0.4 s), outputs
+    of a steady close at 1 kHz: each sample's mean is the ramp at that sample, within the
+    1 ms between readings. A window reaching half way into a 0.38 s gap read the ramp 95 ms
+    late."""
+    ticks = 1000.0 + np.cumsum([0.01, *gaps])
+    stamps = np.arange(999.5, ticks[-1] + 0.5, 0.001) + 0.0005
+    kept, means = outputs_at(ticks, stamps, slope * (stamps - 1000.0))
+    assert kept.tolist() == list(range(ticks.size))
+    assert means == pytest.approx(slope * (ticks[kept] - 1000.0), abs=slope * 0.001)
+
+
 def test_samples_without_a_reading_are_left_out():
     kept, means = outputs_at([1.0, 1.01, 1.02, 1.03], [0.999, 1.001, 1.021], [1.0, 3.0, 5.0])
     assert kept.tolist() == [0, 2]
