@@ -42,15 +42,16 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   # uv (pinned in requirements/installer.txt) installs the wheels in parallel: about 6 s
   # where pip took 50. It copies them out of its cache rather than linking them: setup
   # repairs files in the venv (below), which must not change the cached wheels. pip installs
-  # them where uv cannot be had. -qq: pip's warnings about the machine's own index settings
+  # them where uv cannot be had or fails. -qq: pip's warnings about the machine's own index settings
   # are not ours to fix; its errors still show. Neither compiles what it installs:
   # compileall does that work on both cores (test folders of the dependencies left out:
   # nothing imports them).
-  if python -m pip install --disable-pip-version-check -qq -r requirements/installer.txt; then
-    python -m uv pip install --python "$TS_VENV/bin/python" --link-mode copy -q \
-      "${reqargs[@]}"
+  if python -m pip install --disable-pip-version-check -qq -r requirements/installer.txt \
+      && python -m uv pip install --python "$TS_VENV/bin/python" --link-mode copy -q \
+        "${reqargs[@]}"; then
+    :
   else
-    log "uv could not be installed: pip installs the requirements (about a minute)"
+    log "uv could not install the requirements: pip installs them (about a minute)"
     python -m pip install --disable-pip-version-check -qq --upgrade pip
     python -m pip install --disable-pip-version-check -qq --no-compile "${reqargs[@]}"
   fi
