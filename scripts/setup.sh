@@ -41,11 +41,11 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   for r in "${REQS[@]}"; do reqargs+=(-r "$r"); done
   # uv (pinned in requirements/installer.txt) installs the wheels in parallel: about 6 s
   # where pip took 50. It copies them out of its cache rather than linking them: setup
-  # repairs files in the venv (below), which must not change the cached wheels. pip installs
-  # them where uv cannot be had or fails. -qq: pip's warnings about the machine's own index settings
-  # are not ours to fix; its errors still show. Neither compiles what it installs:
-  # compileall does that work on both cores (test folders of the dependencies left out:
-  # nothing imports them).
+  # repairs files in the venv (below), which must not change the cached wheels. pip
+  # installs them where uv cannot be had or fails. -qq: pip's warnings about the machine's
+  # own index settings are not ours to fix; its errors still show. Neither compiles what it
+  # installs: compileall does that work on both cores (test folders of the dependencies
+  # left out: nothing imports them).
   if python -m pip install --disable-pip-version-check -qq -r requirements/installer.txt \
       && python -m uv pip install --python "$TS_VENV/bin/python" --link-mode copy -q \
         "${reqargs[@]}"; then
