@@ -248,13 +248,15 @@ class GoalRunner:
             tail = (", settled at {force:.2f} N" if settled else
                     f", not settled within settle_time ({self.timing.settle_time_s:g} s): "
                     "holding {force:.2f} N")
-            hold = goal.slip_hold(held_n, servo.state)
+            hold = None
             if not settled and self._reads_full_scale(goal):
                 # the target lies beyond what the sensor reads (a goal accepted before the
                 # driver stated its range): the true force may be anything above it
                 tail = tail.format(force=self.snapshot(step).force_n)
                 step, backed_off = self._safe_end(link, goal, step)
-                tail, hold = tail + " at the sensor's full scale" + backed_off, None
+                tail += " at the sensor's full scale" + backed_off
+            else:
+                hold = goal.slip_hold(held_n, servo.state)
             if hold is not None:
                 tail = tail.format(force=self.snapshot(step, held_n).force_n)
                 ended = self._adaptive(link, goal, hold, step)
