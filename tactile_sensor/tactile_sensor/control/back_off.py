@@ -86,7 +86,8 @@ class BackOff:
 
     def hold(self, servo: ServoReading) -> ServoCommand:
         """Stay where the fingers are."""
-        return ServoCommand(servo.position_rad, self.stop_velocity_rad_s, self.current_a)
+        return ServoCommand(servo.position_rad, self.stop_velocity_rad_s, self.current_a,
+                            hold_present=True)
 
     def time_bound_s(self, servo: ServoReading) -> float:
         """Time to open fully from here at the back-off speed [s]: after it, the fingers

@@ -91,6 +91,10 @@ class ServoCommand:
     goal_position_rad: float
     profile_velocity_rad_s: float
     goal_current_a: float
+    #: Hold where the output is when the write lands, not at ``goal_position_rad`` (the
+    #: sample the controller judged, which the fingers may have moved on from by then):
+    #: the link carries its freshest sample forward (control/servo_link.py).
+    hold_present: bool = False
 
 
 @dataclass(frozen=True)
@@ -222,8 +226,11 @@ class BaseController:
     def _opening(self, servo: ServoReading) -> float:
         return self.config.geometry.opening_m(servo.position_rad)
 
-    def _stop_command(self, position_rad: float, current_a: float) -> ServoCommand:
-        return ServoCommand(position_rad, self.config.stop_velocity_rad_s, current_a)
+    def _stop_command(self, position_rad: float, current_a: float,
+                      here: bool = False) -> ServoCommand:
+        """A stop at ``position_rad``; ``here``: where the fingers are when it lands."""
+        return ServoCommand(position_rad, self.config.stop_velocity_rad_s, current_a,
+                            hold_present=here)
 
     @property
     def newton_per_rad(self) -> float:
@@ -238,7 +245,8 @@ class BaseController:
         self.phase = Phase.DONE if outcome.succeeded else Phase.ABORTED
         stop = servo.position_rad if stop_at_rad is None else stop_at_rad
         command = None if outcome is Outcome.HARDWARE_ERROR else self._stop_command(
-            stop, self.config.hold_current_a if hold else self.config.closing_current_a)
+            stop, self.config.hold_current_a if hold else self.config.closing_current_a,
+            here=stop_at_rad is None)
         return Step(self.phase, command, outcome, message, self._opening(servo), force_n)
 
     def _check_common(self, now_s: float, servo: ServoReading,
@@ -330,7 +338,8 @@ class GraspController(BaseController):
         command = None
         if not self._paused:
             self._paused = True
-            command = self._stop_command(servo.position_rad, self.config.closing_current_a)
+            command = self._stop_command(servo.position_rad, self.config.closing_current_a,
+                                         here=True)
         return Step(self.phase, command, None, "paused: waiting for a fresh tactile force",
                     self._opening(servo), force_n)
 

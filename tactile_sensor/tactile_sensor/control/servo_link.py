@@ -209,9 +209,10 @@ class ServoLink:
                 return
             if owns is not None and not owns():
                 return
+            goal = (self._present_position_rad() if command.hold_present
+                    else command.goal_position_rad)
             self.retrying(lambda: self._command(
-                command.goal_position_rad, command.profile_velocity_rad_s,
-                command.goal_current_a))
+                goal, command.profile_velocity_rad_s, command.goal_current_a))
 
     def send_safely(self, command: ServoCommand | None, token: object | None = None,
                     owns: Callable[[], bool] | None = None) -> str | None:
@@ -233,18 +234,25 @@ class ServoLink:
         config = self.config
         with self._command_lock:
             self._halted = token
-            goal = None
-            sample = self._sample
-            if (sample is not None and not sample[0].hardware_error
-                    and sample[1] > self._commanded_at):
-                state, sampled_at, half = sample
-                # where the output will be when the write reaches the servo
-                lands_at = self._clock() + min(half, 0.5 * self.period_s)
-                goal = stop_position_rad(
-                    state.position_rad, state.velocity_rad_s, lands_at - sampled_at,
-                    max_age_s=3.0 * self.period_s, heading_to_rad=self._heading_to_rad)
-            if goal is None:
-                goal = self.retrying(self.client.read_state).position_rad
+            goal = self._present_position_rad()
             self.retrying(lambda: self._command(goal, config.stop_velocity_rad_s,
                                                 config.hold_current_a))
             self.stop_written = token
+
+    def _present_position_rad(self) -> float:
+        """Where the output will be when a write sent now reaches the servo: the loop's
+        last sample carried forward (control/stop.py) while it is fresh and newer than the
+        last command, else read from the servo (one more transaction). Holding at a sample
+        as it was would send the fingers back by the distance they moved since it was
+        taken: a goal thread starved for 0.1 s at 10 mm/s reverses them 1 mm."""
+        sample = self._sample
+        if (sample is not None and not sample[0].hardware_error
+                and sample[1] > self._commanded_at):
+            state, sampled_at, half = sample
+            lands_at = self._clock() + min(half, 0.5 * self.period_s)
+            goal = stop_position_rad(
+                state.position_rad, state.velocity_rad_s, lands_at - sampled_at,
+                max_age_s=3.0 * self.period_s, heading_to_rad=self._heading_to_rad)
+            if goal is not None:
+                return goal
+        return self.retrying(self.client.read_state).position_rad

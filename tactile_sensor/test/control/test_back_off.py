@@ -55,6 +55,7 @@ def test_it_opens_toward_the_open_limit_and_holds_where_the_force_is_safe():
     hold = b.tick(1.8, servo)  # safe three periods in a row: hold here
     assert hold.goal_position_rad == servo.position_rad
     assert hold.profile_velocity_rad_s == 6.0
+    assert hold.hold_present  # where the opening fingers are when it lands, not behind
     assert b.time_bound_s(servo) == pytest.approx(
         (servo.position_rad - G.open_position_rad) / 0.7)
 

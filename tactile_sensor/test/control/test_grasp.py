@@ -58,6 +58,7 @@ def test_contact_past_the_target_backs_off_the_excess():
     back_rad = 0.1 / controller.newton_per_rad
     assert step.command.goal_position_rad == pytest.approx(G.position_rad(0.018) - back_rad)
     assert step.command.goal_current_a == GraspConfig().hold_current_a
+    assert not step.command.hold_present  # aimed at the target's position
     assert controller.tick(0.6, 2.1, 0.59, at(0.018)).command is None   # finished
 
 
@@ -96,6 +97,8 @@ def test_closing_pauses_while_the_force_is_late_and_resumes_on_a_fresh_one():
     paused = controller.tick(0.18, 0.0, 0.10, at(0.029))
     assert paused.outcome is None and paused.message.startswith("paused")
     assert paused.command.goal_position_rad == pytest.approx(G.position_rad(0.029))
+    # where the fingers are when it lands: the sample may be old by then
+    assert paused.command.hold_present
     assert controller.tick(0.19, 0.0, 0.10, at(0.029)).command is None  # once
     resumed = controller.tick(0.20, 0.0, 0.195, at(0.029))
     assert resumed.command.goal_position_rad > G.position_rad(0.029)  # closing on
@@ -151,6 +154,7 @@ def test_aborts_with_a_reason(tick, outcome):
         assert step.command is None and "overload" in step.message
     else:
         assert step.command.goal_position_rad == pytest.approx(tick[3].position_rad)
+        assert step.command.hold_present  # stop where the fingers are, not go back
 
 
 def test_waits_briefly_for_the_first_tactile_reading():

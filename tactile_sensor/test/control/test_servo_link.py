@@ -230,6 +230,29 @@ def test_stop_reads_the_servo_when_the_sample_cannot_be_trusted(age_s):
     assert [e[:2] for e in client.log[before:]] == [("read",), ("command", 3.2)]
 
 
+def test_a_hold_here_command_holds_where_the_fingers_are_when_it_lands():
+    """A controller that says "hold here" judged a sample the fingers have moved on from
+    by the time its write lands (a starved goal thread): holding at that sample as it was
+    would send them back. The link carries its freshest sample forward instead, and reads
+    the servo when that sample cannot be trusted; a plain command keeps its position."""
+    clock = Clock()
+    client = ScriptedServo(state(position=3.0, velocity=0.5), state(position=3.2))
+    servo = link(client, clock)
+    servo.send(ServoCommand(4.0, 0.5, 0.6))
+    clock.now += 0.001
+    servo.poll()
+    clock.now += 0.02
+    before = len(client.log)
+    servo.send(ServoCommand(3.0, 0.1, 0.6, hold_present=True), "goal")
+    assert client.log[before:] == [("command", pytest.approx(3.0 + 0.5 * 0.02), 0.1, 0.6)]
+    # the sample now predates the last command: the servo is read
+    before = len(client.log)
+    servo.send(ServoCommand(3.0, 0.1, 0.6, hold_present=True), "goal")
+    assert [e[:2] for e in client.log[before:]] == [("read",), ("command", 3.2)]
+    servo.send(ServoCommand(2.5, 0.1, 0.6), "goal")
+    assert client.log[-1][:2] == ("command", 2.5)
+
+
 def test_send_safely_tells_an_unreachable_servo_from_a_hardware_error():
     client = ScriptedServo()
     servo = link(client, retries=0)
