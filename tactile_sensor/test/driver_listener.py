@@ -9,6 +9,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import rclpy
+import rclpy.client
 import rclpy.executors
 from std_srvs.srv import Trigger
 from waiting import PATIENCE_S, wait_until
@@ -20,6 +21,7 @@ from tactile_sensor.nodes.ros_session import ros_session
 class DriverListener:
     def __init__(self, name: str) -> None:
         self.node = rclpy.create_node(name)
+        self._tare_client: rclpy.client.Client | None = None
         self.subscribe()
         self.executor = rclpy.executors.SingleThreadedExecutor()
         self.executor.add_node(self.node)
@@ -34,7 +36,9 @@ class DriverListener:
 
     def call_tare(self) -> Trigger.Response:
         """The driver's ``~/tare``, answered (the test fails if it never is)."""
-        client = self.node.create_client(Trigger, "/driver/tare")
+        if self._tare_client is None:
+            self._tare_client = self.node.create_client(Trigger, "/driver/tare")
+        client = self._tare_client
         assert client.wait_for_service(timeout_sec=PATIENCE_S)
         future = client.call_async(Trigger.Request())
         assert wait_until(future.done, PATIENCE_S)
