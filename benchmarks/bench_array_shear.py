@@ -20,12 +20,11 @@ from node_processes import isolate_ros
 from recorded_run import (
     add_keep_argument,
     add_protocol_argument,
-    array_series,
+    axis_shares,
     bring_up_and_analyse,
-    goals_line,
-    share_of_range,
+    report_array_run,
 )
-from results import Figure, write_results
+from results import Figure
 
 GOALS_PCT = {"x": 10.0, "y": 10.0, "z": 5.0}
 
@@ -43,12 +42,9 @@ def main() -> int:
     array = mt["array"]
     figures = run.timing_figures(f", {array['samples']} samples at "
                                  f"{array['sample_rate_hz']:.0f} Hz")
-    figures += [share_of_range(f"F{axis}", mt["force_rmse_n"][axis], mt["force_range_n"][axis],
-                               "N", GOALS_PCT[axis]) for axis in "xyz"]
+    figures += axis_shares(mt, "force", GOALS_PCT)
     figures += shear_figures(array)
-    goals_line(figures, run.out)
-    write_results("array_shear", figures, series=array_series(run),
-                  notes=run.notes(f", {array['samples']} samples"))
+    report_array_run("array_shear", run, figures, f", {array['samples']} samples")
     return 0
 
 

@@ -25,12 +25,11 @@ from node_processes import isolate_ros
 from recorded_run import (
     add_keep_argument,
     add_protocol_argument,
-    array_series,
+    axis_shares,
     bring_up_and_analyse,
-    goals_line,
-    share_of_range,
+    report_array_run,
 )
-from results import Figure, write_results
+from results import Figure
 
 ROOT = Path(__file__).resolve().parents[1]
 FORCE_GOALS_PCT = {"x": 10.0, "y": 10.0, "z": 5.0}
@@ -73,13 +72,8 @@ def main() -> int:
         return 1
     mt = run.metrics
     figures = run.timing_figures()
-    goals = [("force", "n", "N", axis, FORCE_GOALS_PCT[axis]) for axis in "xyz"]
-    goals += [("torque", "nm", "N m", axis, TORQUE_GOAL_PCT) for axis in "xyz"]
-    for kind, key, unit, axis, goal in goals:
-        figures.append(share_of_range(f"{kind[0].upper()}{axis}",
-                                      (mt.get(f"{kind}_rmse_{key}") or {}).get(axis),
-                                      (mt.get(f"{kind}_range_{key}") or {}).get(axis),
-                                      unit, goal))
+    figures += axis_shares(mt, "force", FORCE_GOALS_PCT)
+    figures += axis_shares(mt, "torque", dict.fromkeys("xyz", TORQUE_GOAL_PCT))
     worst = (mt.get("wrench_excursions") or {}).get("worst_gain")
     ok = worst is not None and GAIN_GOAL[0] <= worst <= GAIN_GOAL[1]
     print(f"  worst excursion gain (estimate on gauge, every component): "
@@ -92,8 +86,7 @@ def main() -> int:
     print(f"  torque bandwidth (driver torque_cutoff_hz): {cutoff:g} Hz (goal >= "
           f"{BANDWIDTH_GOAL_HZ:g} Hz: {'met' if ok else 'NOT met'})")
     figures.append(Figure("torque bandwidth", cutoff, "Hz", f">= {BANDWIDTH_GOAL_HZ:g}", ok))
-    goals_line(figures, run.out)
-    write_results("bench_wrench", figures, series=array_series(run), notes=run.notes())
+    report_array_run("bench_wrench", run, figures)
     return 0
 
 

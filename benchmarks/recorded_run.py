@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from results import Figure
+from results import Figure, write_results
 
 
 def add_protocol_argument(parser: argparse.ArgumentParser, default: str, example: str,
@@ -115,7 +115,30 @@ def share_of_range(name: str, rmse: float | None, span: float | None, unit: str,
     return Figure(f"{name} rmse", round(pct, 3), "% of range", goal, ok)
 
 
+#: (metrics key suffix, unit) of each kind of component the analysis scores per axis.
+_COMPONENTS = {"force": ("n", "N"), "torque": ("nm", "N m")}
+
+
+def axis_shares(metrics: dict[str, Any], kind: str, goals_pct: dict[str, float]
+                ) -> list[Figure]:
+    """The rmse of each axis of ``kind`` ("force" or "torque") against the gauge as a share
+    of its range, judged against that axis's goal [%] and printed, x, y then z."""
+    key, unit = _COMPONENTS[kind]
+    rmse = metrics.get(f"{kind}_rmse_{key}") or {}
+    span = metrics.get(f"{kind}_range_{key}") or {}
+    return [share_of_range(f"{kind[0].upper()}{axis}", rmse.get(axis), span.get(axis), unit,
+                           goals_pct[axis]) for axis in "xyz"]
+
+
 def goals_line(figures: list[Figure], out: Path) -> None:
     """Where the report is, and whether every judged figure met its goal."""
     print(f"  figures and report: {out}")
     print("goals " + ("met" if all(f.met is not False for f in figures) else "NOT met"))
+
+
+def report_array_run(name: str, run: RecordedRun, figures: list[Figure],
+                     detail: str = "") -> None:
+    """Whether every goal was met and where the report is, then the results file ``name``
+    with the array's signals; ``detail`` goes into its notes."""
+    goals_line(figures, run.out)
+    write_results(name, figures, series=array_series(run), notes=run.notes(detail))

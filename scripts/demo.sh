@@ -18,27 +18,39 @@ configuration="${1:-bench}"
 run="demo-out/${configuration}-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$run"
 mkdir -p /tmp/tactile_sensor
+
+# NAME's PROTOCOL (a configuration) on mock hardware recorded into BAG, its ADC on pty ADC.
+record() {
+  local name="$1" protocol="$2" bag="$3" adc="$4"
+  echo "== $name '$protocol' on mock hardware -> $bag"
+  tactile-sensor bringup "$name" --protocol "$protocol" --record "$bag" \
+    --port "adc_port=/tmp/tactile_sensor/${adc}_$$"
+}
+
+# The recording in $run/bag analysed into $run/analysis (more analyze options may follow).
+analyse() {
+  echo "== analysing $run/bag"
+  tactile-sensor analyze "$run/bag" --out "$run/analysis" "$@"
+}
+
+show_figures() {
+  echo "== plots"
+  ls -1 "$run"/analysis/*.png
+  echo "== report: $run/analysis/report.md, metrics: $run/analysis/metrics.json"
+}
+
 case "$configuration" in
   bench)
-    protocol="${2:-compression}"
-    echo "== bench '$protocol' on mock hardware -> $run/bag"
-    tactile-sensor bringup bench --protocol "$protocol" --record "$run/bag" \
-      --port "adc_port=/tmp/tactile_sensor/demo_adc_$$"
-    echo "== analysing $run/bag"
-    tactile-sensor analyze "$run/bag" --out "$run/analysis"
+    record bench "${2:-compression}" "$run/bag" demo_adc
+    analyse
     echo "== the paper's figures beside the measured ones"
     grep '^|' "$run/analysis/report.md"
-    echo "== plots"
-    ls -1 "$run"/analysis/*.png
-    echo "== report: $run/analysis/report.md, metrics: $run/analysis/metrics.json"
+    show_figures
     ;;
   rate)
     # Calibration across indentation speeds: fit the rate-aware model on 'speeds', then run
     # speeds it never saw (rate_check) with the fitted file in the driver, and compare.
-    speeds="${2:-speeds:cycles=1,hold=2}"
-    echo "== bench '$speeds' on mock hardware -> $run/speeds"
-    tactile-sensor bringup bench --protocol "$speeds" --record "$run/speeds" \
-      --port "adc_port=/tmp/tactile_sensor/demo_adc_$$"
+    record bench "${2:-speeds:cycles=1,hold=2}" "$run/speeds" demo_adc
     echo "== fitting the static curve and the rate terms -> $run/fit/calibration.json"
     tactile-sensor analyze "$run/speeds" --out "$run/fit" --fit-calibration
     cat > "$run/driver.yaml" <<YAML
@@ -59,12 +71,8 @@ YAML
   wrench)
     # Six-axis wrench: press, shear, tilt, twist and combine them on the 8-module layout, then
     # compare the driver's force and torque with the six-component gauge.
-    protocol="${2:-wrench}"
-    echo "== wrench '$protocol' on mock hardware -> $run/bag"
-    tactile-sensor bringup wrench --protocol "$protocol" --record "$run/bag" \
-      --port "adc_port=/tmp/tactile_sensor/demo_wadc_$$"
-    echo "== analysing $run/bag"
-    tactile-sensor analyze "$run/bag" --out "$run/analysis" --quiet
+    record wrench "${2:-wrench}" "$run/bag" demo_wadc
+    analyse --quiet
     echo "== the six errors (rmse against the gauge, in % of each component's range)"
     python - "$run/analysis/metrics.json" <<'PY'
 import json
@@ -101,9 +109,7 @@ for name in ("fx", "fy", "fz", "tx", "ty", "tz"):
         scale, unit = (1e3, "mN") if name[0] == "f" else (1e3, "mN m")
         print(f"  {name.capitalize()}: {value * scale:.2f} {unit}")
 PY
-    echo "== plots"
-    ls -1 "$run"/analysis/*.png
-    echo "== report: $run/analysis/report.md, metrics: $run/analysis/metrics.json"
+    show_figures
     ;;
   ambient)
     # Outside the dark room (docs/ambient.md): the ambient protocol's presses on the mock's

@@ -51,13 +51,21 @@ _MODEL = NodeSpec("model", "model_node", "tactile_sensor.nodes.model", "ModelNod
 _DRIVER = NodeSpec("driver", "driver_node", "tactile_sensor.nodes.driver", "DriverNode",
                    SENSOR_FILES, port_parameters=(("port", "adc_port"),))
 
+
+def _mock_hardware(name: str, config_files: tuple[str, ...],
+                   *port_parameters: tuple[str, str]) -> NodeSpec:
+    """The emulated devices and their world, one plain node started only on mock hardware;
+    ``port_parameters``: (its device link parameter, the port argument) pairs."""
+    return NodeSpec(name, "mock_hardware_node", "tactile_sensor.nodes.mock_hardware",
+                    "MockHardwareNode", config_files, lifecycle=False, mock_only=True,
+                    port_parameters=port_parameters)
+
+
 BENCH = Configuration(
     name="bench",
     description="The paper's compression bench: stage, force gauge and the tactile module.",
     nodes=(
-        NodeSpec("bench", "mock_hardware_node", "tactile_sensor.nodes.mock_hardware",
-                 "MockHardwareNode", ("physics.yaml", "bench.yaml"), lifecycle=False,
-                 mock_only=True, port_parameters=(("adc_link", "adc_port"),)),
+        _mock_hardware("bench", ("physics.yaml", "bench.yaml"), ("adc_link", "adc_port")),
         _MODEL,
         _DRIVER,
     ),
@@ -71,10 +79,8 @@ GRIPPER = Configuration(
     name="gripper",
     description="The paper's soft gripper: XM430 on a rack, tactile module on a fingertip.",
     nodes=(
-        NodeSpec("gripper_world", "mock_hardware_node", "tactile_sensor.nodes.mock_hardware",
-                 "MockHardwareNode", ("physics.yaml", "gripper.yaml"), lifecycle=False,
-                 mock_only=True,
-                 port_parameters=(("adc_link", "adc_port"), ("servo_link", "servo_port"))),
+        _mock_hardware("gripper_world", ("physics.yaml", "gripper.yaml"),
+                       ("adc_link", "adc_port"), ("servo_link", "servo_port")),
         _MODEL,
         replace(_DRIVER, config_files=(*SENSOR_FILES, "gripper.yaml")),
         NodeSpec("gripper", "gripper_node", "tactile_sensor.nodes.gripper", "GripperNode",
@@ -93,54 +99,44 @@ GRIPPER = Configuration(
                    "/gripper_world/ground_truth", "/diagnostics", "/calibration_correction"),
 )
 
-ARRAY = Configuration(
-    name="array",
-    description="Modules on four side faces of one skin on the bench, with a three-axis "
-                "stage and gauge: normal and shear force (the paper's future work).",
-    nodes=(
-        replace(BENCH.nodes[0], config_files=("physics.yaml", "bench.yaml", "array.yaml")),
-        replace(_MODEL, config_files=(*_MODEL.config_files, "array.yaml")),
-        replace(_DRIVER, config_files=(*SENSOR_FILES, "array.yaml")),
-    ),
-    ports={"adc_port": ("/tmp/tactile_sensor/array_adc",
-                        "serial device of the array's ADC (one channel per module)")},
-    record_topics=BENCH.record_topics,
+
+def _with_layout(base: Configuration, name: str, description: str,
+                 ports: dict[str, tuple[str, str]],
+                 more_topics: tuple[str, ...] = ()) -> Configuration:
+    """``base`` with a module layout: each of its nodes also loads ``<name>.yaml`` (last, so
+    that the layout's values win); ``more_topics`` are recorded beside the base's."""
+    nodes = tuple(replace(node, config_files=(*node.config_files, f"{name}.yaml"))
+                  for node in base.nodes)
+    return replace(base, name=name, description=description, nodes=nodes, ports=ports,
+                   record_topics=(*base.record_topics, *more_topics))
+
+
+ARRAY = _with_layout(
+    BENCH, "array",
+    "Modules on four side faces of one skin on the bench, with a three-axis stage and gauge: "
+    "normal and shear force (the paper's future work).",
+    {"adc_port": ("/tmp/tactile_sensor/array_adc",
+                  "serial device of the array's ADC (one channel per module)")},
 )
 
-WRENCH = Configuration(
-    name="wrench",
-    description="Two modules on each side face of one skin on the bench, with a stage that "
-                "presses, shears, tilts and twists and a six-component gauge: force and torque "
-                "(the paper's future work).",
-    nodes=(
-        replace(BENCH.nodes[0], config_files=("physics.yaml", "bench.yaml", "wrench.yaml")),
-        replace(_MODEL, config_files=(*_MODEL.config_files, "wrench.yaml")),
-        replace(_DRIVER, config_files=(*SENSOR_FILES, "wrench.yaml")),
-    ),
-    ports={"adc_port": ("/tmp/tactile_sensor/wrench_adc",
-                        "serial device of the wrench layout's 8-input ADC (one channel per "
-                        "module)")},
-    record_topics=BENCH.record_topics,
+WRENCH = _with_layout(
+    BENCH, "wrench",
+    "Two modules on each side face of one skin on the bench, with a stage that presses, "
+    "shears, tilts and twists and a six-component gauge: force and torque (the paper's "
+    "future work).",
+    {"adc_port": ("/tmp/tactile_sensor/wrench_adc",
+                  "serial device of the wrench layout's 8-input ADC (one channel per module)")},
 )
 
-GRIPPER_SHEAR = Configuration(
-    name="gripper_shear",
-    description="The soft gripper with modules on four side faces of finger A's skin: the "
-                "grip and the force along the fingers.",
-    nodes=(
-        replace(GRIPPER.nodes[0], config_files=(*GRIPPER.nodes[0].config_files,
-                                                "gripper_shear.yaml")),
-        replace(_MODEL, config_files=(*_MODEL.config_files, "gripper_shear.yaml")),
-        replace(GRIPPER.nodes[2], config_files=(*GRIPPER.nodes[2].config_files,
-                                                "gripper_shear.yaml")),
-        replace(GRIPPER.nodes[3], config_files=(*GRIPPER.nodes[3].config_files,
-                                                "gripper_shear.yaml")),
-    ),
-    ports={"adc_port": ("/tmp/tactile_sensor/gripper_shear_adc",
-                        "serial device of finger A's ADC (one channel per module)"),
-           "servo_port": ("/tmp/tactile_sensor/gripper_shear_xm430",
-                          "serial device of the U2D2 (Dynamixel bus)")},
-    record_topics=(*GRIPPER.record_topics, "/gripper_world/object/joint_states"),
+GRIPPER_SHEAR = _with_layout(
+    GRIPPER, "gripper_shear",
+    "The soft gripper with modules on four side faces of finger A's skin: the grip and the "
+    "force along the fingers.",
+    {"adc_port": ("/tmp/tactile_sensor/gripper_shear_adc",
+                  "serial device of finger A's ADC (one channel per module)"),
+     "servo_port": ("/tmp/tactile_sensor/gripper_shear_xm430",
+                    "serial device of the U2D2 (Dynamixel bus)")},
+    more_topics=("/gripper_world/object/joint_states",),
 )
 
 CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER, ARRAY, WRENCH, GRIPPER_SHEAR)}

@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from press_recordings import FOUR_PRESSES as PROTOCOL
 
 from tactile_sensor import cli as top_cli
 from tactile_sensor.analysis.synthetic import (
@@ -16,8 +17,6 @@ from tactile_sensor.analysis.synthetic import (
     write_press_bag,
 )
 
-PROTOCOL = PressProtocol(speeds_mm_s=(10.0,), cycles=(4,), rate_hz=200.0, rest_s=0.5,
-                         hold_s=0.5)
 TRUTH = SensorTruth(noise_v=0.005, lag_s={10.0: 0.0}, hysteresis_frac=0.0,
                     rate_gain_per_decade=0.0)
 EXPECTED_KEYS = {"sensitivity_v_per_n", "dynamic_range_db", "hysteresis_pct_fs",

@@ -9,18 +9,15 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
+from press_recordings import FOUR_PRESSES as PROTOCOL
 
 from tactile_sensor.analysis import cli, plots
 from tactile_sensor.analysis.array.excursions import excursion_metrics
 from tactile_sensor.analysis.synthetic import (
-    PressProtocol,
     SensorTruth,
     press_signals,
     write_press_bag,
 )
-
-PROTOCOL = PressProtocol(speeds_mm_s=(10.0,), cycles=(4,), rate_hz=200.0, rest_s=0.5,
-                         hold_s=0.5)
 
 
 def test_titles_fit_and_the_cycle_axis_counts_whole_cycles(tmp_path, monkeypatch):

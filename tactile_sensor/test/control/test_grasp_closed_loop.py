@@ -2,36 +2,23 @@
 
 from __future__ import annotations
 
-import sys
 import time
 
-import numpy as np
-import pytest
+# share_the_gil_fairly: an autouse fixture, in force for every test here
+from emulated_xm430 import linear_skin, share_the_gil_fairly  # noqa: F401
 
 from tactile_sensor.control.grasp import GraspController, GraspRequest, Outcome
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.hardware.xm430_table import OperatingMode
 from tactile_sensor.sim.gripper_world import GripperWorld
-from tactile_sensor.sim.skin_response import TabulatedSkin
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
-
-
-@pytest.fixture(autouse=True)
-def _share_the_gil_fairly():
-    before = sys.getswitchinterval()
-    sys.setswitchinterval(2e-4)
-    yield
-    sys.setswitchinterval(before)
 
 
 def run_grasp(tmp_path, rod_diameter_m, forces=None):
     """The grasp's last step and the force held 0.2 s after it; ``forces`` collects the
     force each control tick saw."""
     forces = [] if forces is None else forces
-    d = np.linspace(0.0, 0.003, 31)
-    force = 7.0 * d / 0.003
-    world = GripperWorld(TabulatedSkin(d, force, 2.0 - 0.07 * force, thickness_m=0.005),
-                         rod_diameter_m=rod_diameter_m)
+    world = GripperWorld(linear_skin(), rod_diameter_m=rod_diameter_m)
     with Xm430Emulator(tmp_path / "xm430", baudrate=1_000_000, world=world) as emu, \
             Xm430Client(str(emu.link.link_path), 1_000_000, 1, timeout_s=5.0) as client:
         client.set_operating_mode(OperatingMode.CURRENT_BASED_POSITION)

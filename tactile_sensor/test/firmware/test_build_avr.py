@@ -47,10 +47,14 @@ def test_a_missing_core_names_the_package_and_the_override(tmp_path):
 
 
 @has_avr
-def test_an_unknown_board_is_refused(tmp_path):
-    result = run(tmp_path, FIRMWARE_BOARDS="esp32")
+@pytest.mark.parametrize(("boards", "sentence"), [
+    ("esp32", "unknown board 'esp32'; use uno, nano, mega or leonardo"),
+    ("nano:9", "'9' channels for nano; give 1..8"),
+], ids=["unknown_board", "channel_count_out_of_range"])
+def test_a_board_list_it_cannot_build_is_refused(tmp_path, boards, sentence):
+    result = run(tmp_path, FIRMWARE_BOARDS=boards)
     assert result.returncode == 1
-    assert "unknown board 'esp32'; use uno, nano, mega or leonardo" in result.stderr
+    assert sentence in result.stderr
 
 
 @has_avr
@@ -66,13 +70,6 @@ def test_more_channels_than_the_uno_has_pins_are_refused(tmp_path):
     result = run(tmp_path, FIRMWARE_BOARDS="uno:8")
     assert result.returncode != 0
     assert "exceeds this board's analog inputs" in result.stderr
-
-
-@has_avr
-def test_a_channel_count_out_of_range_is_refused(tmp_path):
-    result = run(tmp_path, FIRMWARE_BOARDS="nano:9")
-    assert result.returncode == 1
-    assert "'9' channels for nano; give 1..8" in result.stderr
 
 
 @has_avr

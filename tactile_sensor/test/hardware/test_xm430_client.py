@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
-import sys
 import time
 
-import numpy as np
 import pytest
 from dynamixel_sdk import COMM_PORT_BUSY, COMM_RX_CORRUPT, COMM_TX_FAIL
+
+# share_the_gil_fairly: an autouse fixture, in force for every test here
+from emulated_xm430 import linear_skin, share_the_gil_fairly  # noqa: F401
 
 from tactile_sensor.hardware.errors import (
     CommunicationTimeout,
@@ -24,25 +25,14 @@ from tactile_sensor.hardware.errors import (
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.hardware.xm430_table import OperatingMode
 from tactile_sensor.sim.gripper_world import GripperWorld
-from tactile_sensor.sim.skin_response import TabulatedSkin
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
 
 BAUD = 1_000_000
 
 
-@pytest.fixture(autouse=True)
-def _share_the_gil_fairly():
-    before = sys.getswitchinterval()
-    sys.setswitchinterval(2e-4)
-    yield
-    sys.setswitchinterval(before)
-
-
 @pytest.fixture
 def world():
-    d = np.linspace(0.0, 0.003, 31)
-    force = 7.0 * d / 0.003
-    return GripperWorld(TabulatedSkin(d, force, 2.0 - 0.07 * force, thickness_m=0.005))
+    return GripperWorld(linear_skin())
 
 
 @pytest.fixture

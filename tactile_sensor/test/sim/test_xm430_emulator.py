@@ -12,7 +12,6 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import dynamixel_easy_sdk.connector
-import numpy as np
 import pytest
 import serial
 from dynamixel_easy_sdk import Connector, OperatingMode, ProfileConfiguration
@@ -25,13 +24,15 @@ from dynamixel_sdk import (
     PacketHandler,
     PortHandler,
 )
+
+# share_the_gil_fairly: an autouse fixture, in force for every test here
+from emulated_xm430 import linear_skin, share_the_gil_fairly  # noqa: F401
 from waiting import wait_until
 
 from tactile_sensor.sim.dynamixel_packets import Instruction, build_instruction, parse_one
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.gripper_world import GripperWorld
 from tactile_sensor.sim.held_object import HeldObject, ObjectSpec
-from tactile_sensor.sim.skin_response import TabulatedSkin
 from tactile_sensor.sim.skin_shear import TangentialStiffness
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
 
@@ -74,22 +75,6 @@ def open_port(path: Path | str, baud: int = BAUD) -> PatientPortHandler:
     handler = PatientPortHandler(str(path))
     assert handler.openPort() and handler.setBaudRate(baud)
     return handler
-
-
-def linear_skin() -> TabulatedSkin:
-    d = np.linspace(0.0, 0.003, 31)
-    force = 7.0 * d / 0.003
-    return TabulatedSkin(d, force, 2.0 - 0.07 * force, thickness_m=0.005)
-
-
-@pytest.fixture(autouse=True)
-def _share_the_gil_fairly():
-    """The stock SDK spins on a zero-timeout read while it waits; with the emulator thread
-    in the same process, hand the GIL over often so the emulator answers promptly."""
-    before = sys.getswitchinterval()
-    sys.setswitchinterval(2e-4)
-    yield
-    sys.setswitchinterval(before)
 
 
 @pytest.fixture
