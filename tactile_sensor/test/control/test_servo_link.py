@@ -198,14 +198,22 @@ def test_a_goal_that_lost_the_fingers_cannot_command_and_the_question_is_asked_a
     assert client.commands()[-1] == ("command", 4.0, 0.7, 0.6)
 
 
-def test_stop_on_a_fresh_sample_is_one_write_carried_forward():
+def closing_and_sampled(age_s: float, *later: ServoState
+                        ) -> tuple[Clock, ScriptedServo, ServoLink]:
+    """A link that sent a closing command, then sampled the servo moving at 0.5 rad/s
+    from 3.0 rad, ``age_s`` ago; ``later``: what the servo answers to reads after that."""
     clock = Clock()
-    client = ScriptedServo(state(position=3.0, velocity=0.5))
+    client = ScriptedServo(state(position=3.0, velocity=0.5), *later)
     servo = link(client, clock)
     servo.send(ServoCommand(4.0, 0.5, 0.6))
     clock.now += 0.001
     servo.poll()
-    clock.now += 0.01
+    clock.now += age_s
+    return clock, client, servo
+
+
+def test_stop_on_a_fresh_sample_is_one_write_carried_forward():
+    _, client, servo = closing_and_sampled(0.01)
     before = len(client.log)
     servo.stop("goal")
     assert client.log[before:] == [("command", pytest.approx(3.0 + 0.5 * 0.01),
@@ -235,13 +243,7 @@ def test_a_hold_here_command_holds_where_the_fingers_are_when_it_lands():
     by the time its write lands (a starved goal thread): holding at that sample as it was
     would send them back. The link carries its freshest sample forward instead, and reads
     the servo when that sample cannot be trusted; a plain command keeps its position."""
-    clock = Clock()
-    client = ScriptedServo(state(position=3.0, velocity=0.5), state(position=3.2))
-    servo = link(client, clock)
-    servo.send(ServoCommand(4.0, 0.5, 0.6))
-    clock.now += 0.001
-    servo.poll()
-    clock.now += 0.02
+    _, client, servo = closing_and_sampled(0.02, state(position=3.2))
     before = len(client.log)
     servo.send(ServoCommand(3.0, 0.1, 0.6, hold_present=True), "goal")
     assert client.log[before:] == [("command", pytest.approx(3.0 + 0.5 * 0.02), 0.1, 0.6)]
