@@ -7,7 +7,8 @@ the silicone's rate effect, slipping off the skins past half their width), drive
 ``sim.motor_model.MotorModel`` in current-based position mode at the gripper's defaults
 (stop velocity 6 rad/s, 0.6 A); the world steps at 1 ms. Each 10 ms control tick the hold
 (``control.slip_hold.SlipHold``, at the gripper node's defaults) gets the means of the
-forces since the last tick, ``DELAY_S`` old (the driver and the topic), each 1 kHz sample
+forces since the last tick, ``DELAY_S`` old (the driver and the topic; ``--delay-ms``
+for a loaded machine's, figures printed only), each 1 kHz sample
 with the shear fingertip's white noise (docs/gripper.md: 38.9 mN of Ft and 57.0 mN of Fn
 at 10 Hz); its goal reaches the servo at once.
 
@@ -23,7 +24,7 @@ that holds the doubled load (``least_grip_n`` at the static friction), from the 
 onset after the doubling to the grip rising (``RISE_N`` over its level then; negative: it
 rose first), whether it fell; and the same object under a fixed hold at the starting force.
 
-    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_slip_hold.py [--objects N]
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_slip_hold.py [--objects N] [--delay-ms D]
 """
 
 from __future__ import annotations
@@ -114,8 +115,10 @@ def objects() -> list[Scenario]:
 class Loop:
     """The world, the motor and (for the adaptive hold) the hold, one world step at a time."""
 
-    def __init__(self, scenario: Scenario, adaptive: bool, seed: int) -> None:
+    def __init__(self, scenario: Scenario, adaptive: bool, seed: int,
+                 delay_s: float = DELAY_S) -> None:
         params = PhysicsParams()
+        self.delay_s = delay_s
         self.geometry = GripperGeometry()
         self.config = GraspConfig()
         skin = default_skin()
@@ -155,7 +158,8 @@ class Loop:
         """The hold's tick at ``t_s`` on the samples from index ``since`` up to ``DELAY_S``
         ago; the index it read up to."""
         upto = since
-        while upto < len(self.samples) and self.samples[upto][0] <= t_s - DELAY_S + 1e-9:
+        while (upto < len(self.samples)
+               and self.samples[upto][0] <= t_s - self.delay_s + 1e-9):
             upto += 1
         if self.hold is None or upto == since:
             return upto
@@ -174,8 +178,8 @@ class Loop:
         return upto
 
 
-def run(scenario: Scenario, adaptive: bool, seed: int) -> Run:
-    loop = Loop(scenario, adaptive, seed)
+def run(scenario: Scenario, adaptive: bool, seed: int, delay_s: float = DELAY_S) -> Run:
+    loop = Loop(scenario, adaptive, seed, delay_s)
     world = loop.world
     lift_at = GRIPPED_S
     double_at = lift_at + scenario.double_at_s
@@ -299,13 +303,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", type=int, default=0,
                         help="run only the first N objects (0: all 32)")
+    parser.add_argument("--delay-ms", type=float, default=DELAY_S * 1e3,
+                        help="how late the forces reach the hold [ms] (default "
+                        f"{DELAY_S * 1e3:g}; another value prints its figures only)")
     args = parser.parse_args()
+    if not 0.0 <= args.delay_ms < 1000.0:
+        parser.error(f"--delay-ms {args.delay_ms:g} must be in [0, 1000) ms")
+    delay_s = args.delay_ms * 1e-3
     scenarios = objects()[:args.objects or None]
     results = []
     for i, s in enumerate(scenarios):
-        results.append((run(s, True, seed=i), run(s, False, seed=i)))
+        results.append((run(s, True, i, delay_s), run(s, False, i, delay_s)))
     table(scenarios, results)
     figures = summary(scenarios, results)
+    if delay_s != DELAY_S:
+        return
     rows: dict[str, Any] = {
         "mass_kg": [s.mass_kg for s in scenarios],
         "friction_static": [s.friction_static for s in scenarios],
