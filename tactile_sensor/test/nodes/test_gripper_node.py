@@ -487,11 +487,19 @@ def test_a_self_check_on_a_stiffer_skin_and_a_dimmer_emitter_corrects_the_driver
         check = RaceFreeActionClient(client.node, SelfCheck, "/gripper/self_check")
         client.more.append(check)
         assert check.wait_for_server(timeout_sec=PATIENCE_S)
-        opened = _wait(client.send(client.release, Release.Goal(opening=0.024))
-                       .get_result_async()).result
-        assert opened.success, opened.message
-        end = _wait(client.send(check, SelfCheck.Goal(apply=True)).get_result_async(),
-                    2 * PATIENCE_S).result
+        # A close the machine starves (a busy core holding the mock, the driver or the
+        # gripper for tenths of a second) is refused, not fitted wrong (docs/ambient.md:
+        # too_uncertain, tactile_stale); its user closes again, and so does this test.
+        for _ in range(3):
+            opened = _wait(client.send(client.release, Release.Goal(opening=0.024))
+                           .get_result_async()).result
+            assert opened.success, opened.message
+            end = _wait(client.send(check, SelfCheck.Goal(apply=True)).get_result_async(),
+                        2 * PATIENCE_S).result
+            if end.outcome == "fitted":
+                break
+            assert end.outcome in ("too_uncertain", "tactile_stale") and not end.applied, \
+                end.message + rig.gripper.output()
         assert end.outcome == "fitted", end.message + rig.gripper.output()
         assert end.stiffness == pytest.approx(1.15, abs=0.03)
         assert end.optical_gain == pytest.approx(0.8, abs=0.03)
