@@ -213,6 +213,12 @@ class SlipHold:
         self.grip_n = min(grip_n, config.ceiling_n)
         self._filter = MarginFilter(config.bandwidth_hz, config.control_rate_hz)
         self._anchor = (position_rad, grip_n)
+        #: No goal closes past where the assumed skin carries the ceiling, counted from
+        #: the start (the settled grasp, its force read at a level the sensor reads well):
+        #: re-anchoring follows the sensor, and a sensor reading low (a sheared,
+        #: saturated or miscalibrated skin) would otherwise close the fingers on until
+        #: the servo's current stalls them (27.9 N at the hold current).
+        self._ceiling_rad = position_rad + (config.ceiling_n - grip_n) / config.newton_per_rad
         self._goal_rad = position_rad
         self._commanded_s: float | None = None
         self._rest_sum, self._rest_count = 0.0, 0
@@ -426,7 +432,7 @@ class SlipHold:
                         and mean > 0.5 * grip):
                     self._anchor = (position_rad, mean)
         anchor_rad, anchor_n = self._anchor
-        goal = min(cfg.closed_position_rad,
+        goal = min(cfg.closed_position_rad, self._ceiling_rad,
                    anchor_rad + (grip - anchor_n) / cfg.newton_per_rad)
         if abs(goal - self._goal_rad) < (0.5 if urgent else 1.0) * RAD_PER_PULSE:
             return None

@@ -183,6 +183,26 @@ def test_a_ceiling_too_low_says_slipping_and_holds_at_the_ceiling() -> None:
     assert world.grip_n == pytest.approx(3.5, abs=0.06)
 
 
+def test_a_sensor_reading_low_cannot_close_the_fingers_past_the_ceiling() -> None:
+    """The hold places the grip by position and re-anchors on the force it reads at rest:
+    a sensor reading 0.6 of the true force (a sheared or saturated skin) would have it close
+    on and on toward a grip it never reads. The start's own reading bounds the travel:
+    no goal past where the assumed skin carries the ceiling."""
+    rng = np.random.default_rng(3)
+    hold, world = start(3.0, 2.0, 0.5, 0.5, ceiling_n=6.0, noise=False)
+    run(hold, world, 400, rng)
+    assert hold.phase is HoldPhase.HOLDING
+    world.load_n = 12.0  # more than the ceiling holds: the grip goes to it
+    for i in range(300):
+        ft = world.shear_n()
+        step = hold.update(4.0 + i * DT, 0.6 * world.grip_n, ft, 0.0, world.position_rad,
+                           False)
+        if step.goal_rad is not None:
+            world.position_rad = step.goal_rad
+        assert world.grip_n <= 6.0 + 1e-9, (i, world.grip_n)
+    assert hold.grip_n == pytest.approx(6.0)
+
+
 def test_a_shear_under_the_probe_s_resolution_keeps_the_grip() -> None:
     """50 g: 0.25 N on each skin, under four falls a probe resolves (0.31 N): no probe."""
     hold, world = start(2.0, 0.05 * 9.81, 0.5, 0.5)
