@@ -92,6 +92,9 @@ class MoveController(BaseController):
         self._full_rad_s = self._speed_rad_s = 0.0
         self._target_rad = 0.0
         self._resting_since: float | None = None
+        #: The servo sample the last tick judged: a tick on the same sample (the control
+        #: loop starved of its turn) learns nothing new about whether the fingers move.
+        self._judged: ServoReading | None = None
 
     def start(self, request: MoveRequest, now_s: float, servo: ServoReading) -> Step:
         request.validate(self.config, self.max_speed_m_s)
@@ -142,11 +145,12 @@ class MoveController(BaseController):
             self.phase = Phase.DONE
             return Step(self.phase, None, Outcome.REACHED,
                         f"reached {opening * 1e3:.1f} mm", opening, force_n)
+        fresh_sample, self._judged = servo is not self._judged, servo
         if servo.moving or command is not None:
             self._resting_since = None
         elif self._resting_since is None:
             self._resting_since = now_s
-        elif now_s - self._resting_since >= request.stall_time_s:
+        elif now_s - self._resting_since >= request.stall_time_s and fresh_sample:
             return self._finish(Outcome.STALLED, f"stalled at {opening * 1e3:.1f} mm, "
                                 f"{abs(opening - request.opening_m) * 1e3:.1f} mm short of "
                                 "the goal", servo, force_n, hold=True)

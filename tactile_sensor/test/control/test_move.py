@@ -102,6 +102,20 @@ def test_at_rest_short_of_the_goal_for_the_stall_time_is_a_stall():
     assert step.command.goal_position_rad == pytest.approx(G.position_rad(0.0199))
 
 
+def test_a_stall_is_judged_on_a_new_sample_not_on_the_one_already_judged():
+    """A control loop starved of its turn leaves the goal ticking on the sample it had,
+    taken at rest before its command moved the fingers: 0.2 s of ticks on it is no stall
+    (seen beside a busy core: an opening from the rod "stalled" where it began)."""
+    controller = started(request(0.03, 0.0, stall_time_s=0.2), at(0.018))
+    before = at(0.018, moving=False)
+    for now in (0.5, 0.6, 0.75, 0.9):
+        assert not controller.tick(now, None, None, before).finished
+    assert not controller.tick(0.95, None, None, at(0.0185, moving=True)).finished
+    assert controller.tick(1.3, None, None, at(0.03 - 0.005, moving=False)).outcome is None
+    assert controller.tick(1.55, None, None, at(0.03 - 0.005, moving=False)).outcome \
+        is Outcome.STALLED
+
+
 def test_a_stale_force_aborts_a_limited_close_but_not_a_position_only_one():
     limited = started(request(0.002, 2.0))
     step = limited.tick(0.5, 0.1, 0.5 - CONFIG.stale_after_s - 0.01, at(0.03))
