@@ -26,7 +26,7 @@ from tactile_sensor.analysis.lift import (
 )
 from tactile_sensor.analysis.slip.signature import least_grip_n
 from tactile_sensor.nodes.action_client import RaceFreeActionClient
-from tactile_sensor.nodes.bringup_protocols import RunningBringup, call_action, say
+from tactile_sensor.nodes.bringup_session import RunningBringup, call_action, say
 from tactile_sensor.sim.rig_refusals import lift_refusal
 from tactile_sensor_interfaces.action import Grasp, Release
 from tactile_sensor_interfaces.msg import SlipEvent

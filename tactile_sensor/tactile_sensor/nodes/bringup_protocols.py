@@ -12,14 +12,14 @@
 from __future__ import annotations
 
 import math
-import sys
 import threading
-from typing import Any, Protocol
+from typing import Any
 
 from geometry_msgs.msg import WrenchStamped
-from rclpy.action import ActionClient
 
+from tactile_sensor.nodes import bringup_lift
 from tactile_sensor.nodes.action_client import RaceFreeActionClient
+from tactile_sensor.nodes.bringup_session import RunningBringup, call_action, say
 from tactile_sensor_interfaces.action import Grasp, Release
 
 READY_TIMEOUT_S = 120.0  # a cold FEM sweep plus the driver's tare
@@ -27,34 +27,12 @@ DRAIN_STALL_S = 30.0  # give up waiting for the streams once they have not advan
 TRACE_CATCH_UP_S = 10.0  # most the hold summary waits for the force stream to reach its end
 
 
-class RunningBringup(Protocol):
-    """What a protocol needs of the running bringup (``bringup_runner.BringupRunner``)."""
-
-    nodes: dict[str, Any]
-    protocol: dict[str, Any]
-    configuration: Any
-
-    def wait(self, seconds: float) -> bool: ...
-
-    @property
-    def stopped(self) -> bool: ...
-
-    def now(self) -> float: ...
-
-
-def say(message: str) -> None:
-    print(f"[bringup] {message}", file=sys.stderr, flush=True)
-
-
 def run_protocol(runner: RunningBringup, duration: float | None) -> int:
     name = runner.protocol.get("protocol.name")
     lift = "gripper" in runner.nodes and name == "lift"
-    if lift:
-        from tactile_sensor.nodes import bringup_lift  # it imports this module's helpers
-
-        if (refusal := bringup_lift.lift_refused(runner)) is not None:
-            say(refusal)
-            return 2
+    if lift and (refusal := bringup_lift.lift_refused(runner)) is not None:
+        say(refusal)
+        return 2
     driver = runner.nodes.get("driver")
     if driver is not None and not _wait_until(runner, lambda: driver.ready, READY_TIMEOUT_S,
                                               "driver streaming calibrated force"):
@@ -210,32 +188,3 @@ def _run_grasp(runner: RunningBringup, duration: float | None) -> int:
     say(f"force trace: {len(trace.values)} samples, peak {peak:.3f} N, "
         f"final {trace.values[-1] if trace.values else float('nan'):.3f} N")
     return 0 if result.contact_detected and released.success else 1
-
-
-def call_action(runner: RunningBringup, client: ActionClient, goal: Any, timeout_s: float) -> Any:
-    done = threading.Event()
-    box: dict[str, Any] = {}
-
-    def on_result(future: Any) -> None:
-        box["result"] = future.result().result
-        done.set()
-
-    def on_goal(future: Any) -> None:
-        handle = future.result()
-        if not handle.accepted:
-            box["rejected"] = True
-            done.set()
-            return
-        handle.get_result_async().add_done_callback(on_result)
-
-    client.send_goal_async(goal).add_done_callback(on_goal)
-    deadline = runner.now() + timeout_s
-    while not done.is_set():
-        if runner.stopped or runner.now() > deadline:
-            say("no action result in time" if not runner.stopped else "stopped")
-            return None
-        done.wait(0.05)
-    if box.get("rejected"):
-        say("the goal was rejected")
-        return None
-    return box["result"]

@@ -20,7 +20,8 @@ from rclpy.signals import SignalHandlerOptions
 
 from tactile_sensor.configurations import Configuration, NodeSpec, config_dir, config_files
 from tactile_sensor.nodes.background_spin import settle_callbacks
-from tactile_sensor.nodes.bringup_protocols import run_protocol, say
+from tactile_sensor.nodes.bringup_protocols import run_protocol
+from tactile_sensor.nodes.bringup_session import say
 
 
 def node_arguments(spec: NodeSpec, extra_config: Path | None,
