@@ -128,8 +128,11 @@ def test_force_tracks_a_3mm_press_and_contact_has_hysteresis(spawn, ros, files):
                         PATIENCE_S)
     mock.stop()
 
-    stamps = np.array([s for s, _ in ros.wrenches])
-    force = np.array([f for _, f in ros.wrenches])
+    # one copy: the listener still appends what the driver had queued (two reads of the
+    # live list once differed by one message)
+    wrenches = list(ros.wrenches)
+    stamps = np.array([s for s, _ in wrenches])
+    force = np.array([f for _, f in wrenches])
     # Ground truth on the mock's clock; the driver's stamps share it up to an unknown
     # start offset, found as the shift that best aligns the two (searched over 1 s).
     d, table_force, _ = skin_table()
