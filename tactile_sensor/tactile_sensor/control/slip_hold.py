@@ -317,7 +317,7 @@ class SlipHold:
 
     def _probe_tick(self, now_s: float, fn: float, ft: float) -> SlipEvent | None:
         cfg = self.config
-        level, start_grip, _ = self._probe
+        level, start_grip, start_s = self._probe
         window = self._shear_window
         if sum(window) / len(window) > level + cfg.shear_threshold_n:
             # the load rose: wait for it to settle
@@ -327,11 +327,8 @@ class SlipHold:
         self._probe_ticks += 1
         sliding = self._sliding_ticks(level)
         floor = level / cfg.max_friction
-        # lowered per tick, not per second: a loop that ticks late (a starved machine)
-        # lowers the grip no further between two looks at the shear than a timely one
-        lowered = start_grip - cfg.probe_rate_n_s * self._probe_ticks / cfg.control_rate_hz
-        if not sliding and lowered > floor:
-            self.grip_n = lowered
+        if not sliding and start_grip - cfg.probe_rate_n_s * (now_s - start_s) > floor:
+            self.grip_n = start_grip - cfg.probe_rate_n_s * (now_s - start_s)
             if self._reference is not None:  # it sticks at this grip too
                 self._reference = (min(self._reference[0], fn / level), self._reference[1])
             return None
