@@ -103,6 +103,10 @@ class SelfCheckController(BaseController):
         not known) beside the mean output received since the last tick."""
         if (common := self._check_common(now_s, servo, None)) is not None:
             return common
+        if output_v is not None and not math.isfinite(output_v):
+            # an output the driver cannot give (untared, blind: NaN) shows no rise: the
+            # close would press on to the force limit, so it counts as none came
+            output_v = None
         if output_v is None:  # late: the close goes on at the last level a while
             output_v = self._last_output_v
             if output_v is None or now_s - self._fresh_s > self._late_s:

@@ -160,6 +160,19 @@ def test_no_fresh_output_ends_the_close_stale():
     assert step.outcome is Outcome.TACTILE_STALE and "driver" in step.message
 
 
+def test_an_output_the_driver_cannot_give_ends_the_close_stale_not_at_the_force_limit():
+    """NaN (an untared or blind driver) never rises past the free level: taken as an
+    output, the close pressed on until the rack force stopped it (27 N); taken as none
+    came, it ends stale within half a millimetre of travel."""
+    close = Close(1.0, 1.0)
+    start = close.position
+    close.links = close.with_links(lambda: math.nan)
+    _goal, step = close.run(apply=True)
+    assert step.outcome is Outcome.TACTILE_STALE and "driver" in step.message
+    travel_m = (close.position - start) * R
+    assert travel_m <= 0.0005 + 0.00002, travel_m
+
+
 def gappy(close: Close, gap: tuple[float, float]):
     """The close's outputs, none fresh between ``gap`` [s] (a driver starved of the CPU)."""
     def output():
