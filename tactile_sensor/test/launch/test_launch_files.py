@@ -116,6 +116,19 @@ def test_every_config_parameter_is_declared_by_its_node():
                     assert not unknown, f"{name} [{key}] undeclared for {spec.name}: {unknown}"
 
 
+def test_the_gripper_file_states_the_gripper_nodes_defaults():
+    """config/gripper.yaml lists the gripper's parameters with their defaults, for a user
+    to edit. A default changed in the node but not in the file would give every bringup and
+    launch the old value while the benchmarks measure the new one (settle_time once stayed
+    1 s there after the node's default became 1.5 s)."""
+    from tactile_sensor.nodes.gripper_parameters import SPECS
+    defaults = {spec.name: spec.default for spec in SPECS}
+    stated = _sections(config_dir() / "gripper.yaml")["/**/gripper"]
+    differ = {name: (value, defaults[name]) for name, value in stated.items()
+              if name in defaults and value != defaults[name]}
+    assert not differ, f"config/gripper.yaml (file, node default): {differ}"
+
+
 def test_shared_sections_are_declared_by_some_node_of_the_configuration():
     for configuration in CONFIGURATIONS.values():
         declared = set().union(*(node_parameter_names(s.module, s.node_class)
