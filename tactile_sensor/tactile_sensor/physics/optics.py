@@ -55,7 +55,8 @@ class _Pchip:
         # interior: weighted harmonic mean of the secants, 0 at a local extremum
         w1, w2 = 2.0 * h[1:] + h[:-1], h[1:] + 2.0 * h[:-1]
         same = (np.sign(m[:-1]) * np.sign(m[1:])) > 0
-        with np.errstate(divide="ignore", invalid="ignore"):
+        # a secant near zero makes its term overflow to inf and the mean 0, SciPy's limit
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             harmonic = (w1 + w2) / (w1 / m[:-1] + w2 / m[1:])
         d[1:-1] = np.where(same, harmonic, 0.0)
         d[0] = self._end_slope(h[0], h[1], m[0], m[1])
