@@ -153,6 +153,19 @@ def test_light_curve_interpolation_matches_scipy_pchip(values, widths):
     assert np.allclose(_Pchip(x, y)(query), expected, rtol=0.0, atol=1e-12 * scale)
 
 
+def test_a_secant_near_zero_gives_a_flat_slope_without_a_warning():
+    """Its term of the harmonic mean overflows to inf, and the mean goes to 0, SciPy's
+    limit: the intended value, not a RuntimeWarning in the user's log."""
+    import warnings
+
+    from tactile_sensor.physics.optics import _Pchip
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pchip = _Pchip(np.array([0.0, 1.0, 2.0, 3.0]), np.array([0.0, 1e-310, 1.0, 2.0]))
+    assert pchip(np.array([1.0]))[0] == pytest.approx(1e-310, abs=1e-300)
+
+
 @pytest.mark.slow  # a fresh interpreter, to see what importing the optics imports
 def test_the_light_curve_loads_without_scipy_interpolate():
     """A cold model sweep does not pay for importing scipy.interpolate (its optics)."""
