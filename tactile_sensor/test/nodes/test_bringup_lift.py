@@ -8,6 +8,7 @@ from typing import Any
 
 import pytest
 import yaml
+from gripper_under_load import GRIPPER_UNDER_LOAD
 
 from tactile_sensor.nodes.bringup_protocols import run_protocol
 
@@ -55,8 +56,7 @@ def test_a_lift_through_the_bringup_holds_a_light_object_and_reports_each_phase(
         "/**/gripper_world": {"ros__parameters": {"object": {
             "mass_kg": 0.1, "friction_static": 0.8, "friction_kinetic": 0.8}}},
         # the grasp's settle beside a busy core (as the grasp protocol's test gives it)
-        "/**/gripper": {"ros__parameters": {"tactile_timeout": 1.0, "packet_timeout": 0.5,
-                                            "comm_retries": 4, "settle_time": 5.0}}}))
+        "/**/gripper": {"ros__parameters": GRIPPER_UNDER_LOAD}}))
     run = spawn("bringup", "gripper", "--protocol", "lift:hold=0.5", "--config", str(config),
                 "--port", f"adc_port={tmp_path / 'adc'}",
                 "--port", f"servo_port={tmp_path / 'xm430'}", module="tactile_sensor.cli")

@@ -17,6 +17,7 @@ import rclpy
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
+from gripper_under_load import GRIPPER_UNDER_LOAD
 from lone_gripper import lone_gripper
 from rclpy.action import ActionClient, get_action_names_and_types
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -87,19 +88,8 @@ class Rig:
             "-r", f"tactile_full_scale:={full_scale_topic}",
             "-r", "tactile_reading:=/driver/reading", "-r", "model_predict:=/model/predict",
             "--params-file", str(CONFIG / "gripper.yaml"),
-            # tactile_timeout: on a loaded 2-core machine the driver's 250 Hz stream stalls
-            # for more than the configured 0.2 s now and then, and the grasp aborts
-            # "tactile_stale" (tested in test/control); packet_timeout, comm_retries: the
-            # emulated servo is a Python process that a busy machine can keep from
-            # answering for longer than the 3 x 50 ms a real XM430 is given ("servo
-            # unreachable" mid-goal; the timeout: test/hardware/test_xm430_client.py);
-            # settle_time: a busy machine delays each of the hold's corrections (it judges
-            # only forces stamped after the fingers stopped), and 1 s once ran out at 2.84 N
-            # on a 2 N target; the settle ends once settled, so this costs nothing otherwise
-            # (running out is tested in test/control); these tests are about other things
             "--params-file", overrides(tmp_path, "gripper", port=str(self.servo),
-                                       autostart=True, tactile_timeout=1.0,
-                                       packet_timeout=0.5, comm_retries=4, settle_time=5.0),
+                                       autostart=True, **GRIPPER_UNDER_LOAD),
             module="tactile_sensor.nodes.gripper")
         assert self.driver.wait_for_output("active", PATIENCE_S), self.driver.output()
         assert self.gripper.wait_for_output("active", PATIENCE_S), self.gripper.output()
