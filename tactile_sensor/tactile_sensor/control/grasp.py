@@ -29,6 +29,7 @@ from typing import Protocol
 from tactile_sensor.control.errors import InvalidRequest
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.guarded_contact import PositionTrace, force_ahead_n, stop_goal_rad
+from tactile_sensor.control.tactile_force import stale_detail
 
 
 class Outcome(StrEnum):
@@ -308,8 +309,8 @@ class GraspController(BaseController):
         fresh = force_n is not None and force_stamp_s is not None
         age = now_s - (force_stamp_s if fresh else self._started_s)  # type: ignore[operator]
         if age > cfg.stale_after_s:
-            return self._finish(Outcome.TACTILE_STALE, f"no tactile force for {age:.3f} s",
-                                servo, force_n)
+            return self._finish(Outcome.TACTILE_STALE,
+                                stale_detail(age, cfg.stale_after_s, fresh), servo, force_n)
         if not fresh:
             return Step(self.phase, None, None, "waiting for tactile force",
                         self._opening(servo), force_n)

@@ -37,6 +37,7 @@ from tactile_sensor.control.grasp import (
     hardware_error_detail,
     slowed_speed,
 )
+from tactile_sensor.control.tactile_force import stale_detail
 
 
 @dataclass(frozen=True)
@@ -128,7 +129,8 @@ class MoveController(BaseController):
             age = now_s - (force_stamp_s if fresh else self._started_s)  # type: ignore[operator]
             if age > self.config.stale_after_s:
                 return self._finish(Outcome.TACTILE_STALE,
-                                    f"no tactile force for {age:.3f} s", servo, force_n)
+                                    stale_detail(age, self.config.stale_after_s, fresh),
+                                    servo, force_n)
             if fresh:
                 assert force_n is not None
                 if force_n >= request.max_effort_n:

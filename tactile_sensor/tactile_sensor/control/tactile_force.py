@@ -17,6 +17,17 @@ import math
 import threading
 
 
+def stale_detail(age_s: float, stale_after_s: float, heard: bool) -> str:
+    """Why a goal stopped for want of a fresh tactile force, in one sentence. A force that
+    arrives but is old is a late driver (a starved one keeps every sample and falls behind
+    its ADC), which no silence of the sensor explains."""
+    if heard:
+        return (f"the newest tactile force is {age_s:.3f} s old (tactile_timeout "
+                f"{stale_after_s:g} s): the driver runs late (a busy machine: see "
+                "frames_backlog in its /diagnostics) or its stream stopped")
+    return f"no tactile force for {age_s:.3f} s (tactile_timeout {stale_after_s:g} s)"
+
+
 class TactileForce:
     def __init__(self) -> None:
         self._lock = threading.Lock()

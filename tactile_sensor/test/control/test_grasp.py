@@ -157,6 +157,16 @@ def test_aborts_with_a_reason(tick, outcome):
         assert step.command.hold_present  # stop where the fingers are, not go back
 
 
+def test_a_stale_abort_tells_a_late_force_from_none():
+    """A starved driver keeps publishing, only late: its user should look at the machine,
+    not at the sensor."""
+    late = started().tick(0.5, 0.0, 0.3, at(0.03)).message
+    assert late.startswith("the newest tactile force is 0.200 s old (tactile_timeout ")
+    assert "frames_backlog" in late
+    silent = started().tick(0.5, None, None, at(0.03)).message
+    assert silent.startswith("no tactile force for 0.500 s (tactile_timeout ")
+
+
 def test_waits_briefly_for_the_first_tactile_reading():
     step = started().tick(0.05, None, None, at(0.05))
     assert step.outcome is None and step.message == "waiting for tactile force"

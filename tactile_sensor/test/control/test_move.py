@@ -120,6 +120,7 @@ def test_a_stale_force_aborts_a_limited_close_but_not_a_position_only_one():
     limited = started(request(0.002, 2.0))
     step = limited.tick(0.5, 0.1, 0.5 - CONFIG.stale_after_s - 0.01, at(0.03))
     assert step.outcome is Outcome.TACTILE_STALE
+    assert step.message.startswith("the newest tactile force is ")
     assert started(request(0.002, 2.0)).tick(0.5, None, None, at(0.03)).outcome \
         is Outcome.TACTILE_STALE
     assert not started(request(0.002, 0.0)).tick(0.5, None, None, at(0.03)).finished
