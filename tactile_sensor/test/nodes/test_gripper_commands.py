@@ -49,6 +49,7 @@ JOINT = "finger_opening"
 PATIENCE_S = 60.0
 HELD_STATES = 10  # joint states judged during a force hold
 MOVED_M = 2e-4  # the fingers have left where they rested (4 encoder pulses)
+CANCEL_FROM_M = 0.04  # each cancel trial starts at this opening (1.9 s from 2 mm) [m]
 
 
 class Launch:
@@ -357,6 +358,11 @@ def test_one_goal_policy_across_all_four_servers(gripper):
 def cancel_latency(client: Client, goal, trial: int) -> float:
     """Cancel request sent -> the fingers at rest (``rest_onset``), by stamp, for a goal
     canceled while the fingers move."""
+    # each trial from the same opening, far from the goal: one that began where a late
+    # cancel had left the fingers, near the goal, ended reached before its own cancel came
+    # (seen beside a busy core: the cancel refused, the goal already succeeded)
+    status, result = client.run("gripper_cmd", command(CANCEL_FROM_M, 0.0))
+    assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal, (status, result)
     # where the fingers are once still, by samples stamped from now on: a goal that ended
     # reached (within its tolerance) may leave them creeping on, and the last sample this
     # listener took may be older than that end (seen beside a busy core: "at rest" read
