@@ -20,8 +20,12 @@ the OS's buffers hold only seconds (the pseudo-terminal ~1.4 s of frames, a USB 
 port less), and a device whose host buffer is full drops whole batches of frames. So a
 second thread, the drain thread, wakes every ``drain_after_s`` and, when the consumer
 has been inside its callbacks that long, reads the port itself into a queue
-(``SampleBacklog``); the reader's thread empties that queue, in order, before it reads
-the port again. The queue holds a minute by default; beyond its capacity new samples are
+(``SampleBacklog``); the reader's thread empties that queue, in order and joined into
+blocks (``adc_samples.merged``), before it reads the port again, and ``samples_waiting``
+tells its consumer whether newer samples wait behind the block at hand (the driver then
+keeps the block off its live topic: sensing/live_force.py). A read that finds the port
+full takes everything the port holds at once, so the newest sample is in that chunk.
+The queue holds a minute by default; beyond its capacity new samples are
 dropped and counted (``ReaderStats.backlog_dropped``), never silently. Any port failure
 (cable pulled, device reset, port missing at start) becomes state ``DISCONNECTED`` with a
 reason, and the reader retries every ``reopen_interval_s`` until the device is back.
@@ -59,6 +63,7 @@ from tactile_sensor.hardware.adc_samples import (
     _InfoChange,
     _InfoGate,
     _Sequencer,
+    merged,
 )
 from tactile_sensor.hardware.errors import SerialPortError
 
@@ -68,6 +73,7 @@ MAX_BAUDRATE = 12_000_000
 DEFAULT_BACKLOG = 60_000  # samples: 1 min at 1 kHz (~16 MB); a process starved longer is mis-sized
 DISPATCH_BATCH = 256  # queued items (batches, state changes) taken per lock acquisition
 READ_CHUNK = 1 << 16  # bytes per read: 5,000 one-channel frames, whatever the port holds
+MORE_WAITING = 1 << 10  # a read this long (~80 frames) is followed by more reads at once
 DRAIN_AFTER_S = 0.05  # a consumer busy this long has the drain thread read the port
 
 
@@ -221,6 +227,12 @@ class AdcStreamReader:
         """What the connected device said about its codes (None before it said anything)."""
         return self._gate.info
 
+    @property
+    def samples_waiting(self) -> int:
+        """Samples read from the port and queued behind the one being delivered: more than
+        0 while the consumer works off a backlog (its batch is not the newest)."""
+        return len(self._backlog)
+
     def stats(self) -> ReaderStats:
         with self._lock:
             p = self._parser
@@ -317,11 +329,11 @@ class AdcStreamReader:
                     if items:
                         self._deliver(items, generation, queued=False)
                     while queued := self._backlog.take(DISPATCH_BATCH, 0.0):
-                        self._deliver(queued, generation)
+                        self._deliver(merged(queued), generation)
                 finally:
                     self._busy_since = None
             while queued := self._backlog.take(DISPATCH_BATCH, 0.0):
-                self._deliver(queued, generation)
+                self._deliver(merged(queued), generation)
         except BaseException as exc:
             # Make the dead consumer visible in the state and stop reading (nobody would
             # take the samples), then let threading.excepthook print the traceback.
@@ -416,7 +428,22 @@ class AdcStreamReader:
             if not data:  # Linux: a vanished device is readable and reads nothing
                 raise serial.SerialException("device reports readiness to read but returned "
                                              "no data (device disconnected?)")
-            return data
+            if len(data) < MORE_WAITING:
+                return data
+            # A long read means the consumer fell behind and the port holds more (a
+            # pseudo-terminal hands out 4 KiB, ~300 frames, per read): take everything it
+            # holds now, so the newest sample is in this chunk, not seconds of reads away.
+            parts, size = [data], len(data)
+            while size < READ_CHUNK and self._poll.poll(0):
+                try:
+                    more = os.read(fd, READ_CHUNK - size)
+                except (BlockingIOError, InterruptedError):
+                    break
+                if not more:
+                    break
+                parts.append(more)
+                size += len(more)
+            return b"".join(parts)
         waiting = port.in_waiting
         if not waiting and not wait_ms:
             return b""

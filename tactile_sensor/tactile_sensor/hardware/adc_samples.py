@@ -72,6 +72,13 @@ class SampleBatch:
         self.host_time_ns.append(host_time_ns)
         self.counts.append(counts)
 
+    def extend(self, other: SampleBatch) -> None:
+        """Append ``other``'s samples (the next ones of the same connection)."""
+        self.seq += other.seq
+        self.device_time_us += other.device_time_us
+        self.host_time_ns += other.host_time_ns
+        self.counts += other.counts
+
     def head(self, n: int) -> SampleBatch:
         """The first ``n`` samples (a full backlog keeps what fits)."""
         out = SampleBatch(self.epoch)
@@ -91,6 +98,26 @@ class SampleBatch:
 
     def __repr__(self) -> str:
         return f"SampleBatch({len(self)} samples, epoch {self.epoch})"
+
+
+def merged(items: Iterable[T]) -> list[T]:
+    """``items`` with each run of consecutive batches of one connection joined into one
+    block: a backlog worked off as a few blocks, not as the hundreds of chunks the drain
+    thread read (one pass of the signal chain and one look at what is newest per block)."""
+    out: list[T] = []
+    block: SampleBatch | None = None
+    for item in items:
+        if type(item) is SampleBatch:
+            if block is not None and block.epoch == item.epoch:
+                block.extend(item)
+                continue
+            block = SampleBatch(item.epoch)
+            block.extend(item)
+            out.append(block)  # type: ignore[arg-type]
+            continue
+        block = None
+        out.append(item)
+    return out
 
 
 def _one(_: object) -> int:

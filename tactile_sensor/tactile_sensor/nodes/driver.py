@@ -16,12 +16,13 @@ and no force is published.
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.lifecycle import Node, State, TransitionCallbackReturn
+from rclpy.lifecycle import State, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
@@ -38,6 +39,7 @@ from tactile_sensor.nodes import (
 )
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
 from tactile_sensor.nodes.driver_parameters import SPEC_BY_NAME, SPECS
+from tactile_sensor.nodes.guarded_lifecycle import GuardedLifecycleNode
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
@@ -64,6 +66,7 @@ from tactile_sensor.sensing.chain_parameters import (
 )
 from tactile_sensor.sensing.device_clock import DeviceClock
 from tactile_sensor.sensing.errors import SensingError, TareError
+from tactile_sensor.sensing.live_force import LiveSelector
 from tactile_sensor.sensing.modulation import modulation_of
 from tactile_sensor.sensing.rate_calibration import describe_model
 from tactile_sensor_interfaces.msg import ArrayCalibration as ArrayCalibrationMsg
@@ -84,7 +87,7 @@ CALIBRATION_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCA
 
 
 
-class DriverNode(Node):
+class DriverNode(GuardedLifecycleNode):
     def __init__(self, node_name: str = "driver", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         declare_parameters(self, SPECS)
@@ -109,6 +112,7 @@ class DriverNode(Node):
         self._correction_sub: Any = None
         self._full_scale_pub: Any = None
         self._calibrations = CorrectedCalibration()
+        self._live = LiveSelector()
 
     @property
     def ready(self) -> bool:
@@ -135,6 +139,7 @@ class DriverNode(Node):
         self._faces = [m.face for m in modules]
         self._clock_map = DeviceClock()
         self._loss = LossCounter()
+        self._live = LiveSelector(values["live_window"])
         self._adc = self._info_logged = None
         self._publish_every_ns = publish_period_ns(values)
         self._cdr = _encoders(values["frame_id"], self._faces)
@@ -257,14 +262,21 @@ class DriverNode(Node):
             self.get_logger().error(str(exc), throttle_duration_sec=5.0)
             return
         stamp, epoch, every = self._clock_map.stamp_ns, batch.epoch, self._publish_every_ns
+        due: list[tuple[Reading | ArrayReading, int]] = []
         for reading in readings:
             stamp_ns = stamp(epoch, reading.device_time_us, reading.host_time_ns)
             if stamp_ns < self._next_publish_ns:
                 continue
             self._next_publish_ns = stamp_ns + every
-            self._publish(reading, stamp_ns)
+            due.append((reading, stamp_ns))
+        reader, live = self._reader, self._live
+        first_live = live.first_live([s for _, s in due], reader is not None
+                                     and reader.samples_waiting > 0)
+        for i, (reading, stamp_ns) in enumerate(due):
+            self._publish(reading, stamp_ns, live=i >= first_live)
 
-    def _publish(self, reading: Reading | ArrayReading, stamp_ns: int) -> None:
+    def _publish(self, reading: Reading | ArrayReading, stamp_ns: int, live: bool) -> None:
+        """~/reading always (the record); ~/wrench for a ``live`` reading with a force."""
         self.published_until_ns = stamp_ns
         encoders, reading_pub, wrench_pub = self._cdr, self._reading_pub, self._wrench_pub
         if encoders is None:
@@ -275,14 +287,14 @@ class DriverNode(Node):
             message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v, force,
                                          reading.contact, reading.voltages_v,
                                          reading.outputs_v)
-            if force == force:  # not NaN
+            if live and force == force:  # not NaN
                 wrench = encoders[1].encode(stamp_ns, reading.force_x_n, reading.force_y_n,
                                             force, reading.torque_x_nm, reading.torque_y_nm,
                                             reading.torque_z_nm)
         else:
             message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v, force,
                                          reading.contact)
-            if force == force:
+            if live and force == force:
                 wrench = encoders[1].encode(stamp_ns, 0.0, 0.0, force)
         if reading_pub is not None:
             reading_pub.publish(message)
@@ -419,7 +431,7 @@ class DriverNode(Node):
         subscribers = {"reading": self._reading_pub.get_subscription_count(),
                        "wrench": self._wrench_pub.get_subscription_count()}
         health = adc_health(stats, self._adc, chain, rate, lost_now, self.published_readings,
-                            subscribers)
+                            subscribers, self._live.skipped)
         pub.publish(diagnostic_array(f"{self.get_fully_qualified_name()}: tactile ADC",
                                      str(self._values["port"]), health,
                                      self.get_clock().now().to_msg()))
@@ -430,9 +442,9 @@ def _encoders(frame_id: str, faces: list[str]) -> tuple[ReadingCdr, WrenchCdr]:
     return ReadingCdr(frame_id, faces), WrenchCdr(frame_id)
 
 
-def main(args: list[str] | None = None) -> None:
-    run_lifecycle_node(DriverNode, args)
+def main(args: list[str] | None = None) -> int:
+    return run_lifecycle_node(DriverNode, args)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -8,6 +8,7 @@ from tactile_sensor.nodes.parameters import ParamSpec
 from tactile_sensor.sensing.array_chain import TORQUE_CUTOFF_HZ, parse_modules
 from tactile_sensor.sensing.errors import SensingError
 from tactile_sensor.sensing.filters import FILTERS
+from tactile_sensor.sensing.live_force import DEFAULT_WINDOW_S as DEFAULT_LIVE_WINDOW_S
 from tactile_sensor.sensing.rest_gain import (
     DEFAULT_GAIN_BOUND,
     DEFAULT_RETARE_TIME_CONSTANT_S,
@@ -61,6 +62,10 @@ SPECS = [
               exclusive_minimum=True),
     ParamSpec("publish_rate", 0.0, "rate [Hz] of ~/wrench and ~/reading; 0 = every sample "
               "(the filter always sees every sample)", minimum=0.0, maximum=100_000.0),
+    ParamSpec("live_window", DEFAULT_LIVE_WINDOW_S, "~/wrench carries the readings within "
+              "this much of the newest sample [s]: a driver behind its ADC (a busy machine) "
+              "skips the older ones there, counted in /diagnostics 'wrench_skipped'; "
+              "~/reading still carries every one", minimum=0.0, maximum=10.0),
     ParamSpec("frame_id", "tactile_sensor", "frame of the wrench; +z is the skin normal "
               "pointing into the sensor"),
     ParamSpec("calibration_source", "model", "where output->force comes from: 'model' "

@@ -88,13 +88,16 @@ def _level_message(stats: ReaderStats, adc: AdcSettings | None,
 
 def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain | ArrayChain,
                rate_hz: float, lost_now: int, readings_published: int,
-               subscribers: Mapping[str, int] | None = None) -> Health:
+               subscribers: Mapping[str, int] | None = None, wrench_skipped: int = 0
+               ) -> Health:
     """``adc``: the settings decided on the device's info frame (None before it came);
     ``rate_hz``: frames per second since the last report; ``lost_now``: frames lost since
     then; ``readings_published``: what left on ~/reading, so a monitor can count losses by
     frame, not by rate; ``subscribers``: matched subscriptions per output (``reading``,
     ``wrench``), so a recorder can be seen to listen before the first frame (a message
-    published before the match is not delivered to it)."""
+    published before the match is not delivered to it); ``wrench_skipped``: readings the
+    live ~/wrench left out while the driver worked off a backlog (sensing/live_force.py;
+    ~/reading has them)."""
     level, message = _level_message(stats, adc, chain, lost_now)
     usable = adc is not None and adc.usable
     values: dict[str, object] = {
@@ -102,7 +105,7 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         "frames": stats.frames, "frames_dropped": stats.dropped_frames,
         "frames_overflowed": stats.backlog_dropped, "frames_backlog": stats.backlog,
         "frames_backlog_peak": stats.backlog_peak,
-        "readings_published": readings_published,
+        "readings_published": readings_published, "wrench_skipped": wrench_skipped,
         "sequence_gaps": stats.sequence_gaps, "crc_errors": stats.crc_errors,
         "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
         "calibration_source": chain.calibration_source,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import signal
 import threading
 import time
 from pathlib import Path
@@ -561,3 +562,39 @@ def test_a_frame_id_set_while_running_names_every_later_reading(spawn, ros, file
     assert ros.wait_for(lambda: _stamp(ros.readings[-1][1]) > set_at + 0.3, PATIENCE_S)
     later = [m for _, m in list(ros.readings) if _stamp(m) > set_at + 0.3]
     assert later and {m.header.frame_id for m in later} == {"left_fingertip"}
+
+
+def test_a_driver_behind_its_adc_skips_the_live_force_to_the_newest_and_records_every_sample(
+        spawn, ros, files):
+    """A driver stopped for a while (as a starved process is) finds a second of frames
+    waiting: ~/reading still carries every one of them, ~/wrench only the newest (within
+    live_window), and /diagnostics counts what the live topic skipped."""
+    driver = start_driver(spawn, files["link"], files["calibration"])
+    assert driver.wait_for_output("active", 30), driver.output()
+    assert ros.await_driver(), driver.output()
+    start_mock(spawn, files)
+    assert ros.wait_for(lambda: len(ros.wrenches) > 500, PATIENCE_S), driver.output()
+    driver.send_signal(signal.SIGSTOP)
+    try:
+        # the frames pile up in the pseudo-terminal while the driver cannot run
+        stopped_at = ros.readings[-1][1].header.stamp
+        time.sleep(1.0)
+    finally:
+        driver.send_signal(signal.SIGCONT)
+    stopped_s = stopped_at.sec + stopped_at.nanosec * 1e-9
+    assert ros.wait_for(lambda: _reading_stamps(ros)[-1] > stopped_s + 2.0, PATIENCE_S)
+    assert ros.wait_for(lambda: any(int(_value(s, "wrench_skipped")) > 0
+                                    for _, s in list(ros.diagnostics)), PATIENCE_S)
+
+    readings = _reading_stamps(ros)
+    gaps = np.diff(readings[readings > stopped_s - 0.5])
+    assert gaps.max() < 0.0025, f"the record lost samples: a gap of {gaps.max():.4f} s"
+    wrench = np.array([s for s, _ in list(ros.wrenches)])
+    # the stopped second's readings waited as one block: the live topic carried only its
+    # newest live_window (10 ms), so its stamps jump where the record's do not
+    live_gaps = np.diff(wrench[wrench > stopped_s - 0.5])
+    assert live_gaps.max() > 0.5, f"the live force replayed the backlog: {live_gaps.max():.4f} s"
+
+
+def _reading_stamps(ros) -> np.ndarray:
+    return np.array([_stamp(m) for _, m in list(ros.readings)])
