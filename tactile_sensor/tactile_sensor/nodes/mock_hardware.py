@@ -502,7 +502,20 @@ class MockHardwareNode(Node):
         self._truth_pub = self.create_publisher(WrenchStamped, "~/ground_truth", 100)
         self._object_pub = None if held is None else self.create_publisher(
             JointState, "~/object/joint_states", 100)
-        self.create_timer(1.0 / v["ground_truth_rate"], self._publish_truth)
+        thread = threading.Thread(target=self._publish_truth_every,
+                                  args=(1.0 / v["ground_truth_rate"],), name="ground-truth",
+                                  daemon=True)
+        self._threads.append(thread)
+        thread.start()
+
+    def _publish_truth_every(self, period_s: float) -> None:
+        """The truth from its own thread, as the gauge's: a 200 Hz timer woke the
+        executor of every node it shares 200 times a second (the in-process bringup's
+        costliest idle wake-up after the gripper's)."""
+        next_s = time.monotonic()
+        while not self._stop.wait(max(0.0, next_s - time.monotonic())):
+            next_s = max(next_s + period_s, time.monotonic() - period_s)
+            self._publish_truth()
 
     def _publish_truth(self) -> None:
         sample = self.world.latest
