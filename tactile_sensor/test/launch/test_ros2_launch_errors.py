@@ -47,6 +47,19 @@ def test_a_missing_adc_port_gives_one_error_line_and_the_driver_keeps_retrying(
      "config:=/no/such/extra.yaml does not exist; give the path of a ROS parameter YAML file."),
 ])
 def test_a_bad_launch_argument_gives_one_sentence(ros_domain, argument, sentence):
+    _refused(argument, sentence)
+
+
+def test_a_typo_in_a_parameter_file_gives_one_sentence_and_starts_nothing(
+        ros_domain, tmp_path):
+    typo = tmp_path / "typo.yaml"
+    typo.write_text(yaml.safe_dump({"/**/bench": {"ros__parameters": {"noise.whit": 0.01}}}))
+    _refused(f"config:={typo}", f"config:={typo} sets 'noise.whit', which node 'bench' does "
+                                "not declare; did you mean 'noise.white'?")
+
+
+def _refused(argument: str, sentence: str) -> None:
+    """``ros2 launch`` ends with status 1, one error line holding ``sentence``, no node."""
     result = subprocess.run(["ros2", "launch", "tactile_sensor", "bench.launch.py", argument],
                             capture_output=True, text=True, timeout=60)
     output = result.stdout + result.stderr

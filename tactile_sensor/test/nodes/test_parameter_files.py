@@ -105,17 +105,22 @@ def test_bringup_refuses_a_typo_in_one_sentence_and_starts_nothing(tmp_path, cap
     assert "'noise.whit'" in err and "did you mean 'noise.white'?" in err
 
 
+@pytest.mark.ros2_tools
 def test_the_launch_files_refuse_a_typo_before_starting_a_node(tmp_path):
-    pytest.importorskip("launch")
-    pytest.importorskip("launch_ros")
+    """As ``ros2 launch tactile_sensor bench.launch.py config:=FILE`` builds it: every
+    argument the launch file declares at its default, only ``config`` given, so the context
+    never lags an argument added to the launch file. Under the real ``ros2 launch``:
+    test_ros2_launch_errors.py."""
     from launch import LaunchContext
+    from launch.actions import DeclareLaunchArgument
 
     from tactile_sensor import launch_description as ld
 
     path = write(tmp_path, {"/**/bench": {"ros__parameters": {"noise.whit": 0.01}}})
     context = LaunchContext()
-    context.launch_configurations.update(
-        {"use_mock_hardware": "true", "config": str(path), "namespace": "", "record": "",
-         "protocol": "compression", "adc_port": "/tmp/tactile_sensor/bench_adc"})
+    context.launch_configurations["config"] = str(path)
+    for action in ld.build(BENCH).entities:
+        if isinstance(action, DeclareLaunchArgument):
+            action.visit(context)  # its default, unless given
     with pytest.raises(ld.LaunchArgumentError, match=r"did you mean 'noise.white'"):
         ld._nodes(context, BENCH, ld._protocols(BENCH))
