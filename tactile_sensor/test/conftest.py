@@ -7,7 +7,6 @@ never answer another. Child processes inherit the environment of ``make test`` (
 
 from __future__ import annotations
 
-import importlib.util
 import multiprocessing.process
 import os
 import shutil
@@ -22,6 +21,7 @@ import pytest
 
 # The tests' own helper modules (waiting.py), importable in every import mode.
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from ros2_tools import ros2_tools_missing, skip_reason
 
 SOURCE = Path(__file__).resolve().parents[1]
 #: The highest ROS domain id: Fast DDS derives its ports from the id and refuses any above
@@ -174,34 +174,19 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     setattr(item, f"rep_{report.when}", report)
 
 
-def ros2_tools_missing() -> str | None:
-    """Why ``ros2 launch`` and the ``ros2`` CLI cannot run here (None: they can). The PyPI
-    wheels carry neither; a sourced ROS 2 installation has both."""
-    missing = [what for what, present in (
-        ("the ros2 command", shutil.which("ros2")),
-        ("the launch package", _importable("launch", "LaunchDescription")),
-        ("launch_ros", _importable("launch_ros", "actions")),
-    ) if not present]
-    if not missing:
-        return None
-    return (f"needs {', '.join(missing)}, which the PyPI-wheels path lacks: source a ROS 2 "
-            "installation to run it (README: Distributions)")
-
-
-def _importable(module: str, attribute: str) -> bool:
-    """The real package, not a namespace package made of a folder of ours of the same name
-    (tactile_sensor/launch/ is on sys.path in tests)."""
-    try:
-        return importlib.util.find_spec(f"{module}.{attribute}") is not None or hasattr(
-            importlib.import_module(module), attribute)
-    except ImportError:
-        return False
-
-
 def _needs_ros2_tools(item: pytest.Item) -> bool:
+    """The one definition of the tests that need a ROS 2 installation: skipped where
+    ros2_tools.py finds the tools missing, selected by ``make test-ros2``."""
     return (item.get_closest_marker("ros2_tools") is not None
             or item.path.name.startswith("test_ros2_")
             or bool({"ros2", "lifecycle_states"} & set(getattr(item, "fixturenames", ()))))
+
+
+def pytest_itemcollected(item: pytest.Item) -> None:
+    """Each such test carries the ``ros2_tools`` mark, so that ``-m ros2_tools`` (what
+    ``make test-ros2`` runs) selects exactly the tests the wheels path skips."""
+    if _needs_ros2_tools(item):
+        item.add_marker(pytest.mark.ros2_tools)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -216,7 +201,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         if "/test/nodes/" in str(item.path):
             item.add_marker(pytest.mark.flaky(reruns=1, reruns_delay=1))
         if missing and _needs_ros2_tools(item):
-            item.add_marker(pytest.mark.skip(reason=f"ros2 launch/CLI test: {missing}"))
+            item.add_marker(pytest.mark.skip(reason=skip_reason(missing)))
         if _starts_processes(item):
             item.add_marker(pytest.mark.slow)
     # Files with slow tests first, the nodes' (whole protocols at device pace) first of all:

@@ -208,3 +208,48 @@ def test_without_protocol_files_every_worker_shares_the_run():
 @pytest.mark.parametrize(("workers", "dist"), [(1, "loadfile"), (2, "load"), (2, "loadscope")])
 def test_one_worker_or_another_distribution_keep_xdists_scheduling(workers: int, dist: str):
     assert harness.pytest_xdist_make_scheduler(_Config(workers, dist), None) is None
+
+
+def test_make_test_ros2_refuses_in_one_sentence_naming_what_is_missing(
+        monkeypatch: pytest.MonkeyPatch):
+    import ros2_tools  # beside conftest.py, which put its folder on sys.path
+
+    monkeypatch.setattr(ros2_tools.shutil, "which", lambda _name: None)
+    monkeypatch.setattr(ros2_tools, "_importable", lambda module, _attr: module == "launch")
+    missing = ros2_tools.ros2_tools_missing()
+    assert missing == "the ros2 command and launch_ros"
+    monkeypatch.setenv("DISTRO", "kilted")
+    sentence = ros2_tools.refusal(missing)
+    assert sentence.startswith("make test-ros2: this shell lacks the ros2 command and "
+                               "launch_ros: source a ROS 2 installation")
+    assert "/opt/ros/kilted/setup.bash" in sentence
+    assert "\n" not in sentence and sentence.endswith("run it again.")
+
+
+def test_the_wheels_summary_counts_the_skipped_ros2_tests_and_names_their_command():
+    import ros2_tools
+
+    reason = ros2_tools.skip_reason("the ros2 command")
+    skipped = [SimpleNamespace(longrepr=("f.py", 1, f"Skipped: {reason}")) for _ in range(3)]
+    lines: list[str] = []
+    reporter = SimpleNamespace(stats={"skipped": skipped}, write_line=lines.append)
+    harness.pytest_terminal_summary(reporter)
+    assert lines == [f"not run: 3 test(s): {reason}"]
+    assert "needs the ros2 command" in reason and "'make test-ros2' runs these tests" in reason
+
+
+@pytest.mark.parametrize(("path", "fixtures", "marked", "needs"), [
+    ("test/launch/test_ros2_launch_bench.py", (), False, True),
+    ("test/nodes/test_driver_node.py", ("spawn", "lifecycle_states"), False, True),
+    ("test/nodes/test_driver_node.py", ("ros2",), False, True),
+    ("test/nodes/test_gripper_commands.py", ("spawn",), True, True),
+    ("test/launch/test_launch_files.py", ("tmp_path",), False, False),
+])
+def test_the_tests_needing_ros2_tools_carry_the_mark_make_test_ros2_selects(
+        path: str, fixtures: tuple[str, ...], marked: bool, needs: bool):
+    marks = ["ros2_tools"] if marked else []
+    item = SimpleNamespace(
+        path=Path(path), fixturenames=fixtures, add_marker=lambda m: marks.append(m.name),
+        get_closest_marker=lambda name: name if name in marks else None)
+    harness.pytest_itemcollected(item)
+    assert ("ros2_tools" in marks) is needs
