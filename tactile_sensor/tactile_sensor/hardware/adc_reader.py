@@ -137,7 +137,8 @@ class AdcStreamReader:
     run in the reader's thread, one at a time and in stream order; they may be slow (the
     drain thread keeps reading meanwhile, up to ``backlog`` samples ahead) but must not
     raise: an exception escaping a callback stops the reader (state STOPPED, reason says
-    why).
+    why). ``read_period_s`` > 0 reads the port at most once a period: a 1 kHz stream then
+    comes a few samples a read, for one wake-up of this thread instead of one per sample.
     """
 
     def __init__(
@@ -154,6 +155,7 @@ class AdcStreamReader:
         on_info: InfoCallback | None = None,
         on_batch: BatchCallback | None = None,
         drain_after_s: float = DRAIN_AFTER_S,
+        read_period_s: float = 0.0,
     ) -> None:
         if not isinstance(port, str) or not port:
             raise SerialPortError(f"port must be a device path such as /dev/ttyACM0, got {port!r}.")
@@ -169,6 +171,8 @@ class AdcStreamReader:
                             ("drain_after_s", drain_after_s)):
             if not isinstance(value, int | float) or not 0.0 < value <= 60.0:
                 raise SerialPortError(f"{name} must be in (0, 60] s, got {value!r}.")
+        if not isinstance(read_period_s, int | float) or not 0.0 <= read_period_s <= 0.1:
+            raise SerialPortError(f"read_period_s must be in [0, 0.1] s, got {read_period_s!r}.")
         if channels is not None and (not isinstance(channels, int)
                                      or not 1 <= channels <= MAX_CHANNELS):
             raise SerialPortError(f"channels must be 1..{MAX_CHANNELS} or None, got {channels!r}.")
@@ -190,6 +194,7 @@ class AdcStreamReader:
         self._read_timeout_s = float(read_timeout_s)
         self._silence_s = float(silence_timeout_s)
         self._drain_after_s = float(drain_after_s)
+        self._read_period_s = float(read_period_s)
         self._backlog: SampleBacklog[SampleBatch | _StateChange | _InfoChange] = SampleBacklog(
             backlog, _samples_in, SampleBatch.head)  # type: ignore[arg-type]
         self._parser = FrameParser(channels)
@@ -322,7 +327,13 @@ class AdcStreamReader:
     def _run(self, generation: int) -> None:
         """The reader's thread: read the port, parse, deliver; then what is left queued."""
         try:
+            period, read_at = self._read_period_s, 0.0
             while not self._stop.is_set() and generation == self._generation:
+                if period:  # the samples of a period in one read: one wake-up, not several
+                    wait = read_at + period - time.monotonic()
+                    if wait > 0.0 and self._stop.wait(wait):
+                        break
+                    read_at = time.monotonic()
                 items = self._read_port()
                 self._busy_since = time.monotonic()
                 try:

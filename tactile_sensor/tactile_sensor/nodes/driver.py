@@ -131,7 +131,8 @@ class DriverNode(GuardedLifecycleNode):
             reader = AdcStreamReader(values["port"], on_batch=self._on_batch,
                                      on_state=self._on_state, baudrate=values["baud_rate"],
                                      backlog=values["reader_backlog"],
-                                     on_info=self._on_info)
+                                     on_info=self._on_info,
+                                     read_period_s=values["read_period"])
         except (ParameterError, SensingError, HardwareError) as exc:
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE

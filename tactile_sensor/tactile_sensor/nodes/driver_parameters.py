@@ -15,6 +15,9 @@ from tactile_sensor.sensing.rest_gain import (
     MAX_RETARE_TIME_CONSTANT_S,
 )
 
+#: Two samples a read at 1 kHz (bench_driver.py measures the driver's CPU with it).
+DEFAULT_READ_PERIOD_S = 0.002
+
 
 def _modules_problem(text: str) -> str | None:
     try:
@@ -105,6 +108,10 @@ SPECS = [
               "processed that the driver may hold while starved of CPU; beyond it new ones "
               "are dropped and counted (diagnostics 'frames_overflowed')", minimum=1,
               maximum=10_000_000),
+    ParamSpec("read_period", DEFAULT_READ_PERIOD_S, "the port is read at most once this "
+              "often [s]: at 1 kHz a read then brings a few samples for one wake-up of the "
+              "reader's thread (the driver's CPU); the live force waits up to this long "
+              "more; 0 = read each sample as it arrives", minimum=0.0, maximum=0.1),
     ParamSpec("diagnostics_period", 1.0, "period of /diagnostics [s] (also sent at once on "
               "a connection change)", minimum=0.05, maximum=60.0),
 ]

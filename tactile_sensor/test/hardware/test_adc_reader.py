@@ -279,6 +279,9 @@ def test_silence_sends_the_state_back_to_connecting(tmp_path):
     ({"on_sample": None, "on_batch": 3}, "must be callables"),
     ({"drain_after_s": 0.0}, "drain_after_s"),
     ({"backlog": 0}, "backlog capacity"),
+    ({"read_period_s": -0.001}, "read_period_s"),
+    ({"read_period_s": 1.0}, "read_period_s"),
+    ({"read_period_s": float("nan")}, "read_period_s"),
 ])
 def test_bad_configuration_is_refused_at_construction(kwargs, match):
     args = {"port": "/dev/ttyACM0", "on_sample": print, **kwargs}
@@ -432,6 +435,25 @@ def test_batches_carry_every_frame_in_order_with_the_chunks_read_time(tmp_path):
     assert np.all(np.diff([s.seq for s in samples]) % 65536 == 1)
     assert all(s.counts[0] == (s.device_time_us // 1000) % 4096 for s in samples)
     assert all(len(set(b.host_time_ns)) == 1 for b in batches[1:])  # one read, one time
+
+
+def test_a_read_period_brings_the_samples_of_a_period_in_one_read_and_loses_none(tmp_path):
+    path = tmp_path / "adc"
+    batches: list = []
+    lock = threading.Lock()
+
+    def on_batch(batch) -> None:
+        with lock:
+            batches.append(batch)
+
+    with MockAdcDevice(path, code_ramp, noise=QUIET), \
+            AdcStreamReader(str(path), on_batch=on_batch, read_period_s=0.005) as reader:
+        assert wait_until(lambda: reader.stats().frames > 1000)
+    samples = [s for b in batches for s in b]
+    assert len(samples) == reader.stats().frames
+    assert np.all(np.diff([s.seq for s in samples]) % 65536 == 1)
+    # at 1 kHz a 5 ms period reads about five frames at a time (a read waits for none)
+    assert len(samples) / len(batches) > 3.0, (len(samples), len(batches))
 
 
 def test_a_network_serial_port_url_is_read_like_a_device(tmp_path):
