@@ -7,6 +7,13 @@ stops the fingers where they are; a servo hardware error aborts with the decoded
 A goal that ends without success backs off a force above its target (control/back_off.py)
 before it answers, so no abort leaves the fingers pressing harder than the goal asked.
 
+Readiness: a goal that acts on the tactile force (a grasp, a move with an effort limit) and
+arrives before the forces flow (the driver not started, not yet active, or late under load)
+waits for a fresh force, up to the tactile timeout, before its first command; the fingers do
+not move meanwhile, and without one it aborts ``tactile_stale`` saying none came. Under load
+a goal whose control loop gets no servo sample for the tactile timeout stops the fingers and
+aborts ``interrupted`` saying so, instead of commanding on where they were.
+
 Every result message is ``<outcome>: <detail>`` with an ``Outcome`` value as the outcome,
 and a message that states the force at the end states the result's ``force`` field.
 
@@ -18,10 +25,12 @@ control/actions.py.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, replace
 from enum import StrEnum
 
@@ -32,7 +41,7 @@ from tactile_sensor.control.grasp import Outcome, Phase, ServoCommand, Step
 from tactile_sensor.control.hold import ForceSettler
 from tactile_sensor.control.servo_link import ServoLink
 from tactile_sensor.control.slip_hold import SlipEvent, SlipHold
-from tactile_sensor.control.tactile_force import TactileForce
+from tactile_sensor.control.tactile_force import TactileForce, no_first_force_detail
 from tactile_sensor.hardware.errors import DynamixelError, ServoHardwareError
 from tactile_sensor.hardware.xm430 import ServoState
 
@@ -107,6 +116,16 @@ class Finish:
 
 
 @dataclass(frozen=True)
+class FirstInput:
+    """An input a goal waits for before it moves (readiness): whether the newest is fresh,
+    whether any came, and its name, topic and source for the refusal's sentence."""
+
+    fresh: Callable[[], bool]
+    heard: Callable[[], bool]
+    named: tuple[str, str, str] = ("tactile force", "tactile_wrench", "~/wrench")
+
+
+@dataclass(frozen=True)
 class RunnerTiming:
     control_period_s: float
     feedback_period_s: float
@@ -122,11 +141,14 @@ class GoalRunner:
                  on_hardware_error: Callable[[frozenset[str]], None],
                  log_error: Callable[[str], None],
                  on_slip: Callable[[SlipEvent], None] = lambda event: None,
+                 busy: Callable[[], AbstractContextManager[object]] = contextlib.nullcontext,
                  wall_clock: Callable[[], float] = time.time,
                  clock: Callable[[], float] = time.monotonic) -> None:
+        """``busy()`` is held while a goal runs: the node's control loop samples at the
+        control rate inside it (control/servo_sampler.py) and idles outside."""
         self.servo, self.forces, self.slot, self.timing = servo, forces, slot, timing
         self._on_hardware_error, self._log_error = on_hardware_error, log_error
-        self._on_slip = on_slip
+        self._on_slip, self._busy = on_slip, busy
         self._wall, self._clock = wall_clock, clock
 
     def snapshot(self, step: Step, force_n: float | None = None) -> Snapshot:
@@ -168,15 +190,25 @@ class GoalRunner:
         except (DynamixelError, ControlError) as exc:
             self._log_error(f"stop on cancel failed: {exc}")
 
-    def run(self, link: GoalLink, accept: Callable[[], ActiveGoal]) -> Finish:
+    def run(self, link: GoalLink, accept: Callable[[], ActiveGoal],
+            first_input: FirstInput | None = None) -> Finish:
         """Take the fingers over, accept the goal (``accept`` raises ControlError when it
-        is invalid) and run it to its end."""
+        is invalid) and run it to its end. ``first_input``: what the goal waits for before
+        it moves, instead of the tactile force (the self-check: the module output)."""
         self.slot.take_over(link.token)
+        with self._busy():
+            return self._run(link, accept, first_input)
+
+    def _run(self, link: GoalLink, accept: Callable[[], ActiveGoal],
+             first_input: FirstInput | None) -> Finish:
         if self.servo.state is None:
             return self._finish(None, None, False, NOT_ACTIVE)
         goal: ActiveGoal | None = None
         try:
             goal = accept()
+            waited = self._await_first_input(link, goal, first_input)
+            if waited is not None:
+                return waited
             step = self._start(link, goal)
         except ControlError as exc:
             return self._finish(goal, None, False, f"{Outcome.INVALID_GOAL}: {exc}")
@@ -189,6 +221,50 @@ class GoalRunner:
         if isinstance(driven, Finish):
             return driven
         return self._conclude(link, goal, driven)
+
+    def _await_first_input(self, link: GoalLink, goal: ActiveGoal,
+                           first_input: FirstInput | None) -> Finish | None:
+        """Before a goal that acts on the tactile force moves anything: wait for a fresh
+        force, up to the tactile timeout (readiness; docs/gripper.md). None once one came
+        (or the goal needs none); else how the goal ends, the fingers where they were."""
+        stale_after = self.servo.config.stale_after_s
+        if first_input is None:
+            if goal.back_off(self.forces.full_scale_n) is None:
+                return None  # no force target: a release, a position-only move
+            first_input = FirstInput(
+                lambda: self._wall() - self.forces.latest[1] <= stale_after,  # type: ignore[index]
+                lambda: self.forces.latest is not None)
+        started = self._clock()
+        while True:
+            heard = first_input.heard()
+            if heard and first_input.fresh():
+                return None
+            if link.cancel_requested():
+                return self._finish(goal, None, GoalStatus.CANCELED, CANCELED)
+            if self.slot.superseded(link.token):
+                return self._finish(goal, None, False, self.slot.abort_reason)
+            waited = self._clock() - started
+            if waited > stale_after:
+                return self._finish(goal, None, False, f"{Outcome.TACTILE_STALE}: "
+                                    + no_first_force_detail(waited, stale_after, heard,
+                                                            *first_input.named))
+            self.servo.await_sample(2 * self.timing.control_period_s)
+
+    def _starved(self, link: GoalLink, goal: ActiveGoal) -> Finish | None:
+        """A goal whose control loop has had no servo sample for the tactile timeout (a
+        starved machine) stops the fingers there and says so; None while samples come."""
+        age, bound = self.servo.sample_age_s(), self.servo.config.stale_after_s
+        if age <= bound:
+            return None
+        self._stop_logged(link.token)
+        step = goal.cancel(self._wall(), self.servo.state)
+        step, tail = self._safe_end(link, goal, step)
+        return self._finish(
+            goal, step, False,
+            f"{Outcome.INTERRUPTED}: the control loop got no servo sample for {age:.3f} s "
+            f"(tactile_timeout {bound:g} s; the machine is too busy for control_rate "
+            f"{1.0 / self.timing.control_period_s:g} Hz), so the fingers were stopped "
+            "where they were", tail)
 
     def _start(self, link: GoalLink, goal: ActiveGoal) -> Step:
         """The goal's first command sent, on a servo without a latched hardware error."""
@@ -218,6 +294,8 @@ class GoalRunner:
             if servo.comm_error:
                 return self._finish(goal, step, False,
                                     f"{Outcome.SERVO_UNREACHABLE}: {servo.comm_error}")
+            if (starved := self._starved(link, goal)) is not None:
+                return starved
             force = self.forces.latest
             step = goal.tick(self._wall(), force[0] if force else None,
                              force[1] if force else None, servo.state)

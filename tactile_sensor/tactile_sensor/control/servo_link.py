@@ -177,6 +177,12 @@ class ServoLink:
         self.hardware_error = bits
         return Poll(state, half, recovered=recovered, new_hardware_error=new)
 
+    def sample_age_s(self) -> float:
+        """How long ago the servo took the latest sample [s] (inf before the first): a goal
+        that acts on an older one acts on where the fingers no longer are."""
+        sample = self._sample
+        return self._clock() - sample[1] if sample is not None else float("inf")
+
     def sampled_at(self, state: object) -> float | None:
         """Host time [s] (``wall_clock``, the clock messages are stamped with) at which the
         servo took ``state``, one of the last samples; None for any other."""

@@ -28,6 +28,19 @@ def stale_detail(age_s: float, stale_after_s: float, heard: bool) -> str:
     return f"no tactile force for {age_s:.3f} s (tactile_timeout {stale_after_s:g} s)"
 
 
+def no_first_force_detail(waited_s: float, stale_after_s: float, heard: bool,
+                          what: str = "tactile force", topic: str = "tactile_wrench",
+                          source: str = "~/wrench") -> str:
+    """Why a goal that waited for a fresh tactile force (or another of the driver's
+    ``what``, subscribed as ``topic`` onto its ``source``) before moving (readiness) ended
+    without one, in one sentence with the fix."""
+    kind = f"no fresh {what} (the newest is older than that)" if heard else f"no {what}"
+    return (f"{kind} came within {waited_s:.3f} s of the goal (tactile_timeout "
+            f"{stale_after_s:g} s), so the fingers did not move: start and activate the "
+            f"driver, check that {topic} is remapped onto its {source}, or send the "
+            "goal again once its data flow")
+
+
 class TactileForce:
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -93,7 +106,8 @@ class TactileForce:
         """Why a grasp cannot start now, in one sentence (None: it may). The driver
         publishes no force while its detector is blind (ambient light at the rail,
         docs/ambient.md) or its stream is down; a grasp would close on nothing it can feel.
-        Before the first force none is refused: a grasp waits ``stale_after_s`` for it."""
+        Before the first force none is refused: the goal waits ``stale_after_s`` for it
+        before it moves (control/goal_runner.py)."""
         latest = self.latest
         if latest is None:
             return None

@@ -4,6 +4,7 @@ kinematic in-memory servo closing on a linear skin, sampled by a control-loop th
 from __future__ import annotations
 
 import collections
+import contextlib
 import math
 import re
 import threading
@@ -23,6 +24,7 @@ from tactile_sensor.control.goal_runner import (
     PREEMPTED,
     REBOOTED,
     REBOOTING,
+    FirstInput,
     GoalLink,
     GoalRunner,
     GoalSlot,
@@ -705,3 +707,139 @@ def test_an_adaptive_hold_without_tactile_force_ends_stale():
         thread.join(10.0)
     assert out["end"].status is GoalStatus.ABORTED
     assert out["end"].message.startswith("tactile_stale: no tactile force for ")
+
+
+def patient(stale_after_s: float) -> GoalSettings:
+    """The rig's settings with another tactile timeout, given to its servo link as well."""
+    return GoalSettings(config=replace(CONFIG, stale_after_s=stale_after_s))
+
+
+def unheard(settings: GoalSettings = SETTINGS) -> Rig:
+    """A rig whose driver publishes nothing yet (until ``sensing`` is set)."""
+    rig = Rig()
+    rig.servo.config = settings.config
+    rig.sensing.clear()
+    return rig
+
+
+def test_a_grasp_sent_before_the_forces_flow_waits_for_the_first_without_moving():
+    """Readiness: the driver is not publishing yet when the goal comes. Nothing is commanded
+    until a force arrives; then the grasp runs as any other (servo time: 2 s of waiting
+    allowed, the forces come after 50 samples)."""
+    settings = patient(2.0)
+    with unheard(settings) as rig:
+        thread, out = in_thread(lambda: rig.runner.run(
+            rig.link(), lambda: accept_grasp(grasp(), settings)))
+        for _ in range(50):
+            rig.servo.await_sample(1.0)
+        assert thread.is_alive(), out
+        assert rig.client.commands == [] and rig.forces.latest is None
+        rig.sensing.set()
+        thread.join()
+    end = out["end"]
+    assert end.status is GoalStatus.SUCCEEDED, end.message
+    assert end.message.startswith("contact: contact at ")
+
+
+def test_a_grasp_whose_forces_never_come_aborts_stale_before_anything_moves():
+    with unheard() as rig:
+        end = rig.run(accept_grasp, grasp())
+        commands = list(rig.client.commands)
+    assert end.status is GoalStatus.ABORTED and commands == []
+    assert re.fullmatch(
+        r"tactile_stale: no tactile force came within \d\.\d{3} s of the goal "
+        r"\(tactile_timeout 0\.1 s\), so the fingers did not move: start and activate the "
+        r"driver, check that tactile_wrench is remapped onto its ~/wrench, or send the goal "
+        r"again once its data flow", end.message), end.message
+    assert end.result is not None and end.result["contact_detected"] is False
+
+
+def test_a_goal_waiting_for_its_first_force_ends_on_a_cancel_or_a_newer_goal():
+    settings = patient(60.0)
+    with unheard(settings) as rig:
+        thread, out = in_thread(lambda: rig.runner.run(
+            rig.link(), lambda: accept_grasp(grasp(), settings)))
+        rig.servo.await_sample(1.0)
+        rig.cancel.set()
+        thread.join()
+        assert out["end"].status is GoalStatus.CANCELED
+        rig.cancel.clear()
+        thread, out = in_thread(lambda: rig.runner.run(
+            rig.link("first"), lambda: accept_grasp(grasp(), settings)))
+        rig.servo.await_sample(1.0)
+        rig.slot.take_over("newer goal")
+        thread.join()
+        assert out["end"].message == PREEMPTED
+        assert rig.client.commands == []
+
+
+def test_a_release_does_not_wait_for_the_tactile_force():
+    """A release must open the fingers whether the sensor works or not."""
+    with unheard() as rig:
+        end = rig.run(accept_release, SimpleNamespace(opening=0.050))
+    assert end.status is GoalStatus.SUCCEEDED, end.message
+
+
+def test_a_goal_whose_loop_gets_no_servo_sample_stops_the_fingers_and_says_why():
+    """Degrade out loud: a starved control loop (no servo sample for the tactile timeout)
+    ends the goal with the reason, and the last command is a stop where the fingers are."""
+    with Rig(rod_m=0.0) as rig:
+        thread, out = closing(rig)
+        rig.servo.sample_age_s = lambda: 0.35  # type: ignore[method-assign]
+        thread.join()
+        stopped_at = rig.client.commands[-1]
+        position = rig.client.position
+    end = out["end"]
+    assert end.status is GoalStatus.ABORTED
+    assert end.message == (
+        "interrupted: the control loop got no servo sample for 0.350 s (tactile_timeout "
+        "0.1 s; the machine is too busy for control_rate 500 Hz), so the fingers were "
+        "stopped where they were"), end.message
+    assert stopped_at == pytest.approx(position, abs=1e-3)
+
+
+class CountingBusy:
+    """A ``busy`` context that counts how often it was held."""
+
+    def __init__(self) -> None:
+        self.entered = self.left = 0
+
+    def __call__(self):
+        @contextlib.contextmanager
+        def held():
+            self.entered += 1
+            try:
+                yield
+            finally:
+                self.left += 1
+        return held()
+
+
+def test_the_loop_is_kept_busy_for_exactly_the_goal():
+    busy = CountingBusy()
+    with Rig() as rig:
+        rig.runner = GoalRunner(rig.servo, rig.forces, rig.slot, rig.runner.timing,
+                                on_hardware_error=rig.hardware_errors.append,
+                                log_error=rig.errors.append, busy=busy,
+                                wall_clock=rig.client.now, clock=rig.client.now)
+        rig.run(accept_release, SimpleNamespace(opening=0.050))
+        rig.run(accept_grasp, grasp(speed=5.0))  # invalid: ends at once, busy released too
+    assert (busy.entered, busy.left) == (2, 2)
+
+
+def test_a_goal_given_its_own_first_input_waits_for_that_and_names_it():
+    """The self-check waits for the module output, not the force: named in the sentence."""
+    output = FirstInput(lambda: False, lambda: True,
+                        ("module output", "tactile_reading", "~/reading"))
+    with Rig() as rig:
+        end = rig.runner.run(rig.link(), lambda: accept_release(
+            SimpleNamespace(opening=0.050), SETTINGS), output)
+        assert end.status is GoalStatus.ABORTED and rig.client.commands == []
+        assert end.message.startswith(
+            "tactile_stale: no fresh module output (the newest is older than that) came "
+            "within "), end.message
+        assert "check that tactile_reading is remapped onto its ~/reading" in end.message
+        came = FirstInput(lambda: True, lambda: True)
+        end = rig.runner.run(rig.link(), lambda: accept_release(
+            SimpleNamespace(opening=0.050), SETTINGS), came)
+    assert end.status is GoalStatus.SUCCEEDED, end.message

@@ -316,3 +316,12 @@ def test_a_failed_reboot_keeps_the_hardware_error():
     with pytest.raises(PortLost):
         servo.reboot(1.0)
     assert servo.hardware_error == bits
+
+
+def test_the_sample_age_counts_from_when_the_servo_took_it():
+    now = [10.0]
+    link = ServoLink(ScriptedServo(), GraspConfig(), period_s=0.01, clock=lambda: now[0])
+    assert link.sample_age_s() == math.inf
+    link.poll()
+    now[0] = 10.25
+    assert link.sample_age_s() == pytest.approx(0.25)

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from tactile_sensor.control.tactile_force import TactileForce
+from tactile_sensor.control.tactile_force import TactileForce, no_first_force_detail
 
 forces = st.floats(-50.0, 50.0)
 
@@ -80,3 +80,13 @@ def test_a_grasp_is_refused_in_one_sentence_once_the_force_went_stale():
                      "light saturates the detector': shade the module).")
     tactile.add(float("nan"), 10.5)
     assert tactile.stale_refusal(10.5, 0.2) is not None
+
+
+def test_a_goal_without_its_first_force_says_whether_an_old_one_was_heard():
+    never = no_first_force_detail(0.2004, 0.2, heard=False)
+    old = no_first_force_detail(0.2004, 0.2, heard=True)
+    assert never.startswith("no tactile force came within 0.200 s of the goal "
+                            "(tactile_timeout 0.2 s), so the fingers did not move: ")
+    assert old.startswith("no fresh tactile force (the newest is older than that) came ")
+    for detail in (never, old):
+        assert detail.count(". ") == 0 and "start and activate the driver" in detail
