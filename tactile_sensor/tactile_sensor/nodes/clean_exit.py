@@ -12,11 +12,17 @@ ignored, not merely handled, because Python resets every signal it handles to th
 action when the interpreter finalizes, before rclpy's and Fast DDS's objects are torn down
 (80-300 ms measured on Jazzy), and a Ctrl-C landing then killed the node (``ros2 launch``:
 "process has died [... exit code -2]").
+
+A node whose executor died (an exception escaped a callback) is shut down the same way
+and then exits ``EXIT_EXECUTOR_DIED``, not 0: ``ros2 launch`` then reports "process has
+died" and ``respawn`` restarts it; a signal other than SIGINT/SIGTERM ends the process
+with that signal's status, as before.
 """
 
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -29,11 +35,15 @@ from rclpy.signals import SignalHandlerOptions
 NO_RCLPY_SIGNAL_HANDLERS = SignalHandlerOptions.NO
 SPIN_TIMEOUT_S = 0.1  # bounds how long a stop waits for the executor to notice it
 EXECUTOR_SHUTDOWN_S = 2.0  # callbacks still running (e.g. a goal) get this long [s]
+#: Exit status of a node whose executor died: Python's own for an uncaught exception.
+EXIT_EXECUTOR_DIED = 1
 
 
-def spin_until_signal(executor: Executor, finish: Callable[[], None]) -> None:
+def spin_until_signal(executor: Executor, finish: Callable[[], None]) -> int:
     """Spin ``executor`` until SIGINT/SIGTERM, stop spinning, run ``finish``, then shut the
     executor down. The caller destroys the nodes and shuts the context down afterwards.
+    Returns the process's exit status: 0 after a signal, ``EXIT_EXECUTOR_DIED`` when an
+    exception ended the executor's thread (its traceback printed as the thread ends).
 
     ``finish`` runs once the executor stopped waiting on the node's entities and running
     their callbacks: destroying a subscription, timer or publisher while another thread
@@ -52,10 +62,15 @@ def spin_until_signal(executor: Executor, finish: Callable[[], None]) -> None:
         signal.signal(sig, on_signal)
     spinning = threading.Event()
     spinning.set()
+    died: list[BaseException] = []
 
     def spin() -> None:
-        while spinning.is_set() and executor.context.ok():
-            executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+        try:
+            while spinning.is_set() and executor.context.ok():
+                executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+        except BaseException as exc:
+            died.append(exc)
+            raise  # threading's hook prints the traceback: a bug to report
 
     spinner = threading.Thread(target=spin, name="executor", daemon=True)
     spinner.start()
@@ -75,6 +90,11 @@ def spin_until_signal(executor: Executor, finish: Callable[[], None]) -> None:
         closer.start()
         closer.join(EXECUTOR_SHUTDOWN_S)
     finish()
+    if died:
+        print(f"the executor stopped on {type(died[0]).__name__} (traceback above); the node "
+              f"shut down and exits {EXIT_EXECUTOR_DIED}", file=sys.stderr)
+        return EXIT_EXECUTOR_DIED
+    return 0
 
 
 def _drain_then_shut_down(executor: Executor) -> None:

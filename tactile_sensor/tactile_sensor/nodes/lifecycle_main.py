@@ -6,7 +6,9 @@ failed transition leaves it running (unconfigured) so it can be fixed with ``ros
 and ``ros2 lifecycle set`` without a restart. On SIGINT/SIGTERM the node goes through its
 shutdown transition (threads stopped, queued data published) before the context ends.
 The nodes without a lifecycle (the mock rig, the recorder) exit the same way
-(``run_plain_node``): their own stop runs before the context ends.
+(``run_plain_node``): their own stop runs before the context ends. Both return the exit
+status for ``sys.exit``: 0 after SIGINT/SIGTERM, non-zero when the executor died
+(``nodes/clean_exit.py``), so ``respawn`` and supervisors see a crash.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from rclpy.lifecycle import Node, TransitionCallbackReturn
 from rclpy.node import Node as RclpyNode
 
 from tactile_sensor.nodes.clean_exit import NO_RCLPY_SIGNAL_HANDLERS, spin_until_signal
+from tactile_sensor.nodes.guarded_lifecycle import guard_parameter_services
 from tactile_sensor.nodes.parameters import ParamSpec
 from tactile_sensor.nodes.ros_session import ros_session
 
@@ -59,7 +62,9 @@ def finalize(node: Node) -> None:
         node.trigger_shutdown()
 
 
-def run_lifecycle_node(factory: Callable[[], Node], args: list[str] | None = None) -> None:
+def run_lifecycle_node(factory: Callable[[], Node], args: list[str] | None = None) -> int:
+    """``main()`` of a lifecycle node: its exit status."""
+    code = 0
     try:
         with ros_session(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
             node = factory()
@@ -68,11 +73,12 @@ def run_lifecycle_node(factory: Callable[[], Node], args: list[str] | None = Non
             executor = MultiThreadedExecutor(num_threads=4)
             executor.add_node(node)
             try:
-                spin_until_signal(executor, lambda: finalize(node))
+                code = spin_until_signal(executor, lambda: finalize(node))
             finally:
                 node.destroy_node()
     except KeyboardInterrupt:  # Ctrl-C before spinning (e.g. while a node loads)
         pass
+    return code
 
 
 def run_plain_node(name: str, factory: Callable[[], PlainNode],
@@ -81,7 +87,10 @@ def run_plain_node(name: str, factory: Callable[[], PlainNode],
                    refused_code: int = 1) -> int:
     """``main()`` of a node without a lifecycle (the mock rig, the recorder): a node the
     user's parameters refuse (``refused``) prints one sentence and exits ``refused_code``;
-    otherwise it spins until a signal and runs ``finish`` while the context is valid."""
+    its set_parameters services refuse what rclpy cannot read (``guard_parameter_services``);
+    otherwise it spins until a signal and runs ``finish`` while the context is valid;
+    its exit status."""
+    code = 0
     try:
         with ros_session(args=args, signal_handler_options=NO_RCLPY_SIGNAL_HANDLERS):
             try:
@@ -89,12 +98,13 @@ def run_plain_node(name: str, factory: Callable[[], PlainNode],
             except refused as exc:
                 print(f"{name}: {exc}", file=sys.stderr)
                 return refused_code
+            guard_parameter_services(node)
             executor = SingleThreadedExecutor()
             executor.add_node(node)
             try:
-                spin_until_signal(executor, lambda: finish(node))
+                code = spin_until_signal(executor, lambda: finish(node))
             finally:
                 node.destroy_node()
     except KeyboardInterrupt:  # Ctrl-C while the node is being made (a skin model loading)
         pass
-    return 0
+    return code

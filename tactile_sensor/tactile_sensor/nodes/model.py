@@ -14,14 +14,16 @@ their faces' centres (the wrench set is computed and cached like the grid).
 
 from __future__ import annotations
 
+import sys
 import threading
 from pathlib import Path
 from typing import Any
 
-from rclpy.lifecycle import Node, State, TransitionCallbackReturn
+from rclpy.lifecycle import State, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from tactile_sensor.nodes import array_calibration_msg, calibration_curve_msg
+from tactile_sensor.nodes.guarded_lifecycle import GuardedLifecycleNode
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
@@ -75,7 +77,7 @@ def rate_terms(values: dict[str, Any], params: PhysicsParams) -> tuple[RateTerm,
                                                     strict=True))
 
 
-class ModelNode(Node):
+class ModelNode(GuardedLifecycleNode):
     def __init__(self, node_name: str = "model", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self._specs = physics_specs() + NODE_SPECS
@@ -251,9 +253,9 @@ class ModelNode(Node):
         return response
 
 
-def main(args: list[str] | None = None) -> None:
-    run_lifecycle_node(ModelNode, args)
+def main(args: list[str] | None = None) -> int:
+    return run_lifecycle_node(ModelNode, args)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
