@@ -27,7 +27,7 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.duration import Duration
-from rclpy.lifecycle import Node, State, TransitionCallbackReturn
+from rclpy.lifecycle import State, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -63,6 +63,7 @@ from tactile_sensor.hardware.xm430_health import xm430_health
 from tactile_sensor.nodes import calibration_correction_msg, self_check_links
 from tactile_sensor.nodes.diagnostics_msg import diagnostic_array
 from tactile_sensor.nodes.gripper_parameters import SPECS
+from tactile_sensor.nodes.guarded_lifecycle import GuardedLifecycleNode
 from tactile_sensor.nodes.lifecycle_main import run_lifecycle_node
 from tactile_sensor.nodes.parameters import (
     ParameterError,
@@ -101,7 +102,7 @@ FULL_SCALE_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL
                             reliability=ReliabilityPolicy.RELIABLE)
 
 
-class GripperNode(Node):
+class GripperNode(GuardedLifecycleNode):
     def __init__(self, node_name: str = "gripper", **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         declare_parameters(self, SPECS)
@@ -456,10 +457,10 @@ def _message(message_type: Any, fields: dict[str, Any]) -> Any:
 SWITCH_INTERVAL_S = 1e-3
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     sys.setswitchinterval(SWITCH_INTERVAL_S)
-    run_lifecycle_node(GripperNode, args)
+    return run_lifecycle_node(GripperNode, args)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
