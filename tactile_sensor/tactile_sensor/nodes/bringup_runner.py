@@ -20,6 +20,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from tactile_sensor.configurations import Configuration, NodeSpec, config_dir, config_files
 from tactile_sensor.nodes.background_spin import settle_callbacks
+from tactile_sensor.nodes.bringup_duplicates import bringup_node_names, claim_bringup
 from tactile_sensor.nodes.bringup_protocols import run_protocol
 from tactile_sensor.nodes.bringup_session import say
 
@@ -121,6 +122,13 @@ class BringupRunner:
         # switch interval lets the emulator's thread answer in time (docs/gripper.md).
         sys.setswitchinterval(5e-4)
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        claim = claim_bringup(bringup_node_names(self.configuration, self.namespace,
+                                                 self.use_mock, self.record is not None),
+                              self.namespace)
+        if claim.refusal is not None:
+            rclpy.try_shutdown()
+            say(claim.refusal)
+            return 2
         previous = signal.signal(signal.SIGINT, lambda *_: self.request_stop("Ctrl-C"))
         executor = MultiThreadedExecutor(num_threads=6)
         spinner: threading.Thread | None = None
