@@ -9,11 +9,10 @@ see every sample), the record gets them all, and the live topic gets only the re
 within ``window`` of the newest sample: none of a block while newer samples wait behind
 it. What the live topic skipped is counted for /diagnostics (``wrench_skipped``).
 
-The window keeps the live topic whole while the driver keeps up: a read of the port brings
-1-5 samples at 1 kHz (the device's writes and the host's wake-ups jitter), all within a few
-milliseconds of the newest, and each goes out as before. 10 ms is twice the widest such
-read seen on the mock beside two busy loops, and a tenth of the gripper's 0.1 s
-``tactile_timeout``-scale reactions.
+The window keeps the live topic whole while the driver keeps up: then a read of the port
+brings one sample at 1 kHz (the median on the mock ADC) and now and then a few
+milliseconds' worth, all of which go out as before. Beyond the window a reading is history:
+the record has it, and a controller would only act on it late.
 """
 
 from __future__ import annotations
