@@ -82,6 +82,10 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+#: The longest a ``wait_for_output(..., while_progressing=True)`` waits [s].
+PROGRESS_CEILING_S = 1200.0
+
+
 class Spawned:
     """A child process whose output goes to a log file shown when a test fails."""
 
@@ -99,13 +103,23 @@ class Spawned:
             self._log_file.flush()
         return self.log.read_text(errors="replace")
 
-    def wait_for_output(self, text: str, timeout_s: float = 20.0) -> bool:
-        deadline = time.monotonic() + timeout_s
+    def wait_for_output(self, text: str, timeout_s: float = 20.0, *,
+                        while_progressing: bool = False) -> bool:
+        """With ``while_progressing``, ``timeout_s`` counts from the process's last new output
+        (at most PROGRESS_CEILING_S in all): for a start that computes and says so, such as
+        a model node filling a cold FEM cache (a progress line every few seconds; minutes in
+        all beside a busy core)."""
+        start = time.monotonic()
+        deadline, seen = start + timeout_s, 0
         while time.monotonic() < deadline:
-            if text in self.output():
+            output = self.output()
+            if text in output:
                 return True
             if self.proc.poll() is not None:
                 return text in self.output()
+            if while_progressing and len(output) > seen:
+                seen = len(output)
+                deadline = min(time.monotonic() + timeout_s, start + PROGRESS_CEILING_S)
             time.sleep(0.05)
         return False
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ros2_tools import SIGTERM_PATIENCE
 from rosbags.highlevel import AnyReader
 
 pytestmark = [pytest.mark.slow, pytest.mark.flaky(reruns=1, reruns_delay=1)]
@@ -56,8 +57,9 @@ def test_bench_launch_records_and_analyses_a_compression_run(
     extra.write_text("bench:\n  ros__parameters:\n    protocol.start_delay: -1.0\n")
     launch = spawn("ros2", "launch", "tactile_sensor", "bench.launch.py",
                    "protocol:=compression", f"record:={bag}", f"config:={extra}",
-                   f"adc_port:={tmp_path / 'adc'}")
-    assert launch.wait_for_output("[driver]: calibration from", 120), launch.output()
+                   f"adc_port:={tmp_path / 'adc'}", SIGTERM_PATIENCE)
+    assert launch.wait_for_output("[driver]: calibration from", 120,  # a cold FEM cache
+                                  while_progressing=True), launch.output()
 
     states = lifecycle_states({"/driver", "/model"})
     assert states == {"/driver": "active", "/model": "active"}, (states, launch.output())
@@ -80,8 +82,8 @@ def test_bench_launch_records_and_analyses_a_compression_run(
     time.sleep(max(0.0, t_started + duration_s + 3.0 - time.monotonic()))
     code, seconds = launch.interrupt(group=False)  # as a supervisor would, to ros2 launch only
     output = launch.output()
-    # prompt means no node needed ros2 launch's escalation to SIGTERM (after 5 s); the
-    # time itself is left to a busy machine
+    # prompt means no node needed ros2 launch's escalation to SIGTERM (SIGTERM_PATIENCE);
+    # the time itself is left to a busy machine
     assert code == 0, (code, seconds, output[-3000:])
     assert "failed to terminate" not in launch.output(), (code, seconds, output[-3000:])
     for fault in FAULTS:

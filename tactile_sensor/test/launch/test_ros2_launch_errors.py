@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from ros2_tools import SIGTERM_PATIENCE
 
 pytestmark = pytest.mark.flaky(reruns=1, reruns_delay=1)
 
@@ -23,7 +24,8 @@ BENCH_PROTOCOLS = ", ".join(yaml.safe_load(
 def test_a_missing_adc_port_gives_one_error_line_and_the_driver_keeps_retrying(
         spawn, ros_domain, own_processes):
     launch = spawn("ros2", "launch", "tactile_sensor", "bench.launch.py",
-                   "use_mock_hardware:=false", "adc_port:=/dev/does-not-exist")
+                   "use_mock_hardware:=false", "adc_port:=/dev/does-not-exist",
+                   SIGTERM_PATIENCE)
     assert launch.wait_for_output("/dev/does-not-exist does not exist", 60), launch.output()
     time.sleep(3.0)  # 15 attempts at the driver's 0.2 s retry interval
     assert launch.proc.poll() is None  # the launch and its nodes keep running
@@ -32,8 +34,8 @@ def test_a_missing_adc_port_gives_one_error_line_and_the_driver_keeps_retrying(
     assert "[driver]: ADC disconnected: /dev/does-not-exist does not exist (device " \
            "unplugged?); retrying every 0.2 s" in errors[0]
     code, seconds = launch.interrupt(group=False)
-    # prompt means no node needed ros2 launch's escalation to SIGTERM (after 5 s); the
-    # time itself is left to a busy machine
+    # prompt means no node needed ros2 launch's escalation to SIGTERM (SIGTERM_PATIENCE);
+    # the time itself is left to a busy machine
     assert code == 0, (code, seconds, launch.output()[-2000:])
     assert "failed to terminate" not in launch.output(), (code, seconds, launch.output()[-2000:])
     for fault in FAULTS:

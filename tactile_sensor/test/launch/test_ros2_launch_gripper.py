@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from ros2_tools import SIGTERM_PATIENCE
 from rosbags.highlevel import AnyReader
 
 pytestmark = [pytest.mark.slow, pytest.mark.flaky(reruns=1, reruns_delay=1)]
@@ -50,8 +51,10 @@ def test_gripper_launch_with_the_readme_grasp_and_runtime_commands(
         spawn, ros2, lifecycle_states, own_processes, tmp_path):
     bag = tmp_path / "bag"
     launch = spawn("ros2", "launch", "tactile_sensor", "gripper.launch.py", f"record:={bag}",
-                   f"adc_port:={tmp_path / 'adc'}", f"servo_port:={tmp_path / 'xm430'}")
-    assert launch.wait_for_output("[driver]: calibration from", 120), launch.output()
+                   f"adc_port:={tmp_path / 'adc'}", f"servo_port:={tmp_path / 'xm430'}",
+                   SIGTERM_PATIENCE)
+    assert launch.wait_for_output("[driver]: calibration from", 120,  # a cold FEM cache
+                                  while_progressing=True), launch.output()
     states = lifecycle_states({"/driver", "/model", "/gripper"})
     assert set(states.values()) == {"active"} and len(states) == 3, (states, launch.output())
     start = launch.output()
@@ -93,8 +96,8 @@ def test_gripper_launch_with_the_readme_grasp_and_runtime_commands(
 
     code, seconds = launch.interrupt(group=True)  # Ctrl-C in a terminal
     output = launch.output()
-    # prompt means no node needed ros2 launch's escalation to SIGTERM (after 5 s); the
-    # time itself is left to a busy machine
+    # prompt means no node needed ros2 launch's escalation to SIGTERM (SIGTERM_PATIENCE);
+    # the time itself is left to a busy machine
     assert code == 0, (code, seconds, output[-3000:])
     assert "failed to terminate" not in launch.output(), (code, seconds, output[-3000:])
     for fault in FAULTS:
