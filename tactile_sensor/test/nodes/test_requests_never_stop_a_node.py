@@ -4,7 +4,8 @@ through its real ``~/change_state``; each is done or refused exactly as the stat
 says, and the node answers ``~/get_state`` after each. The same walk sends, in every state,
 parameter sets no node may take (wrong type, NaN, out of range, unknown name, a type rclpy
 cannot read) and, on the gripper, malformed goals to every action; two ChangeStates sent
-at once are one done, one refused. The node then ends with status 0 on SIGTERM.
+at once are one done, one refused. The node then ends with status 0 on SIGTERM. The
+recorder, a plain node (no lifecycle, no ~/change_state), refuses the same parameter sets.
 
 One process per node: the shutdown transition, which ends the walk, is taken from
 'active' only (from 'unconfigured' and 'inactive' its ids are sent where they are invalid).
@@ -66,13 +67,7 @@ class Lifecycle:
         assert self._answer(self._change, _request(99), retry=True).success is False
 
     def _answer(self, client: Any, request: Any, retry: bool = False) -> Any:
-        for _ in range(6 if retry else 1):
-            future = client.call_async(request)
-            if wait_until(future.done, 10.0 if retry else PATIENCE_S, poll_s=0.002):
-                return future.result()
-            client.remove_pending_request(future)
-        raise AssertionError(f"/{self.name} did not answer (still running: "
-                             f"{self.process.proc.poll() is None})\n{self.process.output()}")
+        return answer(client, request, self.process, retry)
 
     def state(self) -> str:
         return self._answer(self._get, GetState.Request()).current_state.label
@@ -88,6 +83,18 @@ class Lifecycle:
     def go(self, state: str) -> None:
         while (now := self.state()) != state:
             assert self.change(TOWARDS[now, state]), (now, state, self.process.output())
+
+
+def answer(client: Any, request: Any, process: Any, retry: bool = False) -> Any:
+    """The service's answer; ``retry`` repeats a request whose answer was lost (only for
+    requests that change nothing, or that are refused whatever happened before)."""
+    for _ in range(6 if retry else 1):
+        future = client.call_async(request)
+        if wait_until(future.done, 10.0 if retry else PATIENCE_S, poll_s=0.002):
+            return future.result()
+        client.remove_pending_request(future)
+    raise AssertionError(f"{client.service_name} had no answer (the node still running: "
+                         f"{process.proc.poll() is None})\n{process.output()}")
 
 
 def _request(transition: int | str) -> ChangeState.Request:
@@ -138,25 +145,24 @@ def bad_parameters(specs: list[Any]) -> list[Parameter]:
 
 
 class ParameterFuzz:
-    def __init__(self, lifecycle: Lifecycle, specs: list[Any]) -> None:
-        self.lifecycle, self.params = lifecycle, bad_parameters(specs)
-        name = lifecycle.name
-        self._set = lifecycle.node.create_client(SetParameters, f"/{name}/set_parameters")
-        self._atomic = lifecycle.node.create_client(SetParametersAtomically,
-                                                    f"/{name}/set_parameters_atomically")
+    def __init__(self, node: Any, name: str, process: Any, specs: list[Any]) -> None:
+        self.process, self.params = process, bad_parameters(specs)
+        self._set = node.create_client(SetParameters, f"/{name}/set_parameters")
+        self._atomic = node.create_client(SetParametersAtomically,
+                                          f"/{name}/set_parameters_atomically")
         assert self._set.wait_for_service(timeout_sec=PATIENCE_S)
         assert self._atomic.wait_for_service(timeout_sec=PATIENCE_S)
 
     def check(self) -> None:
         """Every bad value refused with a reason; an unreadable type refused whole."""
         unreadable = Parameter(name=self.params[-1].name, value=ParameterValue(type=99))
-        answer = self.lifecycle._answer(self._set, SetParameters.Request(
-            parameters=[*self.params, unreadable]), retry=True)
-        assert len(answer.results) == len(self.params) + 1
-        for param, result in zip([*self.params, unreadable], answer.results, strict=True):
+        results = answer(self._set, SetParameters.Request(
+            parameters=[*self.params, unreadable]), self.process, retry=True).results
+        assert len(results) == len(self.params) + 1
+        for param, result in zip([*self.params, unreadable], results, strict=True):
             assert not result.successful and result.reason, (param, result)
-        atomic = self.lifecycle._answer(self._atomic, SetParametersAtomically.Request(
-            parameters=[self.params[-1], unreadable]), retry=True).result
+        atomic = answer(self._atomic, SetParametersAtomically.Request(
+            parameters=[self.params[-1], unreadable]), self.process, retry=True).result
         assert not atomic.successful and "type 99" in atomic.reason, atomic
 
 
@@ -225,7 +231,7 @@ def test_the_driver_takes_every_request_in_every_state(spawn, client, tmp_path: 
         driver = spawn("--ros-args", "-r", "__node:=driver", "-p", f"port:={adc.link_path}",
                        module="tactile_sensor.nodes.driver")
         lifecycle = Lifecycle(client, "driver", driver)
-        params = ParameterFuzz(lifecycle, SPECS)
+        params = ParameterFuzz(client, "driver", driver, SPECS)
         walk(lifecycle, lambda state: params.check())
         ends_with_status_0_on_sigterm(driver)
     finally:
@@ -240,7 +246,7 @@ def test_the_model_takes_every_request_in_every_state(spawn, client):
                   "--params-file", str(config_dir() / "physics.yaml"),
                   module="tactile_sensor.nodes.model")
     lifecycle = Lifecycle(client, "model", model)
-    params = ParameterFuzz(lifecycle, physics_specs() + NODE_SPECS)
+    params = ParameterFuzz(client, "model", model, physics_specs() + NODE_SPECS)
     walk(lifecycle, lambda state: params.check())
     ends_with_status_0_on_sigterm(model)
 
@@ -310,7 +316,7 @@ def test_the_gripper_takes_every_request_and_goal_in_every_state(spawn, client,
 
     gripper = lone_gripper(spawn, tmp_path / "xm430")
     lifecycle = Lifecycle(client, "gripper", gripper)
-    params = ParameterFuzz(lifecycle, SPECS)
+    params = ParameterFuzz(client, "gripper", gripper, SPECS)
     goals = GoalFuzz(client, gripper)
 
     def in_every_state(state: str) -> None:
@@ -322,3 +328,14 @@ def test_the_gripper_takes_every_request_and_goal_in_every_state(spawn, client,
     for name in ("grasp", "release", "gripper_cmd", "self_check"):
         assert f"{name} goal rejected:" in output, name
     ends_with_status_0_on_sigterm(gripper)
+
+
+def test_the_recorder_refuses_parameter_sets_it_cannot_take(spawn, client, tmp_path: Path):
+    from tactile_sensor.nodes.recorder import PARAMETERS
+
+    recorder = spawn("--ros-args", "-p", f"path:={tmp_path / 'bag'}", "-p", "topics:=['/a']",
+                     module="tactile_sensor.nodes.recorder")
+    assert recorder.wait_for_output("Recording to", PATIENCE_S), recorder.output()
+    ParameterFuzz(client, "recorder", recorder, list(PARAMETERS)).check()
+    assert recorder.proc.poll() is None
+    ends_with_status_0_on_sigterm(recorder)
