@@ -214,8 +214,9 @@ def measure(way: str, variant: Variant, plan: Plan) -> Run:
         for k in range(plan.busy_grasps):
             stack.check_alive()
             run.grasps.append(probe.grasp_once(TARGET_N))
-            say(f"    grasp {k + 1}/{plan.busy_grasps} beside the loops: "
-                f"{run.grasps[-1].message}")
+            g = run.grasps[-1]
+            say(f"    grasp {k + 1}/{plan.busy_grasps} beside the loops: true force "
+                f"{g.held_n:.3f} N 0.5 s after the touch, peak {g.peak_n:.2f} N; {g.message}")
         probe.open()
         busy_to = time.time()
         for loop in loops:
@@ -404,6 +405,10 @@ def main() -> int:
     except (CompareError, StackError) as exc:
         print(f"bench_stack: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("bench_stack: interrupted; the processes it started are stopped.",
+              file=sys.stderr)
+        return 130
     sections = [(way, rows_of(way, runs, plan)) for way, runs in results.items()]
     print()
     print(render_table(labels, [(WAY_TITLES[w], rows) for w, rows in sections]))
