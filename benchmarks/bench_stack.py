@@ -140,10 +140,13 @@ def adc_period_ns(variant: Variant) -> float:
 
 
 def recording_loss(bag: Path, period_ns: float) -> tuple[Loss | None, str]:
-    from rosbags.highlevel import AnyReader
+    from rosbags.highlevel import AnyReader, AnyReaderError
 
-    with AnyReader([bag]) as reader:
-        types = {c.topic: c.msgtype for c in reader.connections}
+    try:
+        with AnyReader([bag]) as reader:
+            types = {c.topic: c.msgtype for c in reader.connections}
+    except AnyReaderError as exc:
+        return None, f"no readable bag ({exc})"
     stamps = read_stamps(bag).get("/driver/reading")
     if stamps is None:
         return None, types.get("/driver/reading", "not recorded")

@@ -13,7 +13,8 @@ BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 pytestmark = pytest.mark.slow  # each case starts the benchmark's process
 
 
-@pytest.mark.parametrize("bench", ["bench_driver.py", "bench_array_driver.py"])
+@pytest.mark.parametrize("bench", ["bench_driver.py", "bench_array_driver.py",
+                                   "bench_stack.py"])
 def test_an_unknown_revision_is_one_sentence(bench):
     done = subprocess.run([sys.executable, str(BENCHMARKS / bench), "--compare",
                            "no-such-revision", "--seconds", "1"],
