@@ -6,8 +6,9 @@ every control period. Run as an rclpy timer at the control rate whatever the gri
 doing, the loop, and the executor round each of its ticks costs, took about a fifth of the
 0.5 core an idle gripper node used (100 wakes a second of the 800 the executor had; the rest
 were the tactile subscriptions). Here one thread sleeps between samples: every
-``idle_period_s`` while no goal is ``busy``, every ``servo.period_s`` while one is, and a goal
-that starts wakes it at once, so the goal's first tick waits for no idle period.
+``servo.period_s`` while a goal is ``busy`` or the fingers still move after it (a cancel's
+stop, whose rest a client times by ``~/joint_states``), every ``idle_period_s`` once they
+rest; a goal that starts wakes it at once, so its first tick waits for no idle period.
 
 ``before`` runs ahead of each sample (the node takes the tactile messages waiting for it,
 so a goal's tick that follows the sample sees the newest force), ``after`` gets what the
@@ -39,6 +40,7 @@ class ServoSampler:
         self._lock = threading.Lock()
         self._wake = threading.Event()
         self._stopping = False
+        self._moving = False
         self._thread: threading.Thread | None = None
 
     @property
@@ -48,7 +50,7 @@ class ServoSampler:
     @property
     def period_s(self) -> float:
         """The period the loop samples at now [s]."""
-        return self.servo.period_s if self._busy else self.idle_period_s
+        return self.servo.period_s if self._busy or self._moving else self.idle_period_s
 
     def start(self) -> None:
         if self._thread is not None:
@@ -82,6 +84,7 @@ class ServoSampler:
         """One sample now: ``before``, the servo's read, ``after``."""
         self._before()
         poll = self.servo.poll()
+        self._moving = poll.state is not None and poll.state.moving
         self._after(poll)
         return poll
 

@@ -9,8 +9,15 @@ which also reads the driver's module output (``tactile_reading``), asks the mode
 its prediction (``model_predict``) and latches its correction for the driver
 (``calibration_correction``; sensing/calibration_correction.py).
 What a goal means lives in control/actions.py; the goal policy (one active goal,
-preemption, cancel, hardware errors) in control/goal_runner.py; the servo the control loop,
-the goals and a cancel share in control/servo_link.py.
+preemption, cancel, hardware errors, readiness) in control/goal_runner.py; the servo the
+control loop, the goals and a cancel share in control/servo_link.py; the control loop's
+thread, fast during a goal and at ``idle_rate`` otherwise, in control/servo_sampler.py.
+
+Idle cost: the executor waits on the actions, services and parameters only. The tactile
+subscriptions are in ``TakenByTheLoop``, a callback group the executor never runs, and
+the loop takes what waits in them before each servo sample: a 250 Hz force stream cost an
+executor round (the wait set of five action servers rebuilt) per message, 0.3 of a core.
+``tactile_reading`` (1 kHz) is subscribed only while a self-check runs.
 """
 
 from __future__ import annotations
@@ -25,8 +32,9 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.callback_groups import CallbackGroup, ReentrantCallbackGroup
 from rclpy.duration import Duration
+from rclpy.exceptions import InvalidHandle
 from rclpy.lifecycle import State, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -45,6 +53,7 @@ from tactile_sensor.control.errors import ControlError
 from tactile_sensor.control.goal_runner import (
     NOT_ACTIVE,
     Finish,
+    FirstInput,
     GoalLink,
     GoalRunner,
     GoalSlot,
@@ -54,7 +63,8 @@ from tactile_sensor.control.goal_runner import (
 )
 from tactile_sensor.control.self_check import DriveTrain, SelfCheckFit, SkinPrediction
 from tactile_sensor.control.self_check_goal import SelfCheckLinks, accept_self_check
-from tactile_sensor.control.servo_link import ServoLink, call_retrying
+from tactile_sensor.control.servo_link import Poll, ServoLink, call_retrying
+from tactile_sensor.control.servo_sampler import ServoSampler
 from tactile_sensor.control.slip_hold import SlipEvent as SlipSeen
 from tactile_sensor.control.tactile_force import TactileForce
 from tactile_sensor.hardware.errors import DynamixelError
@@ -97,6 +107,19 @@ else:
 
 #: Readings the ``tactile_reading`` subscription holds (1 s of the driver's 1 kHz).
 READING_QUEUE_DEPTH = 1000
+#: Forces the ``tactile_wrench`` subscription holds: 0.4 s of 250 Hz. A goal's hold reads
+#: every one (taken each control tick); idle, the loop takes them every 1 / idle_rate s and
+#: needs the newest alone.
+FORCE_QUEUE_DEPTH = 100
+#: Messages one take keeps at most per subscription and sample (the rest wait for the next).
+TAKE_AT_MOST = 1000
+
+
+class TakenByTheLoop(CallbackGroup):
+    """Subscriptions the executor leaves alone: the control loop takes their messages."""
+
+    def can_execute(self, entity: Any) -> bool:
+        return False
 #: The driver's ~/full_scale_force: latched, so a gripper started later still hears it.
 FULL_SCALE_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                             reliability=ReliabilityPolicy.RELIABLE)
@@ -114,11 +137,14 @@ class GripperNode(GuardedLifecycleNode):
         self._slot = GoalSlot()
         self._last_diag = 0.0
         self._group = ReentrantCallbackGroup()
-        self._loop_group = MutuallyExclusiveCallbackGroup()
+        self._taken = TakenByTheLoop()
+        self._take_lock = threading.Lock()
         self._entities: list[Any] = []
-        self._joint_pub = self._diag_pub = self._timer = self._slip_pub = None
+        self._joint_pub = self._diag_pub = self._slip_pub = None
+        self._sampler: ServoSampler | None = None
         self._force_sub: Any = None
         self._reading_sub: Any = None
+        self._reading_users = 0
         self._output = self_check_links.LatestOutput()
         self._predict_client: Any = None
         self._correction_pub: Any = None
@@ -131,9 +157,14 @@ class GripperNode(GuardedLifecycleNode):
         except (ParameterError, ValueError, ControlError) as exc:
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
+        period = 1.0 / values["control_rate"]
+        if values["idle_rate"] > values["control_rate"]:
+            self.get_logger().error(
+                f"configure failed: idle_rate {values['idle_rate']:g} Hz is above "
+                f"control_rate {values['control_rate']:g} Hz; lower idle_rate (e.g. 10).")
+            return TransitionCallbackReturn.FAILURE
         client = Xm430Client(values["port"], values["baud_rate"], values["servo_id"],
                              timeout_s=values["packet_timeout"])
-        period = 1.0 / values["control_rate"]
         servo = ServoLink(client, settings.config, period_s=period,
                           retries=values["comm_retries"])
         try:
@@ -145,21 +176,19 @@ class GripperNode(GuardedLifecycleNode):
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
         self._values, self._servo, self._settings = values, servo, settings
+        self._sampler = ServoSampler(servo, idle_period_s=1.0 / values["idle_rate"],
+                                     before=self._take_inputs, after=self._on_sample)
         self._runner = GoalRunner(
             servo, self._forces, self._slot,
             RunnerTiming(period, 1.0 / values["feedback_rate"], values["settle_time"]),
             on_hardware_error=self._on_hardware_error, log_error=self.get_logger().error,
-            on_slip=self._on_slip)
+            on_slip=self._on_slip, busy=self._sampler.busy)
         self._joint_pub = self.create_lifecycle_publisher(JointState, "~/joint_states", 10)
         self._diag_pub = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self._slip_pub = self.create_publisher(SlipEvent, "~/slip", 10)
         self._force_sub = self.create_subscription(
-            WrenchStamped, "tactile_wrench", self._on_force, 100, callback_group=self._group)
-        # the self-check pairs every reading by its stamp: a deep queue loses none to a
-        # busy executor (1 s at 1 kHz)
-        self._reading_sub = self.create_subscription(
-            TactileReading, "tactile_reading", self._on_reading, READING_QUEUE_DEPTH,
-            callback_group=self._group)
+            WrenchStamped, "tactile_wrench", self._on_force, FORCE_QUEUE_DEPTH,
+            callback_group=self._taken)
         self._predict_client = self.create_client(PredictOutput, "model_predict",
                                                   callback_group=self._group)
         self._correction_pub = self.create_publisher(
@@ -174,7 +203,6 @@ class GripperNode(GuardedLifecycleNode):
             goal, s, links, values["self_check_speed"]))}
         self._entities = [
             self._force_sub,
-            self._reading_sub,
             self.create_subscription(Float64, "tactile_full_scale", self._on_full_scale,
                                      FULL_SCALE_QOS, callback_group=self._group),
             *(self._action_server(name, action_type, accept)
@@ -196,15 +224,14 @@ class GripperNode(GuardedLifecycleNode):
         except DynamixelError as exc:
             self.get_logger().error(f"activate failed: {exc}")
             return TransitionCallbackReturn.FAILURE
-        self._timer = self.create_timer(self._servo.period_s, self._loop,
-                                        callback_group=self._loop_group)
+        assert self._sampler is not None
+        self._sampler.start()
         return super().on_activate(state)
 
     def on_deactivate(self, state: State) -> TransitionCallbackReturn:
         self._slot.abort_active(interrupted("the gripper node was deactivated"))
-        if self._timer is not None:
-            self.destroy_timer(self._timer)
-            self._timer = None
+        if self._sampler is not None:
+            self._sampler.stop()
         if self._servo is not None and (error := self._servo.torque_off()) is not None:
             self.get_logger().warn(f"torque off failed: {error}")
         return super().on_deactivate(state)
@@ -219,9 +246,9 @@ class GripperNode(GuardedLifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def _teardown(self) -> None:
-        if self._timer is not None:
-            self.destroy_timer(self._timer)
-            self._timer = None
+        if self._sampler is not None:
+            self._sampler.stop()
+        self._unsubscribe_readings(everyone=True)
         for entity in self._entities:
             if isinstance(entity, ActionServer):
                 entity.destroy()
@@ -244,14 +271,13 @@ class GripperNode(GuardedLifecycleNode):
         self._joint_pub = self._diag_pub = self._slip_pub = None
         if self._servo is not None:
             self._servo.client.close()  # type: ignore[attr-defined]
-        self._servo = self._runner = None
+        self._servo = self._runner = self._sampler = None
 
-    # -- servo loop (timer) ------------------------------------------------------------------
-    def _loop(self) -> None:
+    # -- servo loop (control/servo_sampler.py's thread) --------------------------------------
+    def _on_sample(self, poll: Poll) -> None:
         servo = self._servo
         if servo is None:
             return
-        poll = servo.poll()
         if poll.state is None:
             if poll.lost:
                 self.get_logger().error(f"servo unreachable: {poll.error}")
@@ -296,23 +322,29 @@ class GripperNode(GuardedLifecycleNode):
             self.get_clock().now().to_msg()))
 
     # -- tactile ------------------------------------------------------------------------------
-    def _on_force(self, msg: WrenchStamped) -> None:
-        # At 1 kHz one executor round per message costs more than the message: take what
-        # else is already waiting and keep only the newest.
-        sub = self._force_sub
+    def _take_inputs(self) -> None:
+        """What waits in the tactile subscriptions, taken before each servo sample (and as
+        a goal is accepted): a goal's tick after the sample sees the newest force."""
+        with self._take_lock:
+            forces = _take(self._force_sub, WrenchStamped)
+            if forces:
+                self._on_force(forces[0], forces[1:])
+            readings = _take(self._reading_sub, TactileReading)
+            now = time.monotonic()
+            for msg in readings:
+                stamp = msg.header.stamp
+                self._output.add(msg.output, now, stamp.sec + stamp.nanosec * 1e-9)
+
+    def _on_force(self, msg: WrenchStamped, more: list[WrenchStamped] | None = None) -> None:
+        """``msg`` and the ``more`` that came after it: the newest, and the sums the hold
+        and the adaptive hold read."""
         total, count, first = msg.wrench.force.z, 1, msg.header.stamp
         shear_x, shear_y = msg.wrench.force.x, msg.wrench.force.y
-        if sub is not None:
-            with sub.handle:
-                for _ in range(256):
-                    item = sub.handle.take_message(WrenchStamped, False)
-                    if item is None:
-                        break
-                    msg = item[0]
-                    total += msg.wrench.force.z
-                    shear_x += msg.wrench.force.x
-                    shear_y += msg.wrench.force.y
-                    count += 1
+        for msg in more or ():
+            total += msg.wrench.force.z
+            shear_x += msg.wrench.force.x
+            shear_y += msg.wrench.force.y
+            count += 1
         stamp = msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
         self._forces.add(msg.wrench.force.z, stamp, total, count,
                          first.sec + first.nanosec * 1e-9)
@@ -326,19 +358,34 @@ class GripperNode(GuardedLifecycleNode):
         msg.header.stamp = self.get_clock().now().to_msg()
         self._slip_pub.publish(msg)
 
-    def _on_reading(self, msg: TactileReading) -> None:
-        # as _on_force: take what else is already waiting in the same executor round
-        sub, now = self._reading_sub, time.monotonic()
-        for _ in range(256):
-            stamp = msg.header.stamp
-            self._output.add(msg.output, now, stamp.sec + stamp.nanosec * 1e-9)
-            if sub is None:
-                return
-            with sub.handle:
-                item = sub.handle.take_message(TactileReading, False)
-            if item is None:
-                return
-            msg = item[0]
+    def _subscribe_readings(self) -> None:
+        """The module output, for a self-check only: 1 kHz the idle gripper has no use for.
+        The self-check pairs every reading by its stamp: a deep queue loses none."""
+        with self._take_lock:
+            self._reading_users += 1
+            if self._reading_sub is None:
+                self._reading_sub = self.create_subscription(
+                    TactileReading, "tactile_reading", lambda msg: None,
+                    READING_QUEUE_DEPTH, callback_group=self._taken)
+
+    def _first_output(self, stale_after_s: float) -> FirstInput:
+        """A self-check waits for the module output as a grasp for the force (its
+        subscription is new: discovery takes a moment)."""
+        def fresh_within(limit_s: float) -> bool:
+            return self._output.fresh(time.monotonic(), limit_s) is not None
+        return FirstInput(lambda: fresh_within(stale_after_s), lambda: fresh_within(math.inf),
+                          ("module output", "tactile_reading", "~/reading"))
+
+    def _unsubscribe_readings(self, everyone: bool = False) -> None:
+        """One self-check is done with the readings (``everyone``: all are, teardown); the
+        last one destroys the subscription."""
+        with self._take_lock:
+            self._reading_users = 0 if everyone else max(self._reading_users - 1, 0)
+            sub = None
+            if self._reading_users == 0:
+                sub, self._reading_sub = self._reading_sub, None
+        if sub is not None:
+            self.destroy_subscription(sub)
 
     # -- self-check ---------------------------------------------------------------------------
     def _predict(self) -> SkinPrediction:
@@ -377,7 +424,7 @@ class GripperNode(GuardedLifecycleNode):
 
     def _on_goal(self, name: str, goal: Any, accept: Any) -> GoalResponse:
         """Invalid goals are rejected before anything moves, with one sentence."""
-        if self._settings is None or self._timer is None:
+        if self._settings is None or self._sampler is None or not self._sampler.running:
             self.get_logger().error(f"{name} goal rejected: the gripper is not active; "
                                     f"activate it (ros2 lifecycle set {self.get_name()} "
                                     "activate).")
@@ -387,6 +434,8 @@ class GripperNode(GuardedLifecycleNode):
         except ControlError as exc:
             self.get_logger().error(f"{name} goal rejected: {exc}")
             return GoalResponse.REJECT
+        if name == "grasp":
+            self._take_inputs()  # the newest force, not the one the idle loop took last
         stale = (self._forces.stale_refusal(time.time(), self._settings.config.stale_after_s)
                  if name == "grasp" else None)
         if stale is not None:
@@ -409,7 +458,16 @@ class GripperNode(GuardedLifecycleNode):
             link = GoalLink(goal_handle, lambda: goal_handle.is_cancel_requested,
                             lambda fields: goal_handle.publish_feedback(
                                 _message(action_type.Feedback, fields)))
-            end = runner.run(link, lambda: accept(goal_handle.request, settings))
+            reads_output = action_type is SelfCheck
+            first = None
+            if reads_output:
+                self._subscribe_readings()
+                first = self._first_output(settings.config.stale_after_s)
+            try:
+                end = runner.run(link, lambda: accept(goal_handle.request, settings), first)
+            finally:
+                if reads_output:
+                    self._unsubscribe_readings()
         if end.status is GoalStatus.SUCCEEDED:
             goal_handle.succeed()
         elif end.status is GoalStatus.CANCELED:
@@ -439,6 +497,23 @@ class GripperNode(GuardedLifecycleNode):
                    ) -> Trigger.Response:
         response.success, response.message = self._reboot()
         return response
+
+
+def _take(subscription: Any, message_type: Any) -> list[Any]:
+    """The messages waiting in ``subscription`` (None: none), oldest first."""
+    if subscription is None:
+        return []
+    taken: list[Any] = []
+    try:
+        with subscription.handle:
+            while len(taken) < TAKE_AT_MOST:
+                item = subscription.handle.take_message(message_type, False)
+                if item is None:
+                    break
+                taken.append(item[0])
+    except InvalidHandle:  # destroyed meanwhile (cleanup): nothing more to take
+        pass
+    return taken
 
 
 def _message(message_type: Any, fields: dict[str, Any]) -> Any:

@@ -26,10 +26,16 @@ SPECS = [
               exclusive_minimum=True, maximum=0.2),
     ParamSpec("default_timeout", 10.0, "grasp/release timeout when a goal gives 0 [s]",
               minimum=0.0, exclusive_minimum=True),
-    ParamSpec("control_rate", 100.0, "servo sync-read and control loop rate [Hz]",
-              minimum=1.0, maximum=1000.0),
-    ParamSpec("tactile_timeout", 0.2, "abort a grasp when the tactile force is older "
-              "than this [s]", minimum=0.0, exclusive_minimum=True),
+    ParamSpec("control_rate", 100.0, "servo sync-read and control loop rate while a goal "
+              "runs [Hz]", minimum=1.0, maximum=1000.0),
+    ParamSpec("idle_rate", 10.0, "servo sync-read rate while no goal runs, and so the rate "
+              "of ~/joint_states and of taking the tactile force then [Hz] (<= control_rate)",
+              minimum=0.5, maximum=1000.0),
+    ParamSpec("tactile_timeout", 0.2, "abort a goal when the tactile force is older than "
+              "this [s]; a goal that acts on the force and arrives before the first one "
+              "waits this long for it before the fingers move, then aborts tactile_stale; "
+              "also the longest a goal's control loop may go without a servo sample",
+              minimum=0.0, exclusive_minimum=True),
     ParamSpec("feedback_rate", 50.0, "action feedback rate [Hz]", minimum=1.0,
               maximum=1000.0),
     ParamSpec("auto_reboot", False, "reboot the servo by itself after a hardware error"),

@@ -192,9 +192,11 @@ def _gripper() -> NodeInterface:
         subscriptions=[Endpoint("tactile_wrench", _WRENCH, "the tactile force (remap to "
                                 "the driver's `~/wrench`; force x and y feed the adaptive "
                                 "hold)"),
+                       # variants: none, since it exists only while a goal runs
                        Endpoint("tactile_reading", "tactile_sensor_interfaces/msg/"
                                 "TactileReading", "the module output [V] the self-check "
-                                "records (remap to the driver's `~/reading`)"),
+                                "records (remap to the driver's `~/reading`); subscribed "
+                                "only while a SelfCheck goal runs", variants=frozenset()),
                        Endpoint("tactile_full_scale", "std_msgs/msg/Float64",
                                 "the tactile sensor's latched full-scale force [N] (remap "
                                 "to the driver's `~/full_scale_force`): with "

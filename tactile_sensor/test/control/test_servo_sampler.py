@@ -18,17 +18,18 @@ PATIENCE_S = 60.0
 
 
 class CountingServo:
-    """Answers every read; counts them."""
+    """Answers every read; counts them. ``moving``: the reads say Moving."""
 
     def __init__(self) -> None:
         self.reads = 0
+        self.moving = False
         self.fault: Exception | None = None
 
     def read_state(self) -> ServoState:
         self.reads += 1
         if self.fault is not None:
             raise self.fault
-        return ServoState(math.pi, 0.0, 0.1, 12.0, 30.0, False, frozenset())
+        return ServoState(math.pi, 0.0, 0.1, 12.0, 30.0, self.moving, frozenset())
 
 
 class Loop:
@@ -104,3 +105,20 @@ def test_an_idle_rate_above_the_control_rate_is_refused_in_one_sentence():
     with pytest.raises(ValueError, match=r"^idle_rate 200 Hz is above control_rate 100 Hz: "
                                          r".*lower idle_rate \(e\.g\. 10\)\.$"):
         Loop(idle_period_s=0.005, period_s=0.01)
+
+
+def test_after_a_goal_it_samples_fast_until_the_fingers_rest():
+    """A cancel's stop decelerates after the goal answered: ~/joint_states shows the rest
+    at the control rate, then the loop idles."""
+    loop = Loop()
+    loop.sampler.start()
+    loop.wait_for(1)
+    with loop.sampler.busy():
+        loop.client.moving = True
+        loop.wait_for(3)
+    loop.wait_for(len(loop.polls) + 20)  # after the goal: an hour's idle would not get here
+    loop.client.moving = False
+    with loop.sampled:
+        assert loop.sampled.wait_for(lambda: not loop.polls[-1].state.moving, PATIENCE_S)
+    assert loop.sampler.period_s == 3600.0
+    loop.sampler.stop()

@@ -10,6 +10,7 @@ import re
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -454,6 +455,62 @@ def test_a_grasp_on_a_stale_tactile_force_is_refused_in_one_sentence(
     assert gripper.wait_for_output("grasp goal rejected: the tactile force is ", PATIENCE_S), \
         gripper.output()
     assert "the sensor is blind or its stream stopped" in gripper.output()
+
+
+def test_a_grasp_sent_before_the_forces_flow_waits_for_the_first_one_without_moving(
+        spawn, ros_domain, tmp_path):
+    """Readiness (docs/gripper.md): the gripper is active before the driver publishes. A
+    grasp then waits up to tactile_timeout for the first force, the fingers still: with none
+    it aborts tactile_stale saying so; once forces come it closes."""
+    gripper = lone_gripper(spawn, tmp_path / "xm430", "-p", "autostart:=true",
+                           "-p", "tactile_timeout:=5.0")
+    assert gripper.wait_for_output("active", PATIENCE_S), gripper.output()
+    heard: list[JointState] = []
+    with ros_session():
+        node = rclpy.create_node("probe")
+        try:
+            force = node.create_publisher(WrenchStamped, "/tactile_wrench", 10)
+            node.create_subscription(JointState, "/gripper/joint_states", heard.append, 100)
+            grasp = RaceFreeActionClient(node, Grasp, "/gripper/grasp")
+            assert grasp.wait_for_server(timeout_sec=PATIENCE_S)
+            deadline = time.monotonic() + PATIENCE_S
+            while not heard:
+                assert time.monotonic() < deadline, gripper.output()
+                rclpy.spin_once(node, timeout_sec=0.05)
+            rest = heard[-1].position[0]
+
+            def send() -> Any:
+                future = grasp.send_goal_async(Grasp.Goal(target_force=1.0, timeout=30.0))
+                rclpy.spin_until_future_complete(node, future, timeout_sec=PATIENCE_S)
+                assert future.done() and future.result().accepted
+                return future.result()
+
+            result = send().get_result_async()
+            rclpy.spin_until_future_complete(node, result, timeout_sec=PATIENCE_S)
+            assert result.done(), gripper.output()
+            message = result.result().result.message
+            assert re.fullmatch(r"tactile_stale: no tactile force came within 5\.\d{3} s of "
+                                r"the goal \(tactile_timeout 5 s\), so the fingers did not "
+                                r"move: .*", message), message
+            assert all(abs(m.position[0] - rest) < MOVED_M for m in heard), "moved"
+            handle = send()
+            waited = len(heard)
+            while len(heard) < waited + 10:  # the goal waits: its loop samples meanwhile
+                rclpy.spin_once(node, timeout_sec=0.05)
+            assert all(abs(m.position[0] - rest) < MOVED_M for m in heard), "moved"
+            while abs(heard[-1].position[0] - rest) < MOVED_M:  # forces come: it closes
+                assert time.monotonic() < deadline, gripper.output()
+                msg = WrenchStamped()
+                msg.header.stamp = node.get_clock().now().to_msg()
+                force.publish(msg)
+                rclpy.spin_once(node, timeout_sec=0.01)
+            cancel = handle.cancel_goal_async()
+            rclpy.spin_until_future_complete(node, cancel, timeout_sec=PATIENCE_S)
+            grasp.destroy()
+        finally:
+            node.destroy_node()
+    assert "Grasp goal aborted: tactile_stale: no tactile force came within" in \
+        gripper.output()
 
 
 def test_a_self_check_on_a_stiffer_skin_and_a_dimmer_emitter_corrects_the_driver(
