@@ -142,10 +142,12 @@ def adc_period_ns(variant: Variant) -> float:
 def recording_loss(bag: Path, period_ns: float) -> tuple[Loss | None, str]:
     from rosbags.highlevel import AnyReader, AnyReaderError
 
+    if not bag.exists():
+        return None, "no bag written"
     try:
         with AnyReader([bag]) as reader:
             types = {c.topic: c.msgtype for c in reader.connections}
-    except AnyReaderError as exc:
+    except (AnyReaderError, FileNotFoundError) as exc:  # a folder without metadata
         return None, f"no readable bag ({exc})"
     stamps = read_stamps(bag).get("/driver/reading")
     if stamps is None:

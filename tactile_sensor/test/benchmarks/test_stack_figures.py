@@ -165,3 +165,44 @@ def test_the_table_shows_what_was_not_measured_and_refuses_a_short_row():
     assert "n/a" in line and "> 5" in line and "0.25 met" in line
     with pytest.raises(ValueError, match="has 1 values for 2 columns"):
         figures.render_table(["a", "b"], [("x", [Row("n", "", (1,))])])
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return importlib.import_module("bench_stack")
+
+
+@pytest.mark.parametrize("make", [
+    lambda tmp: tmp / "never_written",
+    lambda tmp: (tmp / "no_metadata").mkdir() or tmp / "no_metadata",
+    lambda tmp: (tmp / "junk.mcap").write_text("junk") and tmp / "junk.mcap",
+])
+def test_a_recording_that_cannot_be_read_is_not_measured_and_says_why(bench, tmp_path, make):
+    loss, why = bench.recording_loss(make(tmp_path), 1e6)
+    assert loss is None and (why == "no bag written" or why.startswith("no readable bag"))
+
+
+def test_a_run_that_failed_shows_not_measured_beside_one_that_ran(bench):
+    age = figures.AgeSummary(5.0, 15.0, 40.0, 2500)
+    grasp = importlib.import_module("grasp_hold").Grasp
+    ran = bench.Run(idle={"driver": 0.08, "gripper": 0.04, "mock hardware": 0.2},
+                    grasping={"driver": 0.09, "gripper": 0.1, "mock hardware": 0.2},
+                    quiet=age, busy=age, busy_dds=age, recovery=None, recovery_span_s=5.0,
+                    loss=figures.Loss(1000, 1000), driver_lost=0,
+                    grasps=[grasp(1.52, 1.49, True, "contact: settled at 1.50 N"),
+                            grasp(1.6, float("nan"), False, "tactile_stale: late")])
+    plan = bench.Plan(10.0, 10.0, 3, 2, 5.0, 3.0)
+    rows = bench.rows_of("processes", [bench.Run(error="not ready"), ran], plan)
+    by_name = {r.name: r for r in rows}
+    assert by_name["CPU idle, whole stack incl. mock"].values == (None, pytest.approx(0.32))
+    assert by_name["CPU idle, gripper"].goal.met(0.04)
+    assert by_name["after the loads stop: until p99 over 0.25 s stays < 10 ms"].values[1] == "> 5"
+    assert by_name[f"grasps at {bench.TARGET_N:g} N beside the loops: tactile_stale"].values[1] == 1
+    assert by_name["  true force within 5 % 0.5 s after touch"].values[1] == 1
+    found = {f.name: f for f in bench.figures_of([("processes", rows)], ["old", "new"])}
+    assert found["separate processes: CPU idle, gripper, new"].met is True
+    assert found["separate processes: CPU idle, gripper, old"].value is None
+    assert found["separate processes: CPU idle, gripper, old"].met is None
+    recovered = found["separate processes: after the loads stop: until p99 over 0.25 s stays "
+                      "< 10 ms, new"]
+    assert recovered.value == "> 5" and recovered.met is False
