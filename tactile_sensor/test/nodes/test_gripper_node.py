@@ -387,6 +387,18 @@ def test_an_unreachable_servo_fails_configure_with_one_sentence(spawn, ros_domai
     assert "no_such_port" in line and "Traceback" not in gripper.output()
 
 
+
+def test_an_idle_rate_above_the_control_rate_fails_configure_with_one_sentence(
+        spawn, ros_domain, tmp_path):
+    gripper = spawn("--ros-args", "-r", "__node:=gripper", "-p",
+                    f"port:={tmp_path / 'no_such_port'}", "-p", "autostart:=true",
+                    "-p", "idle_rate:=200.0", module="tactile_sensor.nodes.gripper")
+    assert gripper.wait_for_output("configure transition failed", PATIENCE_S), \
+        gripper.output()
+    assert ("configure failed: idle_rate 200 Hz is above control_rate 100 Hz; lower "
+            "idle_rate (e.g. 10).") in gripper.output()
+    assert "Traceback" not in gripper.output()
+
 def test_without_control_msgs_the_gripper_starts_and_says_which_actions_are_missing(
         spawn, ros_domain, tmp_path):
     """A ROS 2 with no control_msgs (hidden here by a package that refuses to import): the
