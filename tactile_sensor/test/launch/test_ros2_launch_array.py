@@ -71,7 +71,7 @@ def test_wrench_launch_streams_force_and_torque_from_eight_modules(
     extra = tmp_path / "extra.yaml"
     extra.write_text("bench:\n  ros__parameters:\n    protocol.start_delay: -1.0\n")
     launch = spawn("ros2", "launch", "tactile_sensor", "wrench.launch.py",
-                   f"config:={extra}", f"adc_port:={tmp_path / 'adc'}")
+                   f"config:={extra}", f"adc_port:={tmp_path / 'adc'}", SIGTERM_PATIENCE)
     assert launch.wait_for_output("[driver]: array calibration from", 120,
                                   while_progressing=True), launch.output()
     assert "observes fx, fy, fz, tx, ty, tz" in launch.output(), launch.output()
