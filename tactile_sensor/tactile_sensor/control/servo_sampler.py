@@ -48,6 +48,11 @@ class ServoSampler:
         return self._thread is not None
 
     @property
+    def goal_running(self) -> bool:
+        """Whether a goal holds the loop ``busy`` now."""
+        return self._busy > 0
+
+    @property
     def period_s(self) -> float:
         """The period the loop samples at now [s]."""
         return self.servo.period_s if self._busy or self._moving else self.idle_period_s

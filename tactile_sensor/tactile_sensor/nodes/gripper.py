@@ -37,6 +37,7 @@ from rclpy.duration import Duration
 from rclpy.exceptions import InvalidHandle
 from rclpy.lifecycle import State, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
@@ -326,7 +327,13 @@ class GripperNode(GuardedLifecycleNode):
         """What waits in the tactile subscriptions, taken before each servo sample (and as
         a goal is accepted): a goal's tick after the sample sees the newest force."""
         with self._take_lock:
-            forces = _take(self._force_sub, WrenchStamped)
+            # taken as bytes: idle, only the newest is worth a message object (the hold's
+            # sums are begun afresh by the goal that reads them); a goal gets every one
+            raw = _take(self._force_sub, WrenchStamped, raw=True)
+            sampler = self._sampler
+            if raw and not (sampler is not None and sampler.goal_running):
+                raw = raw[-1:]
+            forces = [deserialize_message(data, WrenchStamped) for data in raw]
             if forces:
                 self._on_force(forces[0], forces[1:])
             readings = _take(self._reading_sub, TactileReading)
@@ -499,15 +506,16 @@ class GripperNode(GuardedLifecycleNode):
         return response
 
 
-def _take(subscription: Any, message_type: Any) -> list[Any]:
-    """The messages waiting in ``subscription`` (None: none), oldest first."""
+def _take(subscription: Any, message_type: Any, raw: bool = False) -> list[Any]:
+    """The messages waiting in ``subscription`` (None: none), oldest first (``raw``: as
+    their serialized bytes)."""
     if subscription is None:
         return []
     taken: list[Any] = []
     try:
         with subscription.handle:
             while len(taken) < TAKE_AT_MOST:
-                item = subscription.handle.take_message(message_type, False)
+                item = subscription.handle.take_message(message_type, raw)
                 if item is None:
                     break
                 taken.append(item[0])
