@@ -10,6 +10,7 @@ a bag, runs the selected protocol, and shuts down cleanly at its end or on Ctrl-
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 from collections.abc import Sequence
@@ -101,23 +102,84 @@ def _override(params: dict[str, Any], item: str, spec: str) -> dict[str, Any]:
     return {name: value}
 
 
-def resolve_ports(configuration: Configuration, given: list[str]) -> dict[str, str]:
+def resolve_ports(configuration: Configuration, given: list[str],
+                  use_mock: bool = True) -> dict[str, str]:
+    """Device paths by port name: the mock's defaults, or with real devices every one
+    given (a mock's path would only time out)."""
     ports = {name: default for name, (default, _) in configuration.ports.items()}
+    named: set[str] = set()
     for item in given:
         name, sep, path = item.partition("=")
-        if not sep or name not in ports:
+        if not sep or name not in ports or not path:
             raise BringupError(
                 f"--port {item!r} is not NAME=PATH with NAME one of {', '.join(ports)}.")
         ports[name] = path
+        named.add(name)
+    missing = [name for name in ports if name not in named]
+    if not use_mock and missing:
+        raise BringupError(
+            "--no-mock needs the device path of every port: add "
+            + " ".join(f"--port {name}=/dev/..." for name in missing)
+            + f" (e.g. --port {missing[0]}={_EXAMPLE_DEVICE.get(missing[0], '/dev/ttyUSB0')}).")
     return ports
+
+
+_EXAMPLE_DEVICE = {"adc_port": "/dev/ttyACM0", "servo_port": "/dev/ttyUSB0"}
+
+
+def check_duration(duration: float | None) -> None:
+    if duration is not None and not (math.isfinite(duration) and duration > 0.0):
+        raise BringupError(f"--duration {duration:g} is not a positive number of seconds; "
+                           "give e.g. --duration 30, or leave it out.")
+
+
+#: What the gripper protocols' own fields accept (the bringup's action sequence reads them;
+#: the mock rig's protocol fields are checked against the rig's parameters).
+_GRIPPER_FIELDS = {
+    "protocol.target_force": (0.0, True, "N"), "protocol.closing_speed": (0.0, True, "m/s"),
+    "protocol.timeout": (0.0, True, "s"), "protocol.hold": (0.0, False, "s"),
+}
+
+
+def check_protocol(params: dict[str, Any], spec_text: str | None) -> None:
+    """Every field of the protocol as its user gave it, before any node starts: one
+    sentence naming the field, never the traceback of a node refusing it."""
+    from tactile_sensor.nodes.mock_hardware import SPECS as RIG_SPECS
+    from tactile_sensor.nodes.parameters import ParameterError
+
+    rig = {spec.name: spec for spec in RIG_SPECS}
+    given = f" in --protocol {spec_text!r}" if spec_text else ""
+    for name, value in params.items():
+        field = name.removeprefix("protocol.")
+        if name == "protocol.speeds":
+            if not value or not all(isinstance(v, int | float) and math.isfinite(v) and v > 0
+                                    for v in value):
+                raise BringupError(f"speeds{given} must be positive numbers of m/s joined "
+                                   f"by '/', e.g. speeds=0.001/0.01; got {value!r}.")
+        elif name in _GRIPPER_FIELDS:
+            low, exclusive, unit = _GRIPPER_FIELDS[name]
+            if (isinstance(value, bool) or not isinstance(value, int | float)
+                    or not math.isfinite(value) or value < low or (exclusive and value == low)):
+                bound = f"{'>' if exclusive else '>='} {low:g}"
+                raise BringupError(f"{field}{given} must be a number {bound} {unit}; got "
+                                   f"{value!r}.")
+        elif name in rig:
+            try:
+                rig[name].validate(value)
+            except ParameterError as exc:
+                reason = str(exc).partition(" is invalid: ")[2]
+                raise BringupError(f"{field} = {value!r}{given} is invalid: {reason}"
+                                   ) from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     options = parse_args(sys.argv[1:] if argv is None else argv)
     configuration = CONFIGURATIONS[options.configuration]
     try:
-        ports = resolve_ports(configuration, options.port)
+        check_duration(options.duration)
+        ports = resolve_ports(configuration, options.port, not options.no_mock)
         protocol = protocol_parameters(configuration.name, options.protocol)
+        check_protocol(protocol, options.protocol)
         if options.config is not None and not options.config.is_file():
             raise BringupError(f"--config {options.config} does not exist; give a ROS "
                                "parameter YAML file.")

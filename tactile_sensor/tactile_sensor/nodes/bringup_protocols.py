@@ -23,6 +23,8 @@ from tactile_sensor.nodes.bringup_session import RunningBringup, call_action, sa
 from tactile_sensor_interfaces.action import Grasp, Release
 
 READY_TIMEOUT_S = 120.0  # a cold FEM sweep plus the driver's tare
+DEVICE_SILENT_S = 5.0  # a real ADC sends its first frame within this after the port opens
+MOCK_SILENT_S = 60.0  # the mock's: a starved machine may start it slowly
 DRAIN_STALL_S = 30.0  # give up waiting for the streams once they have not advanced for this long
 TRACE_CATCH_UP_S = 10.0  # most the hold summary waits for the force stream to reach its end
 
@@ -34,9 +36,14 @@ def run_protocol(runner: RunningBringup, duration: float | None) -> int:
         say(refusal)
         return 2
     driver = runner.nodes.get("driver")
-    if driver is not None and not _wait_until(runner, lambda: driver.ready, READY_TIMEOUT_S,
-                                              "driver streaming calibrated force"):
-        say("the driver did not become ready (tare and calibration); see its log above")
+    if driver is not None and not _wait_until(
+            runner, lambda: driver.ready or _silent(runner, driver) is not None,
+            READY_TIMEOUT_S, "driver streaming calibrated force"):
+        if not runner.stopped:
+            say("the driver did not become ready (tare and calibration); see its log above")
+        return 1
+    if driver is not None and (silence := _silent(runner, driver)) is not None:
+        say(silence)
         return 1
     if lift:
         return bringup_lift.run_lift(runner)
@@ -51,6 +58,21 @@ def run_protocol(runner: RunningBringup, duration: float | None) -> int:
     while runner.now() < end and runner.wait(0.2):
         pass
     return 0
+
+
+def _silent(runner: RunningBringup, driver: Any) -> str | None:
+    """Why the bringup gives up on an ADC that sent no frame yet (None: not yet): after
+    DEVICE_SILENT_S with real devices, MOCK_SILENT_S with the mock's (a busy machine may
+    start them slowly, but they do start)."""
+    silence = driver.no_frame_for()
+    limit = MOCK_SILENT_S if runner.use_mock else DEVICE_SILENT_S
+    if silence is None or silence[0] < limit:
+        return None
+    fix = ("check that the board is plugged in, runs the tactile_adc firmware "
+           "(docs/firmware.md) and is the one --port adc_port names" if not runner.use_mock
+           else "see the mock's log above")
+    reason = silence[1].partition("; retrying")[0]
+    return f"no ADC frame in {silence[0]:.0f} s: {reason}; {fix}."
 
 
 def _wait_until(runner: RunningBringup, predicate: Any, timeout_s: float, what: str) -> bool:

@@ -25,6 +25,12 @@ from tactile_sensor.nodes.bringup_protocols import run_protocol
 from tactile_sensor.nodes.bringup_session import say
 
 
+def _refused_nodes() -> tuple[type[Exception], ...]:
+    from tactile_sensor.nodes.mock_hardware import MockHardwareError
+
+    return (MockHardwareError,)
+
+
 def node_arguments(spec: NodeSpec, extra_config: Path | None,
                    use_mock: bool = True) -> list[str]:
     """The --ros-args a launch file would give this node (device ports go in as parameter
@@ -134,7 +140,12 @@ class BringupRunner:
         spinner: threading.Thread | None = None
         code = 0
         try:
-            self._create_nodes()
+            try:
+                self._create_nodes()
+            except _refused_nodes() as exc:  # a mock rig the parameters refuse
+                say(str(exc))
+                self.request_stop("a node refused its parameters")
+                return 2
             for node in self.nodes.values():
                 executor.add_node(node)
             spinning = threading.Event()
@@ -146,7 +157,13 @@ class BringupRunner:
 
             spinner = threading.Thread(target=spin, name="executor", daemon=True)
             spinner.start()
-            code = run_protocol(self, duration) if self._lifecycle_up() else 1
+            if self._lifecycle_up():
+                code = run_protocol(self, duration)
+            else:
+                code = 1
+                self.request_stop("a node did not start")
+            if code != 0:
+                self.request_stop("the protocol failed; see above")
         finally:
             signal.signal(signal.SIGINT, previous)
             say(f"shutting down ({self._stop_reason or 'protocol finished'})")

@@ -17,6 +17,7 @@ class RunningBringup(Protocol):
     nodes: dict[str, Any]
     protocol: dict[str, Any]
     configuration: Any
+    use_mock: bool
 
     def wait(self, seconds: float) -> bool: ...
 

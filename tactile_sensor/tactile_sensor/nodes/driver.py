@@ -17,6 +17,7 @@ and no force is published.
 from __future__ import annotations
 
 import sys
+import time
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -113,6 +114,7 @@ class DriverNode(GuardedLifecycleNode):
         self._full_scale_pub: Any = None
         self._calibrations = CorrectedCalibration()
         self._live = LiveSelector()
+        self._active_since: float | None = None  # time.monotonic() of the last activation
 
     @property
     def ready(self) -> bool:
@@ -178,9 +180,19 @@ class DriverNode(GuardedLifecycleNode):
         result = super().on_activate(state)
         assert self._reader is not None
         self._reader.start()
+        self._active_since = time.monotonic()
         return result
 
+    def no_frame_for(self) -> tuple[float, str] | None:
+        """(seconds active without a single ADC frame, the reader's reason) while none came
+        yet; None once one came or while inactive. A bringup fails on it in seconds."""
+        reader, since = self._reader, self._active_since
+        if reader is None or since is None or reader.stats().frames:
+            return None
+        return time.monotonic() - since, reader.reason
+
     def on_deactivate(self, state: State) -> TransitionCallbackReturn:
+        self._active_since = None
         if self._reader is not None:
             self._reader.stop()
             discarded = self._reader.stats().discarded_at_stop

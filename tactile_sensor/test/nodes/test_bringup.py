@@ -3,6 +3,7 @@ recorded data against the world's ground truth; and the command's bad-input path
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -15,6 +16,7 @@ from rosbags.highlevel import AnyReader
 from tactile_sensor.analysis import cli as analyze_cli
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import load_or_compute_curve
+from tactile_sensor.sim.pty_link import PtyLink
 
 
 def read_bag(path: Path) -> dict[str, tuple[np.ndarray, list]]:
@@ -156,6 +158,23 @@ def test_bad_options_give_one_sentence(spawn, tmp_path, args, message):
     run = bringup(spawn, tmp_path, *args)
     assert run.proc.wait(timeout=60) == 2
     assert message in run.output() and "Traceback" not in run.output()
+
+
+@pytest.mark.parametrize("device", ["absent", "silent"])
+def test_a_real_adc_that_sends_nothing_fails_the_bringup_in_one_sentence(spawn, tmp_path,
+                                                                          device):
+    """--no-mock with an ADC port that does not exist, or a port that never sends a frame:
+    the bringup stops on its own (DEVICE_SILENT_S after the driver is active) and names
+    the port and the fix, instead of waiting for the driver's readiness for minutes."""
+    port = str(tmp_path / "adc")
+    with PtyLink(port) if device == "silent" else contextlib.nullcontext():
+        run = bringup(spawn, tmp_path, "bench", "--no-mock", "--port", f"adc_port={port}",
+                      "--protocol", "rest")
+        assert run.proc.wait(timeout=120) == 1, run.output()
+    said = [line for line in run.output().splitlines() if "no ADC frame in" in line]
+    assert len(said) == 1 and port in said[0] and "--port adc_port" in said[0], run.output()
+    assert "Traceback" not in run.output()
+    assert "shutting down (the protocol failed" in run.output()
 
 
 def test_an_existing_record_folder_is_never_overwritten(spawn, tmp_path):
