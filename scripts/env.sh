@@ -17,4 +17,11 @@ _ts_u=$(set +o | grep nounset); set +u
 . "$TS_INSTALL/setup.bash"
 eval "$_ts_u"
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+# A domain of this checkout and distribution of its own (1-100, from the venv's path) unless
+# one is set: every shell of one checkout meets the same nodes, another checkout's seldom
+# (docs/install.md).
+if [ -z "${ROS_DOMAIN_ID:-}" ]; then
+  ROS_DOMAIN_ID=$(( $(printf '%s' "$TS_VENV" | cksum | cut -d' ' -f1) % 100 + 1 ))
+  export ROS_DOMAIN_ID
+fi
 unset _ts_u

@@ -13,6 +13,7 @@ from tactile_sensor.nodes.bringup import (
     BringupError,
     check_duration,
     check_protocol,
+    per_run_ports,
     protocol_parameters,
     resolve_ports,
 )
@@ -69,3 +70,13 @@ def test_real_devices_need_every_port_named_and_the_mock_needs_none():
     assert ports == {"adc_port": "/dev/ttyACM0", "servo_port": "/dev/ttyUSB0"}
     with pytest.raises(BringupError, match="NAME=PATH"):
         resolve_ports(gripper, ["adc_port="])
+
+
+def test_the_mocks_devices_go_in_the_runs_own_folder_unless_a_port_names_them(tmp_path):
+    gripper = CONFIGURATIONS["gripper"]
+    given = ["servo_port=/tmp/mine/xm430"]
+    ports = per_run_ports(resolve_ports(gripper, given), given, tmp_path)
+    assert ports["servo_port"] == "/tmp/mine/xm430"
+    assert ports["adc_port"].startswith(str(tmp_path))
+    other = per_run_ports(resolve_ports(gripper, []), [], tmp_path / "other")
+    assert not set(other.values()) & set(ports.values())

@@ -13,6 +13,7 @@ import argparse
 import math
 import signal
 import sys
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -197,18 +198,28 @@ def main(argv: Sequence[str] | None = None) -> int:
         except ParameterFileError as exc:
             print(f"tactile-sensor bringup: {exc}", file=sys.stderr)
             return 2
-    if not options.no_mock:
-        for path in ports.values():
-            Path(path).parent.mkdir(parents=True, exist_ok=True)
-    # Imported late: argument errors above must not pay for rclpy.
-    from tactile_sensor.nodes.bringup_runner import BringupRunner
+    with tempfile.TemporaryDirectory(prefix="tactile_sensor-") as run_dir:
+        if not options.no_mock:
+            ports = per_run_ports(ports, options.port, Path(run_dir))
+            for path in ports.values():
+                Path(path).parent.mkdir(parents=True, exist_ok=True)
+        # Imported late: argument errors above must not pay for rclpy.
+        from tactile_sensor.nodes.bringup_runner import BringupRunner
 
-    runner = BringupRunner(configuration, ports=ports, protocol=protocol,
-                           namespace=options.namespace, use_mock=not options.no_mock,
-                           extra_config=options.config, record=options.record)
-    previous = signal.getsignal(signal.SIGTERM)
-    signal.signal(signal.SIGTERM, lambda *_: runner.request_stop("SIGTERM"))
-    try:
-        return runner.run(options.duration)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+        runner = BringupRunner(configuration, ports=ports, protocol=protocol,
+                               namespace=options.namespace, use_mock=not options.no_mock,
+                               extra_config=options.config, record=options.record)
+        previous = signal.getsignal(signal.SIGTERM)
+        signal.signal(signal.SIGTERM, lambda *_: runner.request_stop("SIGTERM"))
+        try:
+            return runner.run(options.duration)
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def per_run_ports(ports: dict[str, str], given: list[str], run_dir: Path) -> dict[str, str]:
+    """The mock's devices in this run's own folder, unless a ``--port`` named the path: two
+    bringups on one machine (in other domains) never open each other's devices."""
+    named = {item.partition("=")[0] for item in given}
+    return {name: path if name in named else str(run_dir / Path(path).name)
+            for name, path in ports.items()}
