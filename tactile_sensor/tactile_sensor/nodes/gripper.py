@@ -121,6 +121,8 @@ class TakenByTheLoop(CallbackGroup):
 
     def can_execute(self, entity: Any) -> bool:
         return False
+
+
 #: The driver's ~/full_scale_force: latched, so a gripper started later still hears it.
 FULL_SCALE_QOS = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                             reliability=ReliabilityPolicy.RELIABLE)
