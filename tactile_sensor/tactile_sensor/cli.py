@@ -16,12 +16,18 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "analyze": ("tactile_sensor.analysis.cli", "characterise a rosbag2 recording"),
     "bringup": ("tactile_sensor.nodes.bringup", "run the bench or gripper configuration"),
     "bag": ("tactile_sensor.recording.cli", "recover a bag a killed recorder left (recover)"),
+    "grasp": ("tactile_sensor.nodes.hand_commands:grasp",
+              "grasp with a force on the running gripper, e.g. 'grasp 1.5'"),
+    "release": ("tactile_sensor.nodes.hand_commands:release", "open the running gripper"),
+    "tare": ("tactile_sensor.nodes.hand_commands:tare", "tare the running driver"),
+    "self-check": ("tactile_sensor.nodes.hand_commands:self_check",
+                   "fit the module's gain and the skin's stiffness on the rod"),
 }
 
 
 def usage() -> str:
     lines = ["usage: tactile-sensor <command> [options]", "", "commands:"]
-    lines += [f"  {name:<9} {help_}" for name, (_, help_) in SUBCOMMANDS.items()]
+    lines += [f"  {name:<10} {help_}" for name, (_, help_) in SUBCOMMANDS.items()]
     lines += ["", "Run 'tactile-sensor <command> --help' for a command's options."]
     return "\n".join(lines)
 
@@ -36,8 +42,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"tactile-sensor: unknown command '{name}'; choose one of "
               f"{', '.join(SUBCOMMANDS)}.", file=sys.stderr)
         return 2
-    module = importlib.import_module(SUBCOMMANDS[name][0])
-    return int(module.main(rest) or 0)
+    module_name, _, function = SUBCOMMANDS[name][0].partition(":")
+    module = importlib.import_module(module_name)
+    return int(getattr(module, function or "main")(rest) or 0)
 
 
 if __name__ == "__main__":
