@@ -40,11 +40,11 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser.add_argument("--record", type=Path, default=None,
                         help="record the configuration's topics to this rosbag2 (MCAP) folder")
     parser.add_argument("--protocol", default=None,
-                        help="bench: compression | repeatability | speeds | rate_check | "
-                             "ambient | rest; "
-                             "gripper, gripper_shear: grasp | idle; array: compression | shear; "
-                             "wrench: wrench "
-                             "(config/protocols.yaml); "
+                        help="; ".join(f"{name}: {' | '.join(protocols)}" for name, protocols
+                                       in _protocol_table().items())
+                             + " (config/protocols.yaml; the first is the default); "
+                             "gripper idle stays up for 'tactile-sensor grasp' and "
+                             "'release' from another shell; "
                              "NAME:key=value,... overrides its fields, e.g. "
                              "repeatability:cycles=5 or speeds:cycles=1,rest=0.5; "
                              "ambient:scenario=dark|office|sunlight|shadow sets its light")
@@ -58,12 +58,15 @@ def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     return parser.parse_args(list(argv))
 
 
+def _protocol_table() -> dict[str, Any]:
+    return yaml.safe_load((config_dir() / "protocols.yaml").read_text()) or {}
+
+
 def protocol_parameters(configuration: str, protocol: str | None) -> dict[str, Any]:
     """The parameter set a protocol name stands for (config/protocols.yaml), with the
     overrides of ``NAME:key=value,...`` (keys without ``protocol.``, values in the YAML's
     units, several speeds joined by '/'), e.g. ``speeds:cycles=1`` for a short run."""
-    table = yaml.safe_load((config_dir() / "protocols.yaml").read_text()) or {}
-    protocols = table.get(configuration, {})
+    protocols = _protocol_table().get(configuration, {})
     if protocol is None:
         protocol = next(iter(protocols), None)
         if protocol is None:
