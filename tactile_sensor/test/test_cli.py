@@ -19,4 +19,4 @@ def test_an_unknown_command_is_named_in_one_sentence_with_the_choices(capsys):
     assert cli.main(["explode"]) == 2
     err = capsys.readouterr().err
     assert err == ("tactile-sensor: unknown command 'explode'; choose one of "
-                   "mock, model, analyze, bringup, bag.\n")
+                   "mock, model, analyze, bringup, bag, grasp, release, tare, self-check.\n")
