@@ -418,8 +418,9 @@ def test_stop_delivers_what_is_queued_or_counts_it(tmp_path):
     assert rec2.states[-1][1] is ConnectionState.STOPPED
 
 
-def test_batches_carry_every_frame_in_order_with_the_chunks_read_time(tmp_path):
-    path = tmp_path / "adc"
+def read_batches(path, frames: int, **reader_kw) -> tuple[list, list]:
+    """(the batches, their samples) a batch reader of the mock got, ``frames`` at least,
+    each checked to follow the last."""
     batches: list = []
     lock = threading.Lock()
 
@@ -428,30 +429,22 @@ def test_batches_carry_every_frame_in_order_with_the_chunks_read_time(tmp_path):
             batches.append(batch)
 
     with MockAdcDevice(path, code_ramp, noise=QUIET), \
-            AdcStreamReader(str(path), on_batch=on_batch) as reader:
-        assert wait_until(lambda: reader.stats().frames > 300)
+            AdcStreamReader(str(path), on_batch=on_batch, **reader_kw) as reader:
+        assert wait_until(lambda: reader.stats().frames > frames)
     samples = [s for b in batches for s in b]
     assert len(samples) == reader.stats().frames
     assert np.all(np.diff([s.seq for s in samples]) % 65536 == 1)
+    return batches, samples
+
+
+def test_batches_carry_every_frame_in_order_with_the_chunks_read_time(tmp_path):
+    batches, samples = read_batches(tmp_path / "adc", 300)
     assert all(s.counts[0] == (s.device_time_us // 1000) % 4096 for s in samples)
     assert all(len(set(b.host_time_ns)) == 1 for b in batches[1:])  # one read, one time
 
 
 def test_a_read_period_brings_the_samples_of_a_period_in_one_read_and_loses_none(tmp_path):
-    path = tmp_path / "adc"
-    batches: list = []
-    lock = threading.Lock()
-
-    def on_batch(batch) -> None:
-        with lock:
-            batches.append(batch)
-
-    with MockAdcDevice(path, code_ramp, noise=QUIET), \
-            AdcStreamReader(str(path), on_batch=on_batch, read_period_s=0.005) as reader:
-        assert wait_until(lambda: reader.stats().frames > 1000)
-    samples = [s for b in batches for s in b]
-    assert len(samples) == reader.stats().frames
-    assert np.all(np.diff([s.seq for s in samples]) % 65536 == 1)
+    batches, samples = read_batches(tmp_path / "adc", 1000, read_period_s=0.005)
     # at 1 kHz a 5 ms period reads about five frames at a time (a read waits for none)
     assert len(samples) / len(batches) > 3.0, (len(samples), len(batches))
 
