@@ -1,4 +1,4 @@
-"""``ros2 launch tactile_sensor gripper.launch.py`` for real, then the README's robot
+"""``ros2 launch tactile_sensor gripper.launch.py`` for real, then docs/install.md's robot
 commands and the runtime ones a user types, all with the real ``ros2`` command line:
 the grasp line verbatim, a release, ``ros2 param set`` on the driver (a contact threshold
 taken at once; refused for a bad combination and for a device parameter),
@@ -21,21 +21,22 @@ from rosbags.highlevel import AnyReader
 
 pytestmark = [pytest.mark.slow, pytest.mark.flaky(reruns=1, reruns_delay=1)]
 
-README = Path(__file__).resolve().parents[3] / "README.md"
+#: The page that lists the robot commands, each with the test that runs it.
+COMMANDS_PAGE = Path(__file__).resolve().parents[3] / "docs" / "install.md"
 # "process has died": ros2 launch's line for a node that ended by a signal or non-zero status
 FAULTS = ("Traceback", "never retrieved", "context is invalid", "process has died")
 
 
-def readme_command(start: str) -> str:
-    """The README's command beginning with ``start``, continuation lines joined."""
-    lines = README.read_text().splitlines()
+def documented_command(start: str) -> str:
+    """The page's command beginning with ``start``, continuation lines joined."""
+    lines = COMMANDS_PAGE.read_text().splitlines()
     first = next(i for i, line in enumerate(lines) if line.startswith(start))
     command = []
     for line in lines[first:]:
         command.append(line.rstrip().removesuffix("\\"))
         if not line.rstrip().endswith("\\"):
             return " ".join(command)
-    raise AssertionError(f"unterminated command in README: {start}")
+    raise AssertionError(f"unterminated command in {COMMANDS_PAGE.name}: {start}")
 
 
 def header_stamps(bag: Path, topic: str) -> np.ndarray:
@@ -60,8 +61,9 @@ def test_gripper_launch_with_the_readme_grasp_and_runtime_commands(
     start = launch.output()
     assert [line for line in start.splitlines() if "[ERROR]" in line or "[WARN" in line] == []
 
-    grasp = subprocess.run(["bash", "-c", readme_command("ros2 action send_goal /gripper/grasp")],
-                           capture_output=True, text=True, timeout=90)
+    grasp = subprocess.run(
+        ["bash", "-c", documented_command("ros2 action send_goal /gripper/grasp")],
+        capture_output=True, text=True, timeout=90)
     assert "Goal finished with status: SUCCEEDED" in grasp.stdout, (grasp, launch.output())
     assert "contact_detected: true" in grasp.stdout, grasp.stdout
     assert "Feedback:" in grasp.stdout
