@@ -275,18 +275,18 @@ class DriverNode(GuardedLifecycleNode):
             self.get_logger().error(str(exc), throttle_duration_sec=5.0)
             return
         stamp, epoch, every = self._clock_map.stamp_ns, batch.epoch, self._publish_every_ns
-        due: list[tuple[Reading | ArrayReading, int]] = []
-        for reading in readings:
-            stamp_ns = stamp(epoch, reading.device_time_us, reading.host_time_ns)
-            if stamp_ns < self._next_publish_ns:
-                continue
-            self._next_publish_ns = stamp_ns + every
-            due.append((reading, stamp_ns))
-        reader, live = self._reader, self._live
-        first_live = live.first_live([s for _, s in due], reader is not None
-                                     and reader.samples_waiting > 0)
-        for i, (reading, stamp_ns) in enumerate(due):
-            self._publish(reading, stamp_ns, live=i >= first_live)
+        stamps = [stamp(epoch, r.device_time_us, r.host_time_ns) for r in readings]
+        due: list[int] = []  # the readings ~/wrench may carry, at publish_rate
+        for i, stamp_ns in enumerate(stamps):
+            if stamp_ns >= self._next_publish_ns:
+                self._next_publish_ns = stamp_ns + every
+                due.append(i)
+        reader = self._reader
+        first = self._live.first_live([stamps[i] for i in due],
+                                      reader is not None and reader.samples_waiting > 0)
+        live = set(due[first:])
+        for i, (reading, stamp_ns) in enumerate(zip(readings, stamps, strict=True)):
+            self._publish(reading, stamp_ns, live=i in live)
 
     def _publish(self, reading: Reading | ArrayReading, stamp_ns: int, live: bool) -> None:
         """~/reading always (the record); ~/wrench for a ``live`` reading with a force."""

@@ -104,10 +104,12 @@ def _driver() -> NodeInterface:
         lifecycle=True, parameters=specs, applied=applied,
         publishers=[
             Endpoint("~/wrench", _WRENCH, "contact force [N] on +z of `frame_id` (with "
-                     "`modules`: force x, y and z); one per sample, or at `publish_rate`"),
+                     "`modules`: force x, y and z), the live force: one per sample, or at "
+                     "`publish_rate`, the newest only when the driver is behind its ADC"),
             Endpoint("~/reading", "tactile_sensor_interfaces/msg/TactileReading",
                      "voltage [V], inverted output [V], force [N] and contact of each "
-                     "sample (with `modules`: each face's voltage and output too)"),
+                     "sample, every sample (the record; with `modules`: each face's voltage "
+                     "and output too)"),
             Endpoint("~/full_scale_force", "std_msgs/msg/Float64",
                      "latched full-scale force [N] of the calibration in use (the curve's "
                      "top; every larger output clamps there): the gripper's force ceiling"),
