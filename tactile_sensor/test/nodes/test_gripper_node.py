@@ -35,7 +35,7 @@ from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.prediction import load_or_compute_curve
 from tactile_sensor.sensing.calibration import Calibration
 from tactile_sensor_interfaces.action import Grasp, Release, SelfCheck
-from tactile_sensor_interfaces.msg import CalibrationCorrection
+from tactile_sensor_interfaces.msg import CalibrationCorrection, TactileReading
 
 CONFIG = config_dir()
 # Upper bound of every wait on a condition (a wait ends as soon as its condition holds; a
@@ -107,14 +107,15 @@ class Client:
         self.release = RaceFreeActionClient(self.node, Release, "/gripper/release")
         #: More action clients a test adds, destroyed with these once the spin stops.
         self.more: list[RaceFreeActionClient] = []
-        self.force: list[tuple[float, float]] = []  # (header stamp, force)
+        # (header stamp, force) of every sample: the record, ~/reading; the live ~/wrench
+        # skips a backlog a starved driver works off, and a window of it can be empty
+        self.force: list[tuple[float, float]] = []
         self.truth: list[tuple[float, float]] = []  # (header stamp, true force)
         self.opening: list[tuple[float, float]] = []
         self.effort: list[float] = []  # the force the gripper heard (nan: none yet)
         self.diagnostics: list[DiagnosticStatus] = []
-        self.node.create_subscription(WrenchStamped, "/driver/wrench",
-                                      lambda m: self.force.append((_stamp(m),
-                                                                   m.wrench.force.z)), 1000)
+        self.node.create_subscription(TactileReading, "/driver/reading",
+                                      lambda m: self.force.append((_stamp(m), m.force)), 1000)
         self.node.create_subscription(WrenchStamped, "/gripper_world/ground_truth",
                                       lambda m: self.truth.append((_stamp(m),
                                                                    m.wrench.force.z)), 1000)
@@ -174,7 +175,8 @@ def connected(rig: Rig):
     with ros_session():
         client = Client()
         # the driver tares while the fingers are open and still
-        _until(lambda: client.force, rig.driver.output())
+        _until(lambda: client.force and math.isfinite(client.force[-1][1]),
+               rig.driver.output())
         # ... and the gripper must hear the force too before a grasp starts: a grasp sent
         # while discovery is still going aborts "tactile_stale" (force nan).
         # Its joint states carry the force it heard as the effort (nan before any).
