@@ -104,7 +104,7 @@ class DriverNode(GuardedLifecycleNode):
         self._frame_rate = FrameRate()
         self._cdr: tuple[ReadingCdr, WrenchCdr] | None = None  # swapped whole: frame_id
         self.published_readings = 0  # ~/reading messages published since construction
-        self.published_until_ns = 0  # stamp of the newest reading published
+        self.published_until_ns = 0  # stamp of the newest reading (sent where heard)
         self._loss = LossCounter()  # ADC frames lost, as last logged
         self._adc: AdcSettings | None = None  # decided on the device's info, per connection
         self._info_logged: DeviceInfo | None = None
@@ -281,35 +281,49 @@ class DriverNode(GuardedLifecycleNode):
             if stamp_ns >= self._next_publish_ns:
                 self._next_publish_ns = stamp_ns + every
                 due.append(i)
-        reader = self._reader
-        first = self._live.first_live([stamps[i] for i in due],
-                                      reader is not None and reader.samples_waiting > 0)
-        live = set(due[first:])
-        for i, (reading, stamp_ns) in enumerate(zip(readings, stamps, strict=True)):
-            self._publish(reading, stamp_ns, live=i in live)
+        if not stamps:
+            return
+        self.published_until_ns = stamps[-1]
+        # Only what someone listens to is encoded and sent: an idle gripper stack has no
+        # recorder, and 1,000 ~/reading messages a second nobody takes cost the driver
+        # more than its signal chain.
+        reading_pub, wrench_pub = self._reading_pub, self._wrench_pub
+        record = reading_pub is not None and reading_pub.get_subscription_count() > 0
+        live: set[int] = set()
+        if wrench_pub is not None and wrench_pub.get_subscription_count() > 0:
+            reader = self._reader
+            first = self._live.first_live([stamps[i] for i in due],
+                                          reader is not None and reader.samples_waiting > 0)
+            live = set(due[first:])
+        if record or live:
+            for i, (reading, stamp_ns) in enumerate(zip(readings, stamps, strict=True)):
+                self._publish(reading, stamp_ns, record, i in live)
 
-    def _publish(self, reading: Reading | ArrayReading, stamp_ns: int, live: bool) -> None:
-        """~/reading always (the record); ~/wrench for a ``live`` reading with a force."""
-        self.published_until_ns = stamp_ns
+    def _publish(self, reading: Reading | ArrayReading, stamp_ns: int, record: bool,
+                 live: bool) -> None:
+        """On ~/reading when ``record`` (someone records), on ~/wrench when ``live`` and the
+        reading has a force."""
         encoders, reading_pub, wrench_pub = self._cdr, self._reading_pub, self._wrench_pub
         if encoders is None:
             return
         force = reading.force_n
-        wrench = None
+        message = wrench = None
         if type(reading) is ArrayReading:
-            message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v, force,
-                                         reading.contact, reading.voltages_v,
-                                         reading.outputs_v)
+            if record:
+                message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v,
+                                             force, reading.contact, reading.voltages_v,
+                                             reading.outputs_v)
             if live and force == force:  # not NaN
                 wrench = encoders[1].encode(stamp_ns, reading.force_x_n, reading.force_y_n,
                                             force, reading.torque_x_nm, reading.torque_y_nm,
                                             reading.torque_z_nm)
         else:
-            message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v, force,
-                                         reading.contact)
+            if record:
+                message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v,
+                                             force, reading.contact)
             if live and force == force:
                 wrench = encoders[1].encode(stamp_ns, 0.0, 0.0, force)
-        if reading_pub is not None:
+        if message is not None and reading_pub is not None:
             reading_pub.publish(message)
             self.published_readings += 1
         if wrench is not None and wrench_pub is not None:

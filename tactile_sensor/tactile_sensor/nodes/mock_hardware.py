@@ -495,7 +495,7 @@ class MockHardwareNode(Node):
                                   rod_offset_m=v["rod.offset"],
                                   stiffness_ratio=v["skin.stiffness_ratio"], held=held,
                                   fingertip=fingertip)
-        self.source = self.world.module_voltages
+        self.source = self.world.voltage_source
         self.emulator = Xm430Emulator(v["servo_link"], servo_id=v["servo_id"],
                                       baudrate=v["servo_baud_rate"], world=self.world,
                                       control_path=v["servo_control"] or None)
@@ -518,6 +518,9 @@ class MockHardwareNode(Node):
             self._publish_truth()
 
     def _publish_truth(self) -> None:
+        if self._truth_pub.get_subscription_count() == 0 and (
+                self._object_pub is None or self._object_pub.get_subscription_count() == 0):
+            return  # nobody checks against the truth: no message to build
         sample = self.world.latest
         msg = WrenchStamped()
         msg.header.stamp = self.get_clock().now().to_msg()

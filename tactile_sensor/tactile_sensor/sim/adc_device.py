@@ -446,12 +446,15 @@ class MockAdcDevice:
         if k != self._ahead_k:
             self._ahead, self._ahead_noise, self._ahead_k = [], self._ahead_noise[:0], k
         revision = getattr(self._source, "revision", None)
-        if revision != self._ahead_revision and self._ahead:
+        changed = revision != self._ahead_revision
+        if changed and self._ahead:
             self._ahead = self._pack(k, self._ahead_noise)
         self._ahead_revision = revision
         missing = n - len(self._ahead)
         if missing > 0:
-            m = missing if revision is None else max(missing, self._ahead_n)
+            # ahead only once the source held still since the last call: a world in motion
+            # (its revision moving each millisecond) is sampled as its frames fall due
+            m = missing if revision is None or changed else max(missing, self._ahead_n)
             noise = self._next_noise(m)
             self._ahead += self._pack(k + len(self._ahead), noise)
             self._ahead_noise = np.concatenate([self._ahead_noise, noise])

@@ -79,6 +79,9 @@ class GripperWorld:
             raise ValueError("an object with mass needs a rod diameter (its size)")
         self.held = held
         self._lock = threading.Lock()
+        #: Moves whenever the modules' voltages do: the mock ADC samples a world that holds
+        #: still ahead of time in one call (sim/adc_device.py), one frame at a time otherwise.
+        self.revision = 0
         self._rod: tuple[float, float] | None = None
         self.set_rod(rod_diameter_m, rod_offset_m)
         self._times: list[float] = []
@@ -169,6 +172,8 @@ class GripperWorld:
                 if self.fingertip.axes > 1 and held.deflection_a_m:
                     sample = replace(sample, voltages_v=self._voltages(
                         sample.indentation_a_m, held.deflection_a_m))
+            if sample.voltages_v != self._latest.voltages_v:
+                self.revision += 1
             self._latest = sample
             self._times.append(t_s)
             self._forces.append(sample.force_a_n)
@@ -198,6 +203,11 @@ class GripperWorld:
             volts = self._latest.voltages_v
         return np.broadcast_to(np.asarray(volts, dtype=float), (*np.shape(t), len(volts)))
 
+    @property
+    def voltage_source(self) -> ModuleVoltages:
+        """What the mock ADC samples: ``module_voltages`` with this world's ``revision``."""
+        return ModuleVoltages(self)
+
     def force_at(self, t_s: float) -> float:
         """Finger A's skin force at time ``t_s`` from the recorded history (interpolated;
         the first/last sample outside it)."""
@@ -213,3 +223,17 @@ class GripperWorld:
             t0, t1, f0, f1 = times[i - 1], times[i], forces[i - 1], forces[i]
         w = (t_s - t0) / (t1 - t0) if t1 > t0 else 1.0
         return f0 + w * (f1 - f0)
+
+
+class ModuleVoltages:
+    """A world's ``module_voltages`` as a voltage source that carries its ``revision``."""
+
+    def __init__(self, world: GripperWorld) -> None:
+        self.world = world
+
+    def __call__(self, t: float | npt.ArrayLike) -> npt.NDArray[np.float64]:
+        return self.world.module_voltages(t)
+
+    @property
+    def revision(self) -> int:
+        return self.world.revision

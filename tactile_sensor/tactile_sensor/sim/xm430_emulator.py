@@ -63,6 +63,10 @@ control FIFO commands (one per line, e.g. `echo "fault overload" > CONTROL`):
 
 #: Parser gives up a partial packet after this much silence (a real servo's own timeout).
 _INTERBYTE_TIMEOUT_S = 0.01
+#: The loop's step while the servo is at rest [s]: the world still follows the skin's slow
+#: relaxation, and a thousand wake-ups a second of a servo that stands still cost the
+#: in-process bringup about a tenth of a core.
+_REST_STEP_S = 0.01
 _POSITION_MODES = (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION,
                    OperatingMode.CURRENT_BASED_POSITION)
 #: pty default speed (openpty): the host has not set a baud rate, so accept any.
@@ -240,8 +244,9 @@ class Xm430Emulator:
         while not self._stop.is_set():
             now = self._clock()
             with self._lock:
-                next_due = min((p.due_s for p in self._pending), default=now + 1e-3)
-            timeout = max(0.0, min(1e-3, next_due - now))
+                step = _REST_STEP_S if not self._pending and self._at_rest() else 1e-3
+                next_due = min((p.due_s for p in self._pending), default=now + step)
+            timeout = max(0.0, min(step, next_due - now))
             try:
                 data = self.link.read(4096, timeout)
             except OSError:
@@ -256,6 +261,18 @@ class Xm430Emulator:
                 self._flush(now)
             if self._control is not None:
                 self._control.poll(self.control)
+
+    def _at_rest(self) -> bool:
+        """Nothing would change between steps: the output and its profile still at the goal,
+        and no object that could slip in the fingers (call with the lock held). A packet
+        from the host still wakes the loop at once."""
+        s = self.motor.state
+        held = getattr(self.world, "held", None) if self.world is not None else None
+        if held is not None or s.velocity_rad_s != 0.0 or s.trajectory_velocity_rad_s != 0.0:
+            return False
+        command = self._motor_command()
+        return not command.torque_on or abs(command.goal_position_rad
+                                            - s.trajectory_position_rad) < table.RAD_PER_PULSE
 
     def _host_baud_matches(self) -> bool:
         try:
