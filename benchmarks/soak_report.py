@@ -26,7 +26,7 @@ def print_report(r: dict[str, Any]) -> None:
     if g:
         say(f"gripper driver: {int(g.get('frames', 0)):,} frames, "
             f"{g.get('frames_dropped')} missing, {g.get('frames_overflowed')} overflowed, "
-            f"{int(g.get('readings_published', 0)):,} readings published (250 Hz)")
+            f"{int(g.get('readings_published', 0)):,} readings published (while heard)")
     say(f"recorder: {r['recorded']:,} readings in {len(r['bag_files'])} file(s) "
         f"({', '.join(r['bag_files'])}) of {loss['published']:,} published")
     say("faults (at: since the benchmark started; detection and recovery: from the "

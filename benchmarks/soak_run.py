@@ -159,9 +159,11 @@ class Soak:
                      "the bench driver published no reading", "bench_driver")
         self._expect(lambda: any(r.level == 0 for r in self.monitor.history(GRIPPER_DIAG)),
                      "the gripper is not ready", "gripper")
-        self._expect(lambda: any(int(r.values.get("readings_published", 0)) > 0
+        # the gripper listens to the live force only (its readings go out while a
+        # self-check or a recorder listens): its driver streams once frames arrive
+        self._expect(lambda: any(int(r.values.get("frames", 0)) > 0
                                  for r in self.monitor.history(GRIPPER_DRIVER_DIAG)),
-                     "the gripper's driver published no reading", "gripper_driver")
+                     "the gripper's driver received no ADC frame", "gripper_driver")
 
     def _expect(self, condition: Callable[[], Any], failure: str, name: str) -> None:
         if not wait_until(condition, self.bring_up_timeout_s):
