@@ -23,3 +23,19 @@ def wait_until(predicate: Callable[[], object], timeout_s: float = PATIENCE_S,
             return True
         time.sleep(poll_s)
     return bool(predicate())
+
+
+def wait_while_advancing(predicate: Callable[[], object], progress: Callable[[], object],
+                         stall_s: float = PATIENCE_S, poll_s: float = 0.01) -> bool:
+    """True as soon as ``predicate()`` is; False once ``progress()`` (a stream's length,
+    its newest stamp) has not changed for ``stall_s`` [s]. For a stream a starved listener
+    takes in slower than real time: it gets there late, but it keeps getting nearer."""
+    last, moved = progress(), time.monotonic()
+    while not predicate():
+        now = progress()
+        if now != last:
+            last, moved = now, time.monotonic()
+        elif time.monotonic() - moved > stall_s:
+            return bool(predicate())
+        time.sleep(poll_s)
+    return True

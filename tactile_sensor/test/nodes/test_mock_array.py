@@ -14,7 +14,7 @@ import yaml
 from geometry_msgs.msg import WrenchStamped
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-from waiting import wait_until
+from waiting import wait_until, wait_while_advancing
 
 from tactile_sensor.configurations import config_dir
 from tactile_sensor.hardware.adc_reader import AdcStreamReader
@@ -88,6 +88,10 @@ class Listener:
         return bool(self.stage and self.gauge and self.stage[-1][0] >= end_s
                     and self.gauge[-1][0] >= end_s)
 
+    def received(self) -> tuple[int, int]:
+        """How much of stage and gauge has come: a starved listener's progress."""
+        return len(self.stage), len(self.gauge)
+
     def first_press_s(self) -> float | None:
         """Stamp of the first stage sample that indents (0.5 s rest after the start)."""
         return next((stamp for stamp, _, p in list(self.stage) if p[0] > 0), None)
@@ -144,10 +148,12 @@ def test_array_bench_streams_four_channels_and_three_axes(spawn, ros_domain, tmp
             # the stage and gauge stamp protocol time: wait until they reached its end
             assert wait_until(lambda: listener.first_press_s() is not None)
             end_s = listener.first_press_s() - 0.5 + world.duration_s
-            assert wait_until(lambda: listener.streamed_past(end_s))
+            assert wait_while_advancing(lambda: listener.streamed_past(end_s),
+                                        listener.received)
             # and the ADC, on its own clock: until its samples span the protocol (noise
             # off: every sample before the press has the rest counts)
-            assert wait_until(lambda: adc_streamed_past(samples, world.duration_s - 0.5))
+            assert wait_while_advancing(
+                lambda: adc_streamed_past(samples, world.duration_s - 0.5), samples.__len__)
         finally:
             listener.close()
     assert "protocol 'shear' started (10.0 s)" in bench.output()
@@ -200,9 +206,10 @@ def test_single_module_bench_keeps_its_signal_and_adds_the_lateral_axes(spawn, r
         try:
             listener.start_protocol()
             # until the press is deep and the force high (the protocol reaches both)
-            assert wait_until(lambda: max(p[0] for _, _, p in list(listener.stage)) > 0.002
-                              and max(f[2] for _, f in list(listener.gauge)) > 3.0
-                              and samples)
+            assert wait_while_advancing(
+                lambda: max(p[0] for _, _, p in list(listener.stage)) > 0.002
+                and max(f[2] for _, f in list(listener.gauge)) > 3.0 and samples,
+                listener.received)
         finally:
             listener.close()
     assert {len(s.counts) for s in samples} == {1}
