@@ -276,7 +276,7 @@ class DriverNode(GuardedLifecycleNode):
             return
         stamp, epoch, every = self._clock_map.stamp_ns, batch.epoch, self._publish_every_ns
         stamps = [stamp(epoch, r.device_time_us, r.host_time_ns) for r in readings]
-        due: list[int] = []  # the readings ~/wrench may carry, at publish_rate
+        due: list[int] = []  # the readings published, at publish_rate
         for i, stamp_ns in enumerate(stamps):
             if stamp_ns >= self._next_publish_ns:
                 self._next_publish_ns = stamp_ns + every
@@ -296,8 +296,8 @@ class DriverNode(GuardedLifecycleNode):
                                           reader is not None and reader.samples_waiting > 0)
             live = set(due[first:])
         if record or live:
-            for i, (reading, stamp_ns) in enumerate(zip(readings, stamps, strict=True)):
-                self._publish(reading, stamp_ns, record, i in live)
+            for i in due:
+                self._publish(readings[i], stamps[i], record, i in live)
 
     def _publish(self, reading: Reading | ArrayReading, stamp_ns: int, record: bool,
                  live: bool) -> None:

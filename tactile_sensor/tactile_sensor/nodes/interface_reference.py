@@ -108,8 +108,8 @@ def _driver() -> NodeInterface:
                      "`publish_rate`, the newest only when the driver is behind its ADC"),
             Endpoint("~/reading", "tactile_sensor_interfaces/msg/TactileReading",
                      "voltage [V], inverted output [V], force [N] and contact of each "
-                     "sample, every sample (the record; with `modules`: each face's voltage "
-                     "and output too)"),
+                     "sample at `publish_rate`, the record (with `modules`: each face's "
+                     "voltage and output too)"),
             Endpoint("~/full_scale_force", "std_msgs/msg/Float64",
                      "latched full-scale force [N] of the calibration in use (the curve's "
                      "top; every larger output clamps there): the gripper's force ceiling"),
