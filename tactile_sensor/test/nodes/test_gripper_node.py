@@ -9,6 +9,7 @@ import math
 import re
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -436,6 +437,30 @@ def test_without_control_msgs_the_gripper_starts_and_says_which_actions_are_miss
 
 
 
+@contextlib.contextmanager
+def probe(heard: list[JointState], depth: int = 10) -> Iterator[tuple[Any, Any, Any]]:
+    """(node, a publisher of the gripper's tactile_wrench, its ~/grasp client) in a session
+    of their own; ``heard`` collects the gripper's joint states."""
+    with ros_session():
+        node = rclpy.create_node("probe")
+        try:
+            force = node.create_publisher(WrenchStamped, "/tactile_wrench", 10)
+            node.create_subscription(JointState, "/gripper/joint_states", heard.append, depth)
+            grasp = RaceFreeActionClient(node, Grasp, "/gripper/grasp")
+            assert grasp.wait_for_server(timeout_sec=PATIENCE_S)
+            yield node, force, grasp
+            grasp.destroy()
+        finally:
+            node.destroy_node()
+
+
+def publish_force(node: Any, force: Any) -> None:
+    """A zero force stamped now, as the driver publishes at rest."""
+    msg = WrenchStamped()
+    msg.header.stamp = node.get_clock().now().to_msg()
+    force.publish(msg)
+
+
 def test_a_grasp_on_a_stale_tactile_force_is_refused_in_one_sentence(
         spawn, ros_domain, tmp_path):
     """The driver went quiet, as it does while its detector is blind (no force then): a
@@ -443,29 +468,18 @@ def test_a_grasp_on_a_stale_tactile_force_is_refused_in_one_sentence(
     gripper = lone_gripper(spawn, tmp_path / "xm430", "-p", "autostart:=true")
     assert gripper.wait_for_output("active", PATIENCE_S), gripper.output()
     heard: list[JointState] = []
-    with ros_session():
-        node = rclpy.create_node("probe")
-        try:
-            force = node.create_publisher(WrenchStamped, "/tactile_wrench", 10)
-            node.create_subscription(JointState, "/gripper/joint_states", heard.append, 10)
-            grasp = RaceFreeActionClient(node, Grasp, "/gripper/grasp")
-            assert grasp.wait_for_server(timeout_sec=PATIENCE_S)
-            deadline = time.monotonic() + PATIENCE_S
-            while not (heard and math.isfinite(heard[-1].effort[0])):  # the gripper heard it
-                assert time.monotonic() < deadline, gripper.output()
-                msg = WrenchStamped()
-                msg.header.stamp = node.get_clock().now().to_msg()
-                force.publish(msg)
-                rclpy.spin_once(node, timeout_sec=0.05)
-            stale_since = time.monotonic()
-            while time.monotonic() - stale_since < 0.5:  # > tactile_timeout (0.2 s)
-                rclpy.spin_once(node, timeout_sec=0.05)
-            future = grasp.send_goal_async(Grasp.Goal(target_force=1.0))
-            rclpy.spin_until_future_complete(node, future, timeout_sec=PATIENCE_S)
-            assert future.done() and not future.result().accepted
-            grasp.destroy()
-        finally:
-            node.destroy_node()
+    with probe(heard) as (node, force, grasp):
+        deadline = time.monotonic() + PATIENCE_S
+        while not (heard and math.isfinite(heard[-1].effort[0])):  # the gripper heard it
+            assert time.monotonic() < deadline, gripper.output()
+            publish_force(node, force)
+            rclpy.spin_once(node, timeout_sec=0.05)
+        stale_since = time.monotonic()
+        while time.monotonic() - stale_since < 0.5:  # > tactile_timeout (0.2 s)
+            rclpy.spin_once(node, timeout_sec=0.05)
+        future = grasp.send_goal_async(Grasp.Goal(target_force=1.0))
+        rclpy.spin_until_future_complete(node, future, timeout_sec=PATIENCE_S)
+        assert future.done() and not future.result().accepted
     assert gripper.wait_for_output("grasp goal rejected: the tactile force is ", PATIENCE_S), \
         gripper.output()
     assert "the sensor is blind or its stream stopped" in gripper.output()
@@ -480,49 +494,38 @@ def test_a_grasp_sent_before_the_forces_flow_waits_for_the_first_one_without_mov
                            "-p", "tactile_timeout:=5.0")
     assert gripper.wait_for_output("active", PATIENCE_S), gripper.output()
     heard: list[JointState] = []
-    with ros_session():
-        node = rclpy.create_node("probe")
-        try:
-            force = node.create_publisher(WrenchStamped, "/tactile_wrench", 10)
-            node.create_subscription(JointState, "/gripper/joint_states", heard.append, 100)
-            grasp = RaceFreeActionClient(node, Grasp, "/gripper/grasp")
-            assert grasp.wait_for_server(timeout_sec=PATIENCE_S)
-            deadline = time.monotonic() + PATIENCE_S
-            while not heard:
-                assert time.monotonic() < deadline, gripper.output()
-                rclpy.spin_once(node, timeout_sec=0.05)
-            rest = heard[-1].position[0]
+    with probe(heard, depth=100) as (node, force, grasp):
+        deadline = time.monotonic() + PATIENCE_S
+        while not heard:
+            assert time.monotonic() < deadline, gripper.output()
+            rclpy.spin_once(node, timeout_sec=0.05)
+        rest = heard[-1].position[0]
 
-            def send() -> Any:
-                future = grasp.send_goal_async(Grasp.Goal(target_force=1.0, timeout=30.0))
-                rclpy.spin_until_future_complete(node, future, timeout_sec=PATIENCE_S)
-                assert future.done() and future.result().accepted
-                return future.result()
+        def send() -> Any:
+            future = grasp.send_goal_async(Grasp.Goal(target_force=1.0, timeout=30.0))
+            rclpy.spin_until_future_complete(node, future, timeout_sec=PATIENCE_S)
+            assert future.done() and future.result().accepted
+            return future.result()
 
-            result = send().get_result_async()
-            rclpy.spin_until_future_complete(node, result, timeout_sec=PATIENCE_S)
-            assert result.done(), gripper.output()
-            message = result.result().result.message
-            assert re.fullmatch(r"tactile_stale: no tactile force came within 5\.\d{3} s of "
-                                r"the goal \(tactile_timeout 5 s\), so the fingers did not "
-                                r"move: .*", message), message
-            assert all(abs(m.position[0] - rest) < MOVED_M for m in heard), "moved"
-            handle = send()
-            waited = len(heard)
-            while len(heard) < waited + 10:  # the goal waits: its loop samples meanwhile
-                rclpy.spin_once(node, timeout_sec=0.05)
-            assert all(abs(m.position[0] - rest) < MOVED_M for m in heard), "moved"
-            while abs(heard[-1].position[0] - rest) < MOVED_M:  # forces come: it closes
-                assert time.monotonic() < deadline, gripper.output()
-                msg = WrenchStamped()
-                msg.header.stamp = node.get_clock().now().to_msg()
-                force.publish(msg)
-                rclpy.spin_once(node, timeout_sec=0.01)
-            cancel = handle.cancel_goal_async()
-            rclpy.spin_until_future_complete(node, cancel, timeout_sec=PATIENCE_S)
-            grasp.destroy()
-        finally:
-            node.destroy_node()
+        result = send().get_result_async()
+        rclpy.spin_until_future_complete(node, result, timeout_sec=PATIENCE_S)
+        assert result.done(), gripper.output()
+        message = result.result().result.message
+        assert re.fullmatch(r"tactile_stale: no tactile force came within 5\.\d{3} s of "
+                            r"the goal \(tactile_timeout 5 s\), so the fingers did not "
+                            r"move: .*", message), message
+        assert all(abs(m.position[0] - rest) < MOVED_M for m in heard), "moved"
+        handle = send()
+        waited = len(heard)
+        while len(heard) < waited + 10:  # the goal waits: its loop samples meanwhile
+            rclpy.spin_once(node, timeout_sec=0.05)
+        assert all(abs(m.position[0] - rest) < MOVED_M for m in heard), "moved"
+        while abs(heard[-1].position[0] - rest) < MOVED_M:  # forces come: it closes
+            assert time.monotonic() < deadline, gripper.output()
+            publish_force(node, force)
+            rclpy.spin_once(node, timeout_sec=0.01)
+        cancel = handle.cancel_goal_async()
+        rclpy.spin_until_future_complete(node, cancel, timeout_sec=PATIENCE_S)
     assert "Grasp goal aborted: tactile_stale: no tactile force came within" in \
         gripper.output()
 
