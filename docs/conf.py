@@ -36,7 +36,7 @@ def _figure_placeholders() -> None:
 
 _figure_placeholders()
 
-# Section links such as [text](gripper.md#cancel-stopping-in-one-write).
+# Section links such as [text](gripper-outcomes.md#cancel-stopping-in-one-write).
 myst_heading_anchors = 3
 myst_enable_extensions = ["colon_fence"]
 
