@@ -3,11 +3,12 @@
 Wiring only: parameters, the XM430 client (hardware/), the tactile force subscription,
 the driver's latched full-scale force (the goals' force ceiling), joint states,
 diagnostics, the reboot service, the adaptive hold's ``~/slip`` events and five
-action servers (``ACTIONS``): ``~/grasp``, ``~/release``, control_msgs ``~/gripper_cmd``
-and ``~/parallel_gripper_cmd``, and ``~/self_check`` (control/self_check_goal.py),
-which also reads the driver's module output (``tactile_reading``), asks the model for
-its prediction (``model_predict``) and latches its correction for the driver
-(``calibration_correction``; sensing/calibration_correction.py).
+action servers (``ACTIONS``, served in every lifecycle state): ``~/grasp``, ``~/release``,
+control_msgs ``~/gripper_cmd`` and ``~/parallel_gripper_cmd``, and ``~/self_check``
+(control/self_check_goal.py), which also reads the driver's module output
+(``tactile_reading``), asks the model for its prediction (``model_predict``) and latches
+its correction for the driver (``calibration_correction``;
+sensing/calibration_correction.py).
 What a goal means lives in control/actions.py; the goal policy (one active goal,
 preemption, cancel, hardware errors, readiness) in control/goal_runner.py; the servo the
 control loop, the goals and a cancel share in control/servo_link.py; the control loop's
@@ -18,6 +19,12 @@ subscriptions are in ``TakenByTheLoop``, a callback group the executor never run
 the loop takes what waits in them before each servo sample: a 250 Hz force stream cost an
 executor round (the wait set of five action servers rebuilt) per message, 0.3 of a core.
 ``tactile_reading`` (1 kHz) is subscribed only while a self-check runs.
+
+Goals are accepted and then aborted with the reason in the result when they cannot run
+(not active, invalid, the force stale): a rejected goal's reason reached only this node's
+log, never the client. The refusal is decided before the goal takes the fingers over, so a
+refused goal preempts nothing. The action servers live as long as the node: destroying one
+on cleanup raced the executor's wait set ("action server pointer is invalid").
 """
 
 from __future__ import annotations
@@ -53,7 +60,6 @@ from tactile_sensor.control.actions import (
 from tactile_sensor.control.errors import ControlError
 from tactile_sensor.control.goal_runner import (
     NOT_ACTIVE,
-    Finish,
     FirstInput,
     GoalLink,
     GoalRunner,
@@ -62,6 +68,7 @@ from tactile_sensor.control.goal_runner import (
     RunnerTiming,
     interrupted,
 )
+from tactile_sensor.control.grasp import Outcome
 from tactile_sensor.control.self_check import DriveTrain, SelfCheckFit, SkinPrediction
 from tactile_sensor.control.self_check_goal import SelfCheckLinks, accept_self_check
 from tactile_sensor.control.servo_link import Poll, ServoLink, call_retrying
@@ -151,6 +158,15 @@ class GripperNode(GuardedLifecycleNode):
         self._output = self_check_links.LatestOutput()
         self._predict_client: Any = None
         self._correction_pub: Any = None
+        #: Each action's goal -> active goal, as configured (None: not configured).
+        self._accepts: dict[str, Any] = {}
+        self._servers = [self._action_server(name, action_type)
+                         for name, action_type in self._action_types().items()]
+
+    @staticmethod
+    def _action_types() -> dict[str, Any]:
+        return {**{name: action_type for name, (action_type, _) in ACTIONS.items()},
+                "self_check": SelfCheck}
 
     # -- lifecycle -------------------------------------------------------------------------
     def on_configure(self, state: State) -> TransitionCallbackReturn:
@@ -202,14 +218,13 @@ class GripperNode(GuardedLifecycleNode):
             DriveTrain(settings.config.geometry, backlash_rad=values["self_check_backlash"],
                        compliance_m_per_n=values["self_check_compliance"]),
             servo.sampled_at, self._output.keep, self._output.kept)
-        actions = {**ACTIONS, "self_check": (SelfCheck, lambda goal, s: accept_self_check(
-            goal, s, links, values["self_check_speed"]))}
+        self._accepts = {**{name: accept for name, (_, accept) in ACTIONS.items()},
+                         "self_check": lambda goal, s: accept_self_check(
+                             goal, s, links, values["self_check_speed"])}
         self._entities = [
             self._force_sub,
             self.create_subscription(Float64, "tactile_full_scale", self._on_full_scale,
                                      FULL_SCALE_QOS, callback_group=self._group),
-            *(self._action_server(name, action_type, accept)
-              for name, (action_type, accept) in actions.items()),
             self.create_service(Trigger, "~/reboot", self._on_reboot,
                                 callback_group=self._group),
         ]
@@ -252,10 +267,9 @@ class GripperNode(GuardedLifecycleNode):
         if self._sampler is not None:
             self._sampler.stop()
         self._unsubscribe_readings(everyone=True)
+        self._accepts = {}
         for entity in self._entities:
-            if isinstance(entity, ActionServer):
-                entity.destroy()
-            elif hasattr(entity, "topic_name"):
+            if hasattr(entity, "topic_name"):
                 self.destroy_subscription(entity)
             else:
                 self.destroy_service(entity)
@@ -424,33 +438,30 @@ class GripperNode(GuardedLifecycleNode):
                 f"{settings.max_grasp_force_n:g} N)")
 
     # -- actions -----------------------------------------------------------------------------
-    def _action_server(self, name: str, action_type: Any, accept: Any) -> ActionServer:
+    def _action_server(self, name: str, action_type: Any) -> ActionServer:
         return ActionServer(
             self, action_type, f"~/{name}",
-            lambda handle: self._execute(handle, action_type, accept),
-            goal_callback=lambda goal: self._on_goal(name, goal, accept),
+            lambda handle: self._execute(handle, name, action_type),
+            goal_callback=lambda goal: GoalResponse.ACCEPT,
             cancel_callback=self._on_cancel, callback_group=self._group)
 
-    def _on_goal(self, name: str, goal: Any, accept: Any) -> GoalResponse:
-        """Invalid goals are rejected before anything moves, with one sentence."""
-        if self._settings is None or self._sampler is None or not self._sampler.running:
-            self.get_logger().error(f"{name} goal rejected: the gripper is not active; "
-                                    f"activate it (ros2 lifecycle set {self.get_name()} "
-                                    "activate).")
-            return GoalResponse.REJECT
+    def _refusal(self, name: str, goal: Any) -> str | None:
+        """Why ``goal`` cannot run now, in one sentence (None: it may), decided before it
+        takes the fingers over."""
+        accept, settings = self._accepts.get(name), self._settings
+        if (accept is None or settings is None or self._sampler is None
+                or not self._sampler.running):
+            return (f"{Outcome.INACTIVE}: the gripper is not active; activate it "
+                    f"(ros2 lifecycle set {self.get_name()} activate).")
         try:
-            accept(goal, self._settings)
+            accept(goal, settings)
         except ControlError as exc:
-            self.get_logger().error(f"{name} goal rejected: {exc}")
-            return GoalResponse.REJECT
-        if name == "grasp":
-            self._take_inputs()  # the newest force, not the one the idle loop took last
-        stale = (self._forces.stale_refusal(time.time(), self._settings.config.stale_after_s)
-                 if name == "grasp" else None)
-        if stale is not None:
-            self.get_logger().error(f"{name} goal rejected: {stale}")
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
+            return f"{Outcome.INVALID_GOAL}: {exc}"
+        if name != "grasp":
+            return None
+        self._take_inputs()  # the newest force, not the one the idle loop took last
+        stale = self._forces.stale_refusal(time.time(), settings.config.stale_after_s)
+        return None if stale is None else f"{Outcome.TACTILE_STALE}: {stale}"
 
     def _on_cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
         """Stop the fingers here and now; the goal's loop then reports it canceled."""
@@ -458,25 +469,28 @@ class GripperNode(GuardedLifecycleNode):
             self._runner.stop(goal_handle)
         return CancelResponse.ACCEPT
 
-    def _execute(self, goal_handle: ServerGoalHandle, action_type: Any, accept: Any) -> Any:
-        runner, settings = self._runner, self._settings
-        if runner is None or settings is None:
-            self._slot.take_over(goal_handle)
-            end = Finish(GoalStatus.ABORTED, NOT_ACTIVE, None)
-        else:
-            link = GoalLink(goal_handle, lambda: goal_handle.is_cancel_requested,
-                            lambda fields: goal_handle.publish_feedback(
-                                _message(action_type.Feedback, fields)))
-            reads_output = action_type is SelfCheck
-            first = None
+    def _execute(self, goal_handle: ServerGoalHandle, name: str, action_type: Any) -> Any:
+        refusal = self._refusal(name, goal_handle.request)
+        runner, settings, accept = self._runner, self._settings, self._accepts.get(name)
+        if refusal is None and (runner is None or settings is None or accept is None):
+            refusal = NOT_ACTIVE  # deactivated meanwhile
+        if refusal is not None:
+            goal_handle.abort()
+            self.get_logger().error(f"{name} goal refused: {refusal}")
+            return _refused(action_type.Result(), refusal)
+        link = GoalLink(goal_handle, lambda: goal_handle.is_cancel_requested,
+                        lambda fields: goal_handle.publish_feedback(
+                            _message(action_type.Feedback, fields)))
+        reads_output = action_type is SelfCheck
+        first = None
+        if reads_output:
+            self._subscribe_readings()
+            first = self._first_output(settings.config.stale_after_s)
+        try:
+            end = runner.run(link, lambda: accept(goal_handle.request, settings), first)
+        finally:
             if reads_output:
-                self._subscribe_readings()
-                first = self._first_output(settings.config.stale_after_s)
-            try:
-                end = runner.run(link, lambda: accept(goal_handle.request, settings), first)
-            finally:
-                if reads_output:
-                    self._unsubscribe_readings()
+                self._unsubscribe_readings()
         if end.status is GoalStatus.SUCCEEDED:
             goal_handle.succeed()
         elif end.status is GoalStatus.CANCELED:
@@ -524,6 +538,20 @@ def _take(subscription: Any, message_type: Any, raw: bool = False) -> list[Any]:
     except InvalidHandle:  # destroyed meanwhile (cleanup): nothing more to take
         pass
     return taken
+
+
+def _refused(result: Any, reason: str) -> Any:
+    """A refused goal's result: the reason where the interface has a message, and NaN for
+    the measurements it never took (control_msgs results carry no message: the status and
+    this node's log say it)."""
+    for name in ("force", "opening", "optical_gain", "stiffness", "friction"):
+        if hasattr(result, name):
+            setattr(result, name, math.nan)
+    if hasattr(result, "message"):
+        result.message = reason
+    if hasattr(result, "outcome"):
+        result.outcome = reason.split(":", 1)[0]
+    return result
 
 
 def _message(message_type: Any, fields: dict[str, Any]) -> Any:

@@ -130,11 +130,21 @@ def run_goal(node: Any, action_type: Any, name: str, goal: Any,
         answer = _wait(result_future, "the result")
     from action_msgs.msg import GoalStatus
 
+    if answer.status == GoalStatus.STATUS_ABORTED and _refused(answer.result):
+        _say(f"refused: {answer.result.message}")
+        return 1
     done, text = describe_result(answer.result)
     status = {GoalStatus.STATUS_SUCCEEDED: "succeeded", GoalStatus.STATUS_ABORTED: "aborted",
               GoalStatus.STATUS_CANCELED: "canceled"}.get(answer.status, str(answer.status))
     _say(f"{status}: {text}")
     return 0 if done and answer.status == GoalStatus.STATUS_SUCCEEDED else 1
+
+
+def _refused(result: Any) -> bool:
+    """The gripper accepts every goal and aborts one it cannot run at once, with the reason
+    in the result's message and NaN for what it never measured (nodes/gripper.py)."""
+    measured = getattr(result, "opening", getattr(result, "optical_gain", 0.0))
+    return hasattr(result, "message") and math.isnan(measured)
 
 
 def _wait(future: Any, what: str, timeout_s: float = math.inf) -> Any:

@@ -269,7 +269,9 @@ def test_the_ros2_action_cli_sends_a_gripper_command(gripper):
     assert "reached_goal: true" in cli and "SUCCEEDED" in cli, cli
 
 
-def test_invalid_goals_are_rejected_before_anything_moves(gripper):
+def test_invalid_goals_are_refused_before_anything_moves(gripper):
+    """Each is accepted and aborted at once, its reason in the result where the interface
+    has a message (control_msgs results have none: the status and the log say it)."""
     launch, client = gripper
     before = client.opening[-1][1]
     rejected = [
@@ -291,11 +293,14 @@ def test_invalid_goals_are_rejected_before_anything_moves(gripper):
         ("release", Release.Goal(opening=0.07), "outside the travel"),
     ]
     sent_at = time.time()
-    for name, goal, _ in rejected:
-        client.send(name, goal, accepted=False)
+    for name, goal, words in rejected:
+        status, result = client.run(name, goal)
+        assert status == GoalStatus.STATUS_ABORTED, (name, goal)
+        if hasattr(result, "message"):
+            assert result.message.startswith("invalid_goal: ") and words in result.message
 
     def lines() -> list[str]:
-        return [line for line in launch.output().splitlines() if "goal rejected" in line]
+        return [line for line in launch.output().splitlines() if "goal refused" in line]
     _until(lambda: len(lines()) >= len(rejected), PATIENCE_S,  # launch relays logs
            launch.output())
     for line, (_, _, words) in zip(lines(), rejected, strict=True):
@@ -414,7 +419,7 @@ def test_an_overload_mid_move_aborts_with_the_decoded_bits_and_torque_off(grippe
     assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
 
 
-def test_an_inactive_gripper_rejects_goals_naming_the_fix(spawn, ros_domain, tmp_path):
+def test_an_inactive_gripper_refuses_goals_naming_the_fix(spawn, ros_domain, tmp_path):
     """Configured but not active (the launch files activate at once, so this runs the node
     alone on an emulated servo, configured through its lifecycle service, as
     ``ros2 lifecycle set /gripper configure`` does)."""
@@ -427,8 +432,13 @@ def test_an_inactive_gripper_rejects_goals_naming_the_fix(spawn, ros_domain, tmp
         request.transition.id = Transition.TRANSITION_CONFIGURE
         assert _wait(change_state.call_async(request), 60).success, gripper.output()
         assert client.actions["gripper_cmd"].wait_for_server(timeout_sec=PATIENCE_S)
-        client.send("gripper_cmd", command(0.05, 0.0), accepted=False)
+        status, _ = client.run("gripper_cmd", command(0.05, 0.0))
+        assert status == GoalStatus.STATUS_ABORTED
+        status, result = client.run("grasp", Grasp.Goal(target_force=1.0))
+        assert status == GoalStatus.STATUS_ABORTED
+        assert result.message == ("inactive: the gripper is not active; activate it "
+                                  "(ros2 lifecycle set gripper activate).")
         client.close()
-    _until(lambda: "gripper_cmd goal rejected: the gripper is not active; activate it "
+    _until(lambda: "gripper_cmd goal refused: inactive: the gripper is not active; activate it "
            "(ros2 lifecycle set gripper activate)." in gripper.output(), PATIENCE_S,
            gripper.output())

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import rclpy
 import yaml
+from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from gripper_under_load import GRIPPER_UNDER_LOAD
@@ -140,6 +141,15 @@ class Client:
         assert handle.accepted
         return handle
 
+    def refusal(self, client: ActionClient, goal) -> str:
+        """The reason a goal the gripper cannot run ends with: accepted, then aborted at
+        once with the reason in its result, the fingers untouched."""
+        handle = self.send(client, goal)
+        answer = _wait(handle.get_result_async())
+        assert answer.status == GoalStatus.STATUS_ABORTED, answer
+        assert math.isnan(answer.result.force) and math.isnan(answer.result.opening)
+        return answer.result.message
+
     def wait_moving_from(self, rest: float) -> None:
         """Until the fingers have left ``rest`` (a goal is under way, not only accepted)."""
         _until(lambda: abs(self.opening[-1][1] - rest) > MOVED_M,
@@ -206,21 +216,19 @@ def test_goals_the_gripper_cannot_hold_are_refused_one_within_is_reached_and_rep
     full_scale = Calibration.from_file(calibration_file).full_scale_force_n
     assert devices.gripper.wait_for_output(f"tactile full scale {full_scale:.3g} N",
                                            PATIENCE_S), devices.gripper.output()
-    refused = _wait(client.grasp.send_goal_async(Grasp.Goal(target_force=1e9)))
-    assert not refused.accepted
     ceiling = f"{(1 - SATURATION_BAND) * full_scale:.3g} N"
-    sentence = ("grasp goal rejected: Grasp target force 1e+09 N is above the gripper's "
+    sentence = ("invalid_goal: Grasp target force 1e+09 N is above the gripper's "
                 f"force ceiling of {ceiling} (the smaller of max_grasp_force 10 N and "
                 f"{ceiling}, from where the tactile sensor's readings saturate below its "
-                f"{full_scale:.3g} N full scale); request at most {ceiling}.\n")
-    assert devices.gripper.wait_for_output(sentence, PATIENCE_S), devices.gripper.output()
-    adaptive = _wait(client.grasp.send_goal_async(Grasp.Goal(target_force=2.0,
-                                                             hold_mode="adaptive")))
-    assert not adaptive.accepted
-    sentence = ("grasp goal rejected: An adaptive hold needs a fingertip that feels shear, "
+                f"{full_scale:.3g} N full scale); request at most {ceiling}.")
+    assert client.refusal(client.grasp, Grasp.Goal(target_force=1e9)) == sentence
+    assert devices.gripper.wait_for_output(f"grasp goal refused: {sentence}\n", PATIENCE_S), \
+        devices.gripper.output()
+    sentence = ("invalid_goal: An adaptive hold needs a fingertip that feels shear, "
                 "and this gripper has none (shear_sensing is false); use configuration "
-                "gripper_shear or hold_mode fixed.\n")
-    assert devices.gripper.wait_for_output(sentence, PATIENCE_S), devices.gripper.output()
+                "gripper_shear or hold_mode fixed.")
+    assert client.refusal(client.grasp, Grasp.Goal(target_force=2.0,
+                                                   hold_mode="adaptive")) == sentence
 
     feedback_times: list[float] = []
     handle = client.send(client.grasp, Grasp.Goal(target_force=2.0, closing_speed=0.01,
@@ -479,10 +487,16 @@ def test_a_grasp_on_a_stale_tactile_force_is_refused_in_one_sentence(
             rclpy.spin_once(node, timeout_sec=0.05)
         future = grasp.send_goal_async(Grasp.Goal(target_force=1.0))
         rclpy.spin_until_future_complete(node, future, timeout_sec=PATIENCE_S)
-        assert future.done() and not future.result().accepted
-    assert gripper.wait_for_output("grasp goal rejected: the tactile force is ", PATIENCE_S), \
-        gripper.output()
-    assert "the sensor is blind or its stream stopped" in gripper.output()
+        assert future.done() and future.result().accepted
+        result = future.result().get_result_async()
+        rclpy.spin_until_future_complete(node, result, timeout_sec=PATIENCE_S)
+        assert result.done(), gripper.output()
+        answer = result.result()
+    assert answer.status == GoalStatus.STATUS_ABORTED
+    assert answer.result.message.startswith("tactile_stale: the tactile force is ")
+    assert "the sensor is blind or its stream stopped" in answer.result.message
+    assert gripper.wait_for_output("grasp goal refused: tactile_stale: the tactile force is ",
+                                   PATIENCE_S), gripper.output()
 
 
 def test_a_grasp_sent_before_the_forces_flow_waits_for_the_first_one_without_moving(

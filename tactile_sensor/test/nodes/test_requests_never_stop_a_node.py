@@ -20,6 +20,7 @@ from typing import Any
 
 import pytest
 import rclpy
+from action_msgs.msg import GoalStatus
 from lifecycle_msgs.srv import ChangeState, GetState
 from lone_gripper import lone_gripper
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -297,16 +298,23 @@ class GoalFuzz:
                         for name in self.goals}
 
     def check(self, state: str) -> None:
-        """Configured: every malformed goal rejected; otherwise the servers are gone."""
-        if state not in ("inactive", "active"):
-            return  # the action servers exist from configure to cleanup
+        """In every state, every malformed goal is accepted and aborted at once: invalid
+        while active, and 'not active' in the other states (the servers live as long as the
+        node)."""
+        reason = "invalid_goal" if state == "active" else "inactive"
         for name, goals in self.goals.items():
             client = self.clients[name]
             assert client.wait_for_server(timeout_sec=PATIENCE_S), self.process.output()
             for goal in goals:
                 future = client.send_goal_async(goal)
                 assert wait_until(future.done, PATIENCE_S, poll_s=0.002), (name, goal)
-                assert not future.result().accepted, (state, name, goal)
+                assert future.result().accepted, (state, name, goal)
+                result = future.result().get_result_async()
+                assert wait_until(result.done, PATIENCE_S, poll_s=0.002), (name, goal)
+                answer = result.result()
+                assert answer.status == GoalStatus.STATUS_ABORTED, (state, name, goal)
+                message = getattr(answer.result, "message", reason)
+                assert message.startswith(reason), (state, name, goal, message)
         assert self.process.proc.poll() is None
 
 
@@ -326,7 +334,8 @@ def test_the_gripper_takes_every_request_and_goal_in_every_state(spawn, client,
     walk(lifecycle, in_every_state)
     output = gripper.output()
     for name in ("grasp", "release", "gripper_cmd", "self_check"):
-        assert f"{name} goal rejected:" in output, name
+        assert f"{name} goal refused: invalid_goal:" in output, name
+        assert f"{name} goal refused: inactive:" in output, name
     ends_with_status_0_on_sigterm(gripper)
 
 
