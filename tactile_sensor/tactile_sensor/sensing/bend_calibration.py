@@ -107,6 +107,11 @@ class BendCalibration:
         """Two modules that tell a contact from a bend: the force is observed."""
         return bool(self.angle_coef) and not self.separation
 
+    @property
+    def full_scale_force_n(self) -> float:
+        """The most tip force it reports [N] (0 when it reports none)."""
+        return self.force_range_n[1] if self.separates else 0.0
+
     # -- fit -----------------------------------------------------------------------------------
 
     @classmethod
