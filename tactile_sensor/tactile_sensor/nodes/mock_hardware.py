@@ -66,6 +66,8 @@ from tactile_sensor.sim.ambient_light import (
 )
 from tactile_sensor.sim.array_world import ArrayBenchWorld, ArraySkin
 from tactile_sensor.sim.bench_world import BenchRun, BenchWorld
+from tactile_sensor.sim.drivetrain import DEFAULT_DRIVETRAIN as DRIVETRAIN
+from tactile_sensor.sim.drivetrain import Drivetrain, DrivetrainError
 from tactile_sensor.sim.errors import SimError
 from tactile_sensor.sim.held_object import ObjectSpec, object_from_values
 from tactile_sensor.sim.profiles import MAX_ROTATION_RAD, MAX_SHEAR_M, LoadProfile, array_profile
@@ -155,6 +157,28 @@ SPECS = [
               minimum=0.0, exclusive_minimum=True),
     ParamSpec("geometry.closed_opening", 0.002, "finger opening at the closed end [m]",
               minimum=0.0),
+    # the servo's drivetrain at its output (sim/drivetrain.py gives each source)
+    ParamSpec("drivetrain.torque_offset_nm", DRIVETRAIN.torque_offset_nm, "torque the "
+              "motor loses before it turns anything [N m] (XM430-W350 performance graph's "
+              "intercept, 0.22 N m, at the W210's 212.6:1 gear)"),
+    ParamSpec("drivetrain.coulomb_friction_nm", DRIVETRAIN.coulomb_friction_nm, "Coulomb "
+              "friction [N m] (Dynamixel MX-64, Duclusaud et al. 2024, model M4)"),
+    ParamSpec("drivetrain.stribeck_friction_nm", DRIVETRAIN.stribeck_friction_nm, "extra "
+              "friction at rest [N m] (MX-64, M4)"),
+    ParamSpec("drivetrain.stribeck_velocity_rad_s", DRIVETRAIN.stribeck_velocity_rad_s,
+              "speed over which the friction at rest falls off [rad/s] (> 0; MX-64, M4)"),
+    ParamSpec("drivetrain.viscous_friction_nm_s", DRIVETRAIN.viscous_friction_nm_s,
+              "viscous friction [N m s/rad] (MX-64, M4)"),
+    ParamSpec("drivetrain.load_friction_ratio", DRIVETRAIN.load_friction_ratio, "friction "
+              "at rest per N m the gears transmit [1] (< 1; MX-64, M4)"),
+    ParamSpec("drivetrain.backlash_rad", DRIVETRAIN.backlash_rad, "play between the "
+              "servo's output and the racks [rad] (X-series e-manual: 15 arcmin); below the "
+              "rod's clearance"),
+    ParamSpec("drivetrain.guide_friction_n", DRIVETRAIN.guide_friction_n, "friction of "
+              "each finger's linear guide and rack [N] (ball carriage, coefficient 0.003 "
+              "on the finger's weight)"),
+    ParamSpec("drivetrain.ideal", False, "an ideal servo instead (torque = current x the "
+              "datasheet's constant, no play): the drivetrain.* values are not used"),
     ParamSpec("rod.diameter", 0.020, "diameter of the rod between the fingers [m]; 0 = none",
               minimum=0.0),
     ParamSpec("rod.offset", 0.0, "rod centre offset from the gripper axis [m]"),
@@ -496,9 +520,16 @@ class MockHardwareNode(Node):
                                   stiffness_ratio=v["skin.stiffness_ratio"], held=held,
                                   fingertip=fingertip)
         self.source = self.world.voltage_source
+        try:
+            drivetrain = None if v["drivetrain.ideal"] else Drivetrain.from_parameters(v)
+            if drivetrain is not None:
+                drivetrain.check_clearance(self.world.rod_clearance_rad)
+        except DrivetrainError as exc:
+            raise MockHardwareError(str(exc)) from None
         self.emulator = Xm430Emulator(v["servo_link"], servo_id=v["servo_id"],
                                       baudrate=v["servo_baud_rate"], world=self.world,
-                                      control_path=v["servo_control"] or None)
+                                      control_path=v["servo_control"] or None,
+                                      drivetrain=drivetrain)
         self._truth_pub = self.create_publisher(WrenchStamped, "~/ground_truth", 100)
         self._object_pub = None if held is None else self.create_publisher(
             JointState, "~/object/joint_states", 100)
@@ -515,12 +546,14 @@ class MockHardwareNode(Node):
         next_s = time.monotonic()
         while not self._stop.wait(max(0.0, next_s - time.monotonic())):
             next_s = max(next_s + period_s, time.monotonic() - period_s)
-            self._publish_truth()
+            if not self._publish_truth():  # nobody listens: look again in a while
+                next_s = time.monotonic() + max(period_s, UNHEARD_TRUTH_CHECK_S)
 
-    def _publish_truth(self) -> None:
+    def _publish_truth(self) -> bool:
+        """Publish the truth now; False when nobody subscribes (nothing built)."""
         if self._truth_pub.get_subscription_count() == 0 and (
                 self._object_pub is None or self._object_pub.get_subscription_count() == 0):
-            return  # nobody checks against the truth: no message to build
+            return False  # nobody checks against the truth: no message to build
         sample = self.world.latest
         msg = WrenchStamped()
         msg.header.stamp = self.get_clock().now().to_msg()
@@ -536,6 +569,7 @@ class MockHardwareNode(Node):
             along.name = list(OBJECT_JOINTS)
             along.position = [held.position_m, held.slip_m]
             self._object_pub.publish(along)
+        return True
 
     # -- shutdown ------------------------------------------------------------------------------
     def close_devices(self) -> None:
@@ -555,6 +589,11 @@ class MockHardwareNode(Node):
     def destroy_node(self) -> None:
         self.close_devices()
         super().destroy_node()
+
+
+#: How often [s] the truth's thread looks for a listener while it has none: a subscriber's
+#: first truth comes at most this late, and an unheard 200 Hz truth woke 200 times a second.
+UNHEARD_TRUTH_CHECK_S = 0.1
 
 
 def main(args: list[str] | None = None) -> int:
