@@ -1,0 +1,179 @@
+"""Angle error, hysteresis and lag of a finger's recording, phase by phase (pure numpy).
+
+A recording of the bend configuration holds the true joint angle and fingertip force (the
+mock's ground truth) and the driver's estimate, on their own stamps. The truth is
+interpolated to the estimate's stamps, and the run is cut into bends:
+
+- a **bend** runs from one rest (minimum of the true angle) to the next, through one peak
+  above half the run's largest angle; its rate is 1 / (2 x the time above half its own
+  peak), exact for the protocols' raised cosines;
+- a bend is **with contact** where the true tip force exceeds ``CONTACT_N`` in it;
+- a **phase** is the bends of one rate, with or without contact.
+
+Per bend: the RMSE of estimate minus truth; the **lag**, the delay that best lines the
+estimate up with the truth (least squares over +-``MAX_LAG_S``, to the millisecond, with a
+parabola through the best three); the **hysteresis**, the largest difference between the
+estimate on the way up and on the way down at the same true angle, in % of the bend's true
+range (at ``HYSTERESIS_LEVELS`` angles inside 5-95 % of it, where both branches are
+sampled). Per phase: the mean over its bends with the standard error of that mean
+(``sem``: the sample standard deviation / sqrt(bends); none for one bend), and the RMSE
+over all its samples. Samples the driver read as NaN are counted, not scored.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: A bend is with contact where the true tip force exceeds this [N].
+CONTACT_N = 0.05
+#: The lag is looked for within this much either way [s].
+MAX_LAG_S = 0.2
+LAG_STEP_S = 0.001
+HYSTERESIS_LEVELS = 19
+
+
+@dataclass(frozen=True)
+class Bend:
+    start: int  # sample indices [start, end)
+    end: int
+    frequency_hz: float
+    contact: bool
+    peak_rad: float
+    rmse_rad: float
+    lag_s: float
+    hysteresis_pct: float
+    invalid: int  # samples the driver read as NaN
+    max_tip_force_n: float
+
+
+def cut_bends(t: np.ndarray, truth: np.ndarray) -> list[tuple[int, int, float]]:
+    """(start, end, rate [Hz]) of every whole bend of the true angle."""
+    if truth.size < 3 or not np.isfinite(truth).all():
+        return []
+    half = 0.5 * float(truth.max())
+    if half <= 0:
+        return []
+    above = truth > half
+    ups = np.flatnonzero(~above[:-1] & above[1:]) + 1
+    downs = np.flatnonzero(above[:-1] & ~above[1:]) + 1
+    out = []
+    for u in ups:
+        later = downs[downs > u]
+        if later.size == 0:
+            break
+        d = int(later[0])
+        prev_down = downs[downs < u]
+        lo = int(prev_down[-1]) if prev_down.size else 0
+        next_up = ups[ups > d]
+        hi = int(next_up[0]) if next_up.size else truth.size
+        start = lo + int(np.argmin(truth[lo:u]))
+        end = d + int(np.argmin(truth[d:hi])) + 1
+        own_half = 0.5 * float(truth[start:end].max())
+        width = np.flatnonzero(truth[start:end] > own_half)
+        if width.size < 2 or end - start < 10:
+            continue
+        duration = float(t[start + width[-1]] - t[start + width[0]])
+        if duration <= 0:
+            continue
+        out.append((start, end, 1.0 / (2.0 * duration)))
+    return out
+
+
+def best_lag(t: np.ndarray, truth: np.ndarray, estimate: np.ndarray) -> float:
+    """The delay [s] of ``estimate`` behind ``truth`` that fits them best (NaN: none)."""
+    ok = np.isfinite(estimate)
+    if ok.sum() < 10:
+        return math.nan
+    lags = np.arange(-MAX_LAG_S, MAX_LAG_S + LAG_STEP_S / 2, LAG_STEP_S)
+    te, ee = t[ok], estimate[ok]
+    costs = np.array([np.mean((np.interp(te - lag, t, truth) - ee) ** 2) for lag in lags])
+    k = int(np.argmin(costs))
+    if 0 < k < lags.size - 1:  # a parabola through the best three
+        c0, c1, c2 = costs[k - 1:k + 2]
+        denom = c0 - 2 * c1 + c2
+        if denom > 0:
+            return float(lags[k] + 0.5 * LAG_STEP_S * (c0 - c2) / denom)
+    return float(lags[k])
+
+
+def hysteresis_pct(truth: np.ndarray, estimate: np.ndarray) -> float:
+    """Largest |up - down| of the estimate at equal true angle, % of the true range."""
+    k = int(np.argmax(truth))
+    lo, hi = float(truth.min()), float(truth.max())
+    span = hi - lo
+    if span <= 0 or k < 2 or truth.size - k < 2:
+        return math.nan
+    levels = lo + span * np.linspace(0.05, 0.95, HYSTERESIS_LEVELS)
+    branches = []
+    for a, e in ((truth[:k + 1], estimate[:k + 1]), (truth[k:][::-1], estimate[k:][::-1])):
+        ok = np.isfinite(e)
+        if ok.sum() < 2:
+            return math.nan
+        order = np.argsort(a[ok], kind="stable")
+        branches.append(np.interp(levels, a[ok][order], e[ok][order]))
+    return float(100.0 * np.max(np.abs(branches[0] - branches[1])) / span)
+
+
+def score_bends(t: np.ndarray, truth: np.ndarray, estimate: np.ndarray,
+                tip_force: np.ndarray) -> list[Bend]:
+    out = []
+    for start, end, f in cut_bends(t, truth):
+        sl = slice(start, end)
+        a, e = truth[sl], estimate[sl]
+        ok = np.isfinite(e)
+        rmse = float(np.sqrt(np.mean((e[ok] - a[ok]) ** 2))) if ok.any() else math.nan
+        force = float(np.nanmax(tip_force[sl])) if tip_force[sl].size else 0.0
+        out.append(Bend(start, end, f, force > CONTACT_N, float(a.max()), rmse,
+                        best_lag(t[sl], a, e), hysteresis_pct(a, e), int((~ok).sum()),
+                        force))
+    return out
+
+
+def _mean_sem(values: list[float]) -> dict[str, float | None]:
+    v = np.array([x for x in values if x == x], float)
+    if v.size == 0:
+        return {"mean": None, "sem": None}
+    sem = float(v.std(ddof=1) / math.sqrt(v.size)) if v.size > 1 else None
+    return {"mean": float(v.mean()), "sem": sem}
+
+
+def rate_label(frequency_hz: float) -> float:
+    """A bend's rate rounded to two significant digits: the phase it belongs to."""
+    return float(f"{frequency_hz:.2g}")
+
+
+def phases(t: np.ndarray, truth: np.ndarray, estimate: np.ndarray, tip_force: np.ndarray,
+           force_estimate: np.ndarray | None = None) -> list[dict]:
+    """Every phase (rate, contact) with its bends' metrics: means with their standard
+    errors, and the RMSE over all its samples; angles in degrees, lag in s."""
+    bends = score_bends(t, truth, estimate, tip_force)
+    groups: dict[tuple[float, bool], list[Bend]] = {}
+    for b in bends:
+        groups.setdefault((rate_label(b.frequency_hz), b.contact), []).append(b)
+    out = []
+    for (rate, contact), members in sorted(groups.items()):
+        idx = np.concatenate([np.arange(b.start, b.end) for b in members])
+        err = estimate[idx] - truth[idx]
+        ok = np.isfinite(err)
+        phase = {
+            "rate_hz": rate, "contact": contact, "bends": len(members),
+            "peak_deg": math.degrees(max(b.peak_rad for b in members)),
+            "max_tip_force_n": max(b.max_tip_force_n for b in members),
+            "rmse_deg": math.degrees(float(np.sqrt(np.mean(err[ok] ** 2)))) if ok.any()
+            else None,
+            "rmse_deg_per_bend": {k: None if v is None else math.degrees(v)
+                                  for k, v in _mean_sem([b.rmse_rad for b in members]).items()},
+            "lag_s": _mean_sem([b.lag_s for b in members]),
+            "hysteresis_pct": _mean_sem([b.hysteresis_pct for b in members]),
+            "nan_samples": int((~ok).sum()), "samples": int(idx.size),
+        }
+        if force_estimate is not None:
+            fe = force_estimate[idx] - tip_force[idx]
+            okf = np.isfinite(fe)
+            phase["tip_force_rmse_n"] = float(np.sqrt(np.mean(fe[okf] ** 2))) if okf.any() \
+                else None
+        out.append(phase)
+    return out
