@@ -7,7 +7,7 @@ from tactile_sensor.hardware.adc_reader import DEFAULT_BACKLOG
 from tactile_sensor.nodes.parameters import ParamSpec
 from tactile_sensor.sensing.array_chain import TORQUE_CUTOFF_HZ, parse_modules
 from tactile_sensor.sensing.errors import SensingError
-from tactile_sensor.sensing.filters import FILTERS
+from tactile_sensor.sensing.filters import DEFAULT_FILTER, FILTERS
 from tactile_sensor.sensing.live_force import DEFAULT_WINDOW_S as DEFAULT_LIVE_WINDOW_S
 from tactile_sensor.sensing.rest_gain import (
     DEFAULT_GAIN_BOUND,
@@ -52,7 +52,10 @@ SPECS = [
     ParamSpec("sample_rate", 1000.0, "nominal device sample rate [Hz] the filters and tare "
               "window are designed for", minimum=0.0, exclusive_minimum=True,
               maximum=100_000.0),
-    ParamSpec("filter_type", "savgol", "filter on every sample", choices=tuple(FILTERS)),
+    ParamSpec("filter_type", DEFAULT_FILTER, "filter on every sample; the default "
+              "'savgol_mains' is 'savgol' until it finds a lamp's 100 or 120 Hz flicker, then "
+              "also nulls it and its harmonics (half a flicker period of delay, 4.5 ms at "
+              "100 Hz)", choices=tuple(FILTERS)),
     ParamSpec("filter.window", 0, "window [samples] of savgol, savgol_mains or "
               "moving_average; 0 = the filter's default (40, 40 or 9)", minimum=0, maximum=100_000),
     ParamSpec("filter.cutoff_hz", 50.0, "butterworth cutoff [Hz]", minimum=0.0,

@@ -473,22 +473,25 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
         gain = self._gain.observe(self._conversion.vref_v - baseline)
         self._output_scale = 1.0 / gain if self.config.gain_tracking else 1.0
 
-    def _follow_rest(self) -> None:
+    def _follow_rest(self) -> bool:
         """One step of the baseline toward the level of a window without contact, if it is
         sure to be at rest: steady (the tare's test) and its mean under the contact's
-        release force, judged on the mean so that noise does not hide a rest (call with
-        the lock held)."""
+        release force, judged on the mean so that noise does not hide a rest; a level that
+        fell is taken at once (``RestRetare.follow``). Whether it stepped (call with the
+        lock held)."""
         try:
-            rest_v = self._tare.evaluate().baseline_v
+            rest = self._tare.evaluate()
         except TareError:
-            return
+            return False
         cal = self._calibration
         static = cal.static if isinstance(cal, RateCalibration) else cal
-        output = (self._baseline_v - rest_v) * self._output_scale  # type: ignore[operator]
+        output = (self._baseline_v - rest.baseline_v) * self._output_scale  # type: ignore[operator]
         if static is None or not static.force(output) < self._contact.off_n:
-            return
-        self._baseline_v = self._retare.follow(self._baseline_v, rest_v)  # type: ignore[arg-type]
+            return False
+        self._baseline_v = self._retare.follow(self._baseline_v,  # type: ignore[arg-type]
+                                               rest.baseline_v, rest.spread_v)
         self._update_gain()
+        return True
 
     # -- per sample ------------------------------------------------------------------------
 
@@ -553,9 +556,11 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
                 self._quiet = 0
             else:
                 self._quiet += 1
-                if self._quiet >= self._retare.window_samples:
-                    self._quiet = 0
-                    self._follow_rest()
+                window = self._retare.window_samples
+                if self._quiet >= window:
+                    # a step waits a whole window for the next; a window not yet at rest
+                    # (a light step still in it) is tried again a tenth of a window on
+                    self._quiet = 0 if self._follow_rest() else window - self._auto_tare_every
         return Reading(volts, output, force, contact, saturated, t_us, host_ns)
 
 

@@ -6,7 +6,7 @@ publishes only a fraction of them.
 
 - ``moving_average`` (window 9): the paper's 9-point average. Delay (window−1)/2 samples;
   among filters with non-negative weights it is the least noisy for its delay.
-- ``savgol`` (window 40, the default): causal Savitzky–Golay of degree 1, i.e. the
+- ``savgol`` (window 40): causal Savitzky–Golay of degree 1, i.e. the
   least-squares straight line through the last ``window`` samples, evaluated at the newest
   one. Weights go negative at the old end, which cancels the delay on ramps (a press is a
   ramp) while averaging ~4× more samples: noise gain √((4N−2)/(N(N+1))) = 0.31 for N=40,
@@ -14,9 +14,12 @@ publishes only a fraction of them.
   overshoot where the slope changes abruptly (≈ slope × window / 8).
 - ``butterworth`` (order 2, cutoff 50 Hz): classic IIR low-pass, SOS form.
 - ``one_euro`` (Casiez et al. 2012): adaptive EMA whose cutoff rises with speed.
-- ``savgol_mains``: ``savgol`` behind an average over one period of the lamps' flicker,
-  which it finds by itself (``sensing/mains_notch.py``): ambient light's 100 or 120 Hz and
-  their harmonics, for a module that sees the room (docs/ambient.md).
+- ``savgol_mains`` (the default): ``savgol`` behind an average over one period of the
+  lamps' flicker, which it finds by itself (``sensing/mains_notch.py``): ambient light's
+  100 or 120 Hz and their harmonics, for a module that sees the room (docs/ambient.md).
+  Until it finds a flicker (in the dark room, always) it is ``savgol`` sample for sample,
+  so its noise, lag and dynamic range there are ``savgol``'s; with a flicker found it
+  delays a press by half a flicker period (4.5 ms at 100 Hz and 1 kHz).
 - ``none``: pass-through.
 """
 
@@ -32,7 +35,9 @@ from tactile_sensor.sensing.errors import SensingError
 from tactile_sensor.sensing.filter_protocol import Filter
 from tactile_sensor.sensing.mains_notch import MainsNotch
 
-DEFAULT_FILTER = "savgol"
+#: The default is the notch ahead of ``savgol``: a room's lamps are the common case, and in
+#: the dark it is ``savgol`` itself (the notch passes the signal until it finds a flicker).
+DEFAULT_FILTER = "savgol_mains"
 
 
 class PassThrough:
@@ -195,7 +200,7 @@ class FilterSpec:
 
 FILTERS: dict[str, FilterSpec] = {
     "savgol": FilterSpec(lambda rate_hz, **p: SavitzkyGolayLinear(**p), {"window": 40},
-                         "causal linear Savitzky–Golay: ~zero lag on ramps (default)"),
+                         "causal linear Savitzky–Golay: ~zero lag on ramps"),
     "moving_average": FilterSpec(lambda rate_hz, **p: MovingAverage(**p), {"window": 9},
                                  "the paper's N-point moving average"),
     "butterworth": FilterSpec(lambda rate_hz, **p: Butterworth(rate_hz, **p),
@@ -206,7 +211,7 @@ FILTERS: dict[str, FilterSpec] = {
     "savgol_mains": FilterSpec(
         lambda rate_hz, **p: MainsNotch(rate_hz, SavitzkyGolayLinear(**p)), {"window": 40},
         "savgol behind a notch at the lamps' flicker (100 or 120 Hz, found by itself) and "
-        "its harmonics (sensing/mains_notch.py)"),
+        "its harmonics (sensing/mains_notch.py; default)"),
     "none": FilterSpec(lambda rate_hz, **p: PassThrough(), {}, "no filtering"),
 }
 

@@ -8,6 +8,10 @@ and 120 Hz over half-second blocks: the comb follows the one that carries at lea
 ``MIN_SHARE`` of a block's variance, twice in a row; until one does, it passes the signal
 through. A period that is not a whole number of samples (120 Hz at 1 kHz: 8.33) weights
 its oldest sample by the fraction, which leaves a small residue of the harmonics.
+
+It is the default filter's first stage, so it must not refuse a rate a driver may run at:
+at or below twice the highest flicker (240 Hz) the ADC cannot see a flicker (it aliases),
+and the notch never looks for one: it passes the signal through (``can_see_flicker``).
 """
 
 from __future__ import annotations
@@ -45,13 +49,15 @@ class MainsNotch:
     """The comb at the flicker it found, ahead of the filter ``then`` (any ``Filter``)."""
 
     def __init__(self, rate_hz: float, then: Filter) -> None:
-        if rate_hz <= 2.0 * max(FLICKERS_HZ):
-            raise SensingError(f"A mains notch needs a sample rate above "
-                               f"{2 * max(FLICKERS_HZ):g} Hz, got {rate_hz:g} Hz.")
+        if not rate_hz > 0.0:
+            raise SensingError(f"A mains notch needs a positive sample rate, got {rate_hz!r}.")
         self.rate_hz = rate_hz
         self.then = then
+        #: Whether the rate is above twice every flicker's: below, the notch passes through.
+        self.can_see_flicker = rate_hz > 2.0 * max(FLICKERS_HZ)
+        comb = math.ceil(rate_hz / min(FLICKERS_HZ)) if self.can_see_flicker else 0
         # samples until no rail sample is left: the comb's period and the filter's window
-        self.window = getattr(then, "window", 1) + math.ceil(rate_hz / min(FLICKERS_HZ))
+        self.window = getattr(then, "window", 1) + comb
         self._block = max(1, round(BLOCK_S * rate_hz))
         self.flicker_hz: float | None = None
         self.reset()
@@ -65,6 +71,8 @@ class MainsNotch:
         self.then.reset()
 
     def update(self, x: float) -> float:
+        if not self.can_see_flicker:
+            return self.then.update(x)
         for g in self._goertzel:
             g.update(x)
         self._n += 1

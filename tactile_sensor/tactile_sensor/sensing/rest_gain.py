@@ -11,6 +11,11 @@ release threshold, the detector not blind and the level steady (the tare's own t
   taken for light. A change that raises the force past the release threshold before the
   baseline catches it (a lamp switched on, a light step during a press) is read as force:
   a stock module has no reading without its emitter to tell the two apart.
+- **A level that fell** (less light: a lamp switched off, a shadow, a dimmer emitter) is
+  taken at once: a press only lowers the detector's voltage (the output rises), so a quiet
+  window whose level stands above the baseline by more than the window's own spread can
+  only be the module's level, never a touch. Followed with the time constant instead, a
+  lamp switched off between presses left the next presses reading low for tens of seconds.
 - **The optical gain** (``RestGain``): a modulated module's signal is the emitter's light
   alone, so its drop at rest below the supply is proportional to emitter x detector x skin
   reflectance. Against the drop when the calibration was taken it is the gain the
@@ -55,9 +60,15 @@ class RestRetare:
                       if self.enabled else 0.0)
         self.retares = 0  # how many steps the baseline took at rest since start
 
-    def follow(self, baseline_v: float, rest_mean_v: float) -> float:
-        """The baseline after one quiet window whose mean was ``rest_mean_v``."""
+    def follow(self, baseline_v: float, rest_mean_v: float, spread_v: float = math.inf) -> float:
+        """The baseline after one quiet window whose mean was ``rest_mean_v`` and whose
+        block means spread ``spread_v`` [V]: the window's mean at once if the level stands
+        above the baseline by more than that spread (less light; no press raises the
+        voltage), else one step of the first-order follow. Without a spread (an array's
+        baselines, as arrays) every step is the follow's."""
         self.retares += 1
+        if spread_v < math.inf and rest_mean_v - baseline_v > spread_v:
+            return rest_mean_v
         return baseline_v + self.alpha * (rest_mean_v - baseline_v)
 
 

@@ -30,7 +30,7 @@ from .test_adc_health import stats
 
 ADC = AdcConversion()
 CAL = Calibration.from_curve([0.0, 0.49], [0.0, 7.0], "test:linear")
-WINDOW = 40  # the default filter's (savgol)
+WINDOW = 50  # the default filter's: savgol's 40 and the notch's longest flicker period (10)
 
 
 def run(chain, volts, start=0):

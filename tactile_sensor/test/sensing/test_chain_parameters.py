@@ -21,7 +21,7 @@ from tactile_sensor.sensing.errors import ParameterConflict, SensingError
 #: The driver's parameters at their defaults (nodes/driver.py).
 VALUES = {
     "port": "/dev/ttyACM0", "channel": 0, "adc_bits": 0, "reference_voltage": 0.0,
-    "sample_rate": 1000.0, "filter_type": "savgol", "filter.window": 0,
+    "sample_rate": 1000.0, "filter_type": "savgol_mains", "filter.window": 0,
     "filter.cutoff_hz": 50.0, "filter.order": 2, "filter.min_cutoff_hz": 10.0,
     "filter.beta": 0.5, "filter.d_cutoff_hz": 1.0, "publish_rate": 0.0,
     "frame_id": "tactile_sensor", "calibration_source": "model", "calibration_file": "",

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tactile_sensor.sensing.errors import SensingError
-from tactile_sensor.sensing.filters import SavitzkyGolayLinear, make_filter
+from tactile_sensor.sensing.filters import DEFAULT_FILTER, SavitzkyGolayLinear, make_filter
 from tactile_sensor.sensing.mains_notch import MainsNotch
 
 RATE = 1000.0
@@ -65,6 +65,39 @@ def test_reset_forgets_the_flicker_and_its_window():
     assert math.isclose(notch.flicker_hz, 100.0)  # the mains does not change with a reset
 
 
-def test_a_rate_that_cannot_see_the_flicker_is_refused():
-    with pytest.raises(SensingError, match="above 240 Hz"):
-        MainsNotch(200.0, SavitzkyGolayLinear(40))
+@settings(max_examples=20, deadline=None)
+@given(st.floats(1.0, 240.0), st.lists(st.floats(0.5, 4.5), min_size=1, max_size=300))
+def test_a_rate_that_cannot_see_the_flicker_passes_the_filter_behind_it(rate, values):
+    """The default filter runs at any rate a driver may: below twice 120 Hz a flicker
+    aliases, so the notch never looks for one."""
+    notch, plain = MainsNotch(rate, SavitzkyGolayLinear(40)), SavitzkyGolayLinear(40)
+    assert not notch.can_see_flicker and notch.window == 40
+    assert [notch.update(v) for v in values] == [plain.update(v) for v in values]
+
+
+def test_a_flicker_at_a_rate_that_cannot_see_it_is_not_looked_for():
+    t = np.arange(0.0, 3.0, 1.0 / 200.0)
+    notch = MainsNotch(200.0, make_filter("none", 200.0))
+    out = run(notch, 2.0 - 0.6 * lamp(t + 1e-3, 100.0))
+    assert notch.flicker_hz is None and np.allclose(out, 2.0 - 0.6 * lamp(t + 1e-3, 100.0))
+
+
+@pytest.mark.parametrize("rate", [0.0, -1000.0, math.nan])
+def test_a_rate_that_is_not_positive_is_refused(rate):
+    with pytest.raises(SensingError, match="positive sample rate"):
+        MainsNotch(rate, SavitzkyGolayLinear(40))
+
+
+@pytest.mark.parametrize("level_v", [0.0, 1.99, 3.1234567, 4.99])
+def test_a_steady_level_or_noise_is_never_taken_for_a_flicker(level_v):
+    """The dark room: the default filter stays savgol, sample for sample."""
+    noise = np.random.default_rng(0).normal(0.0, 0.01, 20_000)
+    for x in (np.full(5_000, level_v), level_v + noise):
+        notch = make_filter("savgol_mains", RATE)
+        run(notch, x)
+        assert notch.flicker_hz is None
+
+
+def test_the_default_filter_is_the_notch_ahead_of_savgol():
+    assert DEFAULT_FILTER == "savgol_mains"
+    assert isinstance(make_filter(DEFAULT_FILTER, RATE), MainsNotch)

@@ -86,6 +86,21 @@ def test_a_time_constant_of_zero_is_off():
     assert not RestRetare(0.0, 1000.0, 500).enabled
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.5, 100.0), st.floats(-1.0, 1.0), st.floats(0.0, 0.05))
+def test_a_level_that_fell_past_the_windows_spread_is_taken_at_once(tau_s, change_v, spread_v):
+    """Less light raises the voltage, which no press does: taken at once; more light (or a
+    rise within the window's own spread) only with the time constant."""
+    retare = RestRetare(tau_s, 1000.0, 500)
+    rest_v = 2.0 + change_v
+    got = retare.follow(2.0, rest_v, spread_v)
+    if rest_v - 2.0 > spread_v:
+        assert got == rest_v
+    else:
+        assert got == pytest.approx(2.0 + retare.alpha * (rest_v - 2.0), abs=1e-12)
+    assert retare.retares == 1
+
+
 # -- the chain re-tares at rest ------------------------------------------------------------
 
 def stock_chain(tau_s: float = 1.0, **kw) -> SignalChain:
@@ -111,6 +126,30 @@ def test_slow_light_is_followed_at_rest_and_read_as_force_without_it():
     last = feed(fixed, light)[-1]
     assert last.force_n == pytest.approx(1.4, abs=0.05) and last.contact
     assert fixed.baseline_v == pytest.approx(2.0, abs=0.002) and fixed.rest_retares == 0
+
+
+def test_a_lamp_switched_off_at_rest_is_taken_within_a_window():
+    """0.3 V less light at rest (the default 10 s time constant): the level is the
+    baseline once a window holds no step, so the next press reads from zero."""
+    chain = stock_chain(10.0)
+    feed(chain, [2.0] * 200)
+    assert chain.baseline_v == pytest.approx(2.0, abs=0.002)
+    after = feed(chain, [2.3] * 60, 200)  # a window (50) and a tenth of one (5) on
+    assert after[0].force_n == 0.0 and not after[0].contact
+    assert chain.baseline_v == pytest.approx(2.3, abs=0.002)
+    press = feed(chain, [2.3 - 0.07] * 5, 260)
+    assert press[-1].force_n == pytest.approx(1.0, abs=0.02)
+
+
+def test_noise_at_rest_does_not_push_the_baseline_up():
+    """Only a fall past the window's own spread is taken at once: noise at rest leaves the
+    baseline where the time constant's average puts it."""
+    chain = stock_chain(10.0)
+    noise = np.random.default_rng(3).normal(0.0, 0.01, 6000)
+    readings = feed(chain, list(2.0 + noise))
+    assert chain.rest_retares > 100
+    assert chain.baseline_v == pytest.approx(2.0, abs=0.001)
+    assert not any(r.contact for r in readings)
 
 
 def test_a_held_press_is_never_taken_for_light():
