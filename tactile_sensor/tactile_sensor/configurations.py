@@ -139,7 +139,23 @@ GRIPPER_SHEAR = _with_layout(
     more_topics=("/gripper_world/object/joint_states",),
 )
 
-CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER, ARRAY, WRENCH, GRIPPER_SHEAR)}
+BEND = Configuration(
+    name="bend",
+    description="A soft finger bending at its joint, a module clipped over the joint and one "
+                "at the fingertip: the joint angle read from the skin outside "
+                "(proprioception, the paper's suggested extension).",
+    nodes=(
+        # the driver fits its calibration on the finger's FEM itself: no model node
+        _mock_hardware("bend", ("physics.yaml", "bend.yaml"), ("adc_link", "adc_port")),
+        replace(_DRIVER, config_files=(*SENSOR_FILES, "bend.yaml")),
+    ),
+    ports={"adc_port": ("/tmp/tactile_sensor/bend_adc",
+                        "serial device of the finger's ADC (one channel per module)")},
+    record_topics=("/driver/reading", "/driver/joint_states", "/driver/wrench",
+                   "/bend/joint_states", "/bend/tip/wrench", "/diagnostics"),
+)
+
+CONFIGURATIONS = {c.name: c for c in (BENCH, GRIPPER, ARRAY, WRENCH, GRIPPER_SHEAR, BEND)}
 
 
 def config_dir() -> Path:

@@ -92,6 +92,12 @@ def _prediction(arg: str, verbose: bool) -> tuple[Prediction | None, str]:
 
 def run(args: argparse.Namespace) -> int:
     verbose = not args.quiet
+    from .bend.record import is_bend_recording
+
+    if is_bend_recording(args.bag):  # a finger's joint angle (configuration 'bend')
+        from .bend.report import run_bend
+
+        return run_bend(args.bag, args.out, draw=not args.no_figures, verbose=verbose)
     started = time.perf_counter()
     calibration = load_calibration(args.calibration) if args.calibration else None
     prediction, note = _prediction(args.prediction, verbose)

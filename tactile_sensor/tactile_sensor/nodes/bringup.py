@@ -1,5 +1,5 @@
-"""``tactile-sensor bringup CONFIGURATION`` (bench, gripper, gripper_shear, array, wrench): a
-launch file's job without launch.
+"""``tactile-sensor bringup CONFIGURATION`` (bench, gripper, gripper_shear, array, wrench,
+bend): a launch file's job without launch.
 
 Composes the configuration's nodes in one process and one executor (as ros2/demos composes
 nodes), loads the same config files as ``launch/*.launch.py`` (both read
@@ -30,9 +30,8 @@ class BringupError(Exception):
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         prog="tactile-sensor bringup",
-        description="Run the bench, gripper, gripper_shear, array or wrench configuration in "
-                    "one process "
-                    "(no launch needed).")
+        description="Run the bench, gripper, gripper_shear, array, wrench or bend "
+                    "configuration in one process (no launch needed).")
     parser.add_argument("configuration", choices=sorted(CONFIGURATIONS))
     parser.add_argument("--duration", type=float, default=None,
                         help="stop after this many seconds (default: end of the protocol; "

@@ -2,6 +2,8 @@
 
 - bench: wait until the driver streams calibrated force, start the mock rig's protocol,
   show progress, stop at its end.
+- bend: the same with the finger: wait for the driver's angle, run the bends, stop at
+  their end.
 - gripper ``grasp``: grasp the rod through the gripper's action, hold, release, and print
   the grasp result with a summary of the force trace.
 - gripper ``lift``: grasp the mock's object, lift it, load, hold, set down, release
@@ -47,7 +49,7 @@ def run_protocol(runner: RunningBringup, duration: float | None) -> int:
         return 1
     if lift:
         return bringup_lift.run_lift(runner)
-    bench = runner.nodes.get("bench")
+    bench = runner.nodes.get("bench") or runner.nodes.get("bend")  # a rig with a protocol
     if bench is not None and name:
         return _run_bench(runner, bench, duration)
     if "gripper" in runner.nodes and name == "grasp":

@@ -26,6 +26,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import State, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
@@ -47,7 +48,7 @@ from tactile_sensor.nodes.parameters import (
     declare_parameters,
     read_parameters,
 )
-from tactile_sensor.nodes.reading_cdr import ReadingCdr, WrenchCdr
+from tactile_sensor.nodes.reading_cdr import JointStateCdr, ReadingCdr, WrenchCdr
 from tactile_sensor.sensing.adc_health import FrameRate, LossCounter, adc_health
 from tactile_sensor.sensing.adc_settings import AdcSettings, resolve_adc
 from tactile_sensor.sensing.array_chain import (
@@ -55,6 +56,12 @@ from tactile_sensor.sensing.array_chain import (
     ArrayReading,
     build_chain,
     parse_modules,
+)
+from tactile_sensor.sensing.bend_chain import (
+    BendChain,
+    BendReading,
+    bend_health,
+    parse_bend_modules,
 )
 from tactile_sensor.sensing.calibration_correction import CorrectedCalibration
 from tactile_sensor.sensing.chain import Reading, SignalChain
@@ -96,7 +103,7 @@ class DriverNode(GuardedLifecycleNode):
         self.add_post_set_parameters_callback(self._apply_runtime_change)
         self._values: dict[str, Any] = {}
         self._faces: list[str] = []  # of the modules, [] with one module
-        self._chain: SignalChain | ArrayChain | None = None
+        self._chain: SignalChain | ArrayChain | BendChain | None = None
         self._reader: AdcStreamReader | None = None
         self._clock_map = DeviceClock()
         self._publish_every_ns = 0
@@ -112,6 +119,9 @@ class DriverNode(GuardedLifecycleNode):
         self._tare_srv = self._calibration_sub = self._diag_timer = None
         self._correction_sub: Any = None
         self._full_scale_pub: Any = None
+        self._joint_pub: Any = None  # a bending finger's joint angle
+        self._joint_cdr: JointStateCdr | None = None
+        self._out_of_range_reported = 0  # angles beyond the calibration, as last reported
         self._calibrations = CorrectedCalibration()
         self._live = LiveSelector()
         self._active_since: float | None = None  # time.monotonic() of the last activation
@@ -127,9 +137,18 @@ class DriverNode(GuardedLifecycleNode):
         try:
             values = read_parameters(self, SPECS)
             modules = parse_modules(values["modules"])
-            chain = build_chain(chain_config(values), modules, values["calibration_file"]
-                                if values["calibration_source"] == "file" else None,
-                                values["torque_cutoff_hz"])
+            bend = parse_bend_modules(values["bend_modules"]) if values["bend_modules"] else ()
+            if bend and modules:
+                raise SensingError("Parameters 'modules' and 'bend_modules' both name modules; "
+                                   "a finger's go in bend_modules alone, so leave modules "
+                                   "empty.")
+            chain: SignalChain | ArrayChain | BendChain
+            if bend:
+                chain = BendChain(chain_config(values), bend, bend_calibration(values, bend))
+            else:
+                chain = build_chain(chain_config(values), modules, values["calibration_file"]
+                                    if values["calibration_source"] == "file" else None,
+                                    values["torque_cutoff_hz"])
             reader = AdcStreamReader(values["port"], on_batch=self._on_batch,
                                      on_state=self._on_state, baudrate=values["baud_rate"],
                                      backlog=values["reader_backlog"],
@@ -139,13 +158,18 @@ class DriverNode(GuardedLifecycleNode):
             self.get_logger().error(f"configure failed: {exc}")
             return TransitionCallbackReturn.FAILURE
         self._values, self._chain, self._reader = values, chain, reader
-        self._faces = [m.face for m in modules]
+        self._faces = [m.face for m in modules] or [m.place for m in bend if len(bend) > 1]
         self._clock_map = DeviceClock()
         self._loss = LossCounter()
         self._live = LiveSelector(values["live_window"])
         self._adc = self._info_logged = None
         self._publish_every_ns = publish_period_ns(values)
         self._cdr = _encoders(values["frame_id"], self._faces)
+        self._out_of_range_reported = 0
+        if bend:
+            self._joint_cdr = JointStateCdr(values["frame_id"], (values["joint_name"],))
+            self._joint_pub = self.create_lifecycle_publisher(JointState, "~/joint_states",
+                                                              SAMPLE_QUEUE_DEPTH)
         self._wrench_pub = self.create_lifecycle_publisher(WrenchStamped, "~/wrench",
                                                              SAMPLE_QUEUE_DEPTH)
         self._reading_pub = self.create_lifecycle_publisher(TactileReading, "~/reading",
@@ -155,14 +179,16 @@ class DriverNode(GuardedLifecycleNode):
         self._full_scale_pub = self.create_publisher(Float64, "~/full_scale_force",
                                                      CALIBRATION_QOS)
         self._publish_full_scale()
-        if values["calibration_source"] == "model" and modules:
+        if bend:
+            pass  # calibrated from the FEM (or its file) above
+        elif values["calibration_source"] == "model" and modules:
             self._calibration_sub = self.create_subscription(
                 ArrayCalibrationMsg, "array_calibration", self._on_array_calibration,
                 CALIBRATION_QOS)
         elif values["calibration_source"] == "model":
             self._calibration_sub = self.create_subscription(
                 CalibrationCurve, "calibration_curve", self._on_calibration, CALIBRATION_QOS)
-        if not modules:
+        if not modules and not bend:
             self._calibrations = CorrectedCalibration(chain.calibration)
             self._correction_sub = self.create_subscription(
                 CalibrationCorrection, "calibration_correction", self._on_correction,
@@ -172,7 +198,9 @@ class DriverNode(GuardedLifecycleNode):
         self.get_logger().info(
             f"configured: {values['port']} at {values['baud_rate']} bit/s, filter "
             f"{values['filter_type']}, calibration from {values['calibration_source']}"
-            + (f" ({describe_model(chain.calibration)})" if chain.calibration else "")
+            + (f" ({chain.calibration.describe()})" if isinstance(chain, BendChain)
+               and chain.calibration else f" ({describe_model(chain.calibration)})"
+               if chain.calibration else "")
             + (f", modules {values['modules']}" if modules else ""))
         return TransitionCallbackReturn.SUCCESS
 
@@ -221,9 +249,10 @@ class DriverNode(GuardedLifecycleNode):
             if sub is not None:
                 self.destroy_subscription(sub)
         self._correction_sub = None
-        for pub in (self._wrench_pub, self._reading_pub):
+        for pub in (self._wrench_pub, self._reading_pub, self._joint_pub):
             if pub is not None:
                 self.destroy_lifecycle_publisher(pub)
+        self._joint_pub = self._joint_cdr = None
         for plain in (self._diag_pub, self._full_scale_pub):
             if plain is not None:
                 self.destroy_publisher(plain)
@@ -289,6 +318,11 @@ class DriverNode(GuardedLifecycleNode):
         # more than its signal chain.
         reading_pub, wrench_pub = self._reading_pub, self._wrench_pub
         record = reading_pub is not None and reading_pub.get_subscription_count() > 0
+        joint_pub, joint_cdr = self._joint_pub, self._joint_cdr
+        if joint_pub is not None and joint_cdr is not None and \
+                joint_pub.get_subscription_count() > 0:  # the angle: every published sample
+            for i in due:
+                joint_pub.publish(joint_cdr.encode(stamps[i], (readings[i].angle_rad,)))
         live: set[int] = set()
         if wrench_pub is not None and wrench_pub.get_subscription_count() > 0:
             reader = self._reader
@@ -299,8 +333,8 @@ class DriverNode(GuardedLifecycleNode):
             for i in due:
                 self._publish(readings[i], stamps[i], record, i in live)
 
-    def _publish(self, reading: Reading | ArrayReading, stamp_ns: int, record: bool,
-                 live: bool) -> None:
+    def _publish(self, reading: Reading | ArrayReading | BendReading, stamp_ns: int,
+                 record: bool, live: bool) -> None:
         """On ~/reading when ``record`` (someone records), on ~/wrench when ``live`` and the
         reading has a force."""
         encoders, reading_pub, wrench_pub = self._cdr, self._reading_pub, self._wrench_pub
@@ -308,7 +342,15 @@ class DriverNode(GuardedLifecycleNode):
             return
         force = reading.force_n
         message = wrench = None
-        if type(reading) is ArrayReading:
+        if type(reading) is BendReading:  # the tip force, NaN where it is not observed
+            if record:
+                message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v,
+                                             force, reading.contact,
+                                             *((reading.voltages_v, reading.outputs_v)
+                                               if len(reading.voltages_v) > 1 else ()))
+            if live and reading.angle_rad == reading.angle_rad:
+                wrench = encoders[1].encode(stamp_ns, 0.0, 0.0, force)
+        elif type(reading) is ArrayReading:
             if record:
                 message = encoders[0].encode(stamp_ns, reading.voltage_v, reading.output_v,
                                              force, reading.contact, reading.voltages_v,
@@ -457,11 +499,26 @@ class DriverNode(GuardedLifecycleNode):
             self.get_logger().warning(warning)
         subscribers = {"reading": self._reading_pub.get_subscription_count(),
                        "wrench": self._wrench_pub.get_subscription_count()}
-        health = adc_health(stats, self._adc, chain, rate, lost_now, self.published_readings,
-                            subscribers, self._live.skipped)
+        health = adc_health(stats, self._adc, chain, rate, lost_now,  # type: ignore[arg-type]
+                            self.published_readings, subscribers, self._live.skipped)
+        if isinstance(chain, BendChain):
+            health = bend_health(health, chain, self._out_of_range_reported)
+            self._out_of_range_reported = chain.out_of_range
         pub.publish(diagnostic_array(f"{self.get_fully_qualified_name()}: tactile ADC",
                                      str(self._values["port"]), health,
                                      self.get_clock().now().to_msg()))
+
+
+def bend_calibration(values: dict[str, Any], modules: Any) -> Any:
+    """A finger's calibration: its file (calibration_source file), or fitted on the FEM's
+    table for these modules (nodes/bend_physics.py, cached)."""
+    from tactile_sensor.sensing.bend_calibration import BendCalibration
+
+    if values["calibration_source"] == "file":
+        return BendCalibration.from_file(values["calibration_file"])
+    from tactile_sensor.nodes.bend_physics import fem_bend_calibration
+
+    return fem_bend_calibration(tuple(m.place for m in modules), values["bend_cache_dir"] or None)
 
 
 def _encoders(frame_id: str, faces: list[str]) -> tuple[ReadingCdr, WrenchCdr]:

@@ -6,6 +6,7 @@ from __future__ import annotations
 from tactile_sensor.hardware.adc_reader import DEFAULT_BACKLOG
 from tactile_sensor.nodes.parameters import ParamSpec
 from tactile_sensor.sensing.array_chain import TORQUE_CUTOFF_HZ, parse_modules
+from tactile_sensor.sensing.bend_chain import parse_bend_modules
 from tactile_sensor.sensing.errors import SensingError
 from tactile_sensor.sensing.filters import DEFAULT_FILTER, FILTERS
 from tactile_sensor.sensing.live_force import DEFAULT_WINDOW_S as DEFAULT_LIVE_WINDOW_S
@@ -27,6 +28,16 @@ def _modules_problem(text: str) -> str | None:
     return None
 
 
+def _bend_modules_problem(text: str) -> str | None:
+    if not text.strip():
+        return None
+    try:
+        parse_bend_modules(text)
+    except SensingError as exc:
+        return str(exc)
+    return None
+
+
 SPECS = [
     ParamSpec("port", "/dev/ttyACM0", "serial device of the ADC (path or pyserial URL)"),
     ParamSpec("baud_rate", 1_000_000, "serial baud rate [bit/s] the firmware uses",
@@ -39,6 +50,15 @@ SPECS = [
               "x, y, z in N and torque x, y, z in N m from an array calibration, NaN for "
               "the components it does not observe; empty = one module on 'channel'",
               check=_modules_problem),
+    ParamSpec("bend_modules", "", "a bending finger's modules as CHANNEL:PLACE, PLACE joint "
+              "(over the joint) or tip (at the fingertip), e.g. '0:joint,1:tip': "
+              "~/joint_states carries the joint angle in rad (NaN beyond the calibration's "
+              "range) and ~/wrench force.z the fingertip's contact force in N, NaN with the "
+              "joint module alone (it cannot tell a contact from a bend); empty = not a "
+              "finger", check=_bend_modules_problem),
+    ParamSpec("joint_name", "finger_joint", "name of the finger's joint in ~/joint_states"),
+    ParamSpec("bend_cache_dir", "", "cache folder of the finger's FEM table (bend_modules "
+              "with calibration_source model); empty = default"),
     ParamSpec("torque_cutoff_hz", TORQUE_CUTOFF_HZ, "cutoff [Hz] of the 2nd-order "
               "Butterworth low-pass on the array's torque (after the calibration); 10 Hz "
               "because the torque is a small difference of module outputs and its noise "

@@ -110,6 +110,12 @@ def _driver() -> NodeInterface:
                      "voltage [V], inverted output [V], force [N] and contact of each "
                      "sample at `publish_rate`, the record (with `modules`: each face's "
                      "voltage and output too)"),
+            Endpoint("~/joint_states", _JOINTS, "with `bend_modules`: the finger's joint "
+                     "angle [rad] (`joint_name`; 0 straight, REP 103) of each sample at "
+                     "`publish_rate`, NaN beyond the calibration's range (/diagnostics WARN "
+                     "`angles_out_of_range`); ~/wrench force.z then carries the fingertip's "
+                     "contact force [N], NaN with the joint module alone",
+                     frozenset({"bend"})),
             Endpoint("~/full_scale_force", "std_msgs/msg/Float64",
                      "latched full-scale force [N] of the calibration in use (the curve's "
                      "top; every larger output clamps there): the gripper's force ceiling"),
@@ -253,9 +259,16 @@ def _mock_hardware() -> NodeInterface:
                      "(+ toward their tips): `object_position` its travel [m] (the skins' "
                      "deflection included), `object_slip` its slip over the skins [m]",
                      held),
+            Endpoint("~/joint_states", _JOINTS, "world bend: the finger's true joint angle "
+                     "`finger_joint` [rad] (0 straight, + toward the palm) at `truth_rate`",
+                     frozenset({"bend"})),
+            Endpoint("~/tip/wrench", _WRENCH, "world bend: the true contact force on the "
+                     "fingertip [N], force.z into its palmar pad, at `truth_rate`",
+                     frozenset({"bend"})),
         ],
         services=[Endpoint("~/start", _TRIGGER, "start the protocol now (with "
-                           "`protocol.start_delay` < 0 it waits for this)", bench)],
+                           "`protocol.start_delay` < 0 it waits for this)",
+                           bench | frozenset({"bend"}))],
         variants={"bench": {"world": "bench"}, "gripper": {"world": "gripper"},
                   "object": {"world": "gripper", "object.mass_kg": 0.1}},
         notes="Not a lifecycle node: it opens its devices when it starts. The ADC appears "

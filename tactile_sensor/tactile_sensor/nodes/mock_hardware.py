@@ -17,6 +17,13 @@ servo and the reference instruments agree:
   with the rate effect). The protocol
   (config/protocols.yaml) starts ``protocol.start_delay`` s after start-up, or on
   ``~/start``.
+- ``world: bend`` — a soft finger bending at its joint (sim/bend_world.py, the FEM of
+  physics/bend.py through nodes/bend_physics.py): the mock ADC streams its modules
+  (``bend.modules``, channel i the i-th: joint, tip), ``~/joint_states`` carries the true
+  joint angle ``finger_joint`` [rad] and ``~/tip/wrench`` the fingertip's contact force
+  (force.z [N], into the pad), both at ``truth_rate`` with the sample times. The protocol's
+  bends (``protocol.angle``, ``protocol.frequencies``, ``protocol.cycles``,
+  ``protocol.tip_force``) or ``bend.actuation_profile`` drive it, started as the bench's.
 - ``world: gripper`` — the soft gripper: an emulated XM430 moves the fingers, the rod
   indents the fingertip skin, the mock ADC streams finger A's modules, and
   ``~/ground_truth`` carries finger A's true skin force. With ``modules`` naming several
@@ -76,7 +83,7 @@ from tactile_sensor.sim.skin_response import TabulatedSkin
 from tactile_sensor.sim.wrench_world import WrenchBenchWorld, WrenchSkin
 
 SPECS = [
-    ParamSpec("world", "bench", "which rig to simulate", choices=("bench", "gripper")),
+    ParamSpec("world", "bench", "which rig to simulate", choices=("bench", "gripper", "bend")),
     ParamSpec("adc_link", "/tmp/tactile_sensor/adc", "path of the mock ADC's serial device"),
     ParamSpec("adc_rate", 1000.0, "mock ADC sample rate [Hz] (paper: 1 kHz)", minimum=1.0,
               maximum=200_000.0),
@@ -143,6 +150,22 @@ SPECS = [
               "parameters alone", choices=("", *SCENARIOS)),
     ParamSpec("protocol.start_delay", 5.0, "start the protocol this long after start-up "
               "[s] (time for the driver to tare); < 0 = wait for ~/start"),
+    # bend
+    ParamSpec("bend.modules", "joint,tip", "the finger's modules, ADC channel i the i-th: "
+              "joint (clipped over the joint) and tip (at the fingertip); a layout without "
+              "joint is refused"),
+    ParamSpec("bend.actuation_profile", [], "the finger's tendon tension itself in place of "
+              "the protocol's bends: 'seconds:newtons' points [s:N], linear in between, "
+              "seconds after the protocol starts; finite and >= 0; [] = the protocol's bends"),
+    ParamSpec("protocol.angle", 1.5708, "joint angle at the top of each bend [rad] (bend "
+              "world)", minimum=0.0, exclusive_minimum=True, maximum=3.1416),
+    ParamSpec("protocol.frequencies", [0.5], "bend rates [Hz], run in order, protocol.cycles "
+              "raised-cosine bends each (bend world)"),
+    ParamSpec("protocol.tip_force", 0.0, "fingertip contact [N]: > 0 runs each rate's bends "
+              "again while a contact rises to it and falls back (bend world)", minimum=0.0,
+              maximum=10.0),
+    ParamSpec("truth_rate", 1000.0, "rate of the bend world's ~/joint_states and ~/tip/wrench "
+              "[Hz]", minimum=1.0, maximum=10_000.0),
     # gripper
     ParamSpec("servo_link", "/tmp/tactile_sensor/xm430", "path of the emulated XM430"),
     ParamSpec("servo_control", "", "FIFO accepting the emulator's fault-injection commands "
@@ -307,7 +330,9 @@ class MockHardwareNode(Node):
         cache = Path(values["cache_dir"]) if values["cache_dir"] else None
         skin: Any
         try:
-            if array:
+            if values["world"] == "bend":  # the finger's own FEM (nodes/bend_physics.py)
+                skin = held = None
+            elif array:
                 self.get_logger().info(
                     f"loading the array skin ({', '.join(self.faces)}; a first run computes "
                     "the FEM grid)")
@@ -324,7 +349,9 @@ class MockHardwareNode(Node):
         seed = values["seed"] if values["seed"] >= 0 else None
         self.source: Any
         try:
-            if values["world"] == "bench":
+            if values["world"] == "bend":
+                self._build_bend(physics, cache)
+            elif values["world"] == "bench":
                 self._build_bench(skin, physics)
             elif array:  # finger A's modules from the grid, the fingers' forces as it reads
                 self._build_gripper(skin.press_skin(), held, skin)
@@ -401,11 +428,18 @@ class MockHardwareNode(Node):
         self.gauge_published = 0  # gauge samples published (the stage publishes as many)
         self._stage_pub = self.create_publisher(JointState, "~/stage/joint_states", 1000)
         self._gauge_pub = self.create_publisher(WrenchStamped, "~/gauge/wrench", 1000)
+        self._truth_joints = WRENCH_STAGE_JOINTS
+        self._truth_frame = "force_gauge"
+        self._start_services(v["gauge_rate"])
+
+    def _start_services(self, rate_hz: float) -> None:
+        """~/start, the protocol's delayed start and the ground truth's thread."""
         self.create_service(Trigger, "~/start", self._on_start)
-        delay = v["protocol.start_delay"]
+        delay = self.values["protocol.start_delay"]
         if delay >= 0:
             self._delay_timer = self.create_timer(delay, self._start_after_delay)
-        thread = threading.Thread(target=self._publish_gauge, name="bench-gauge", daemon=True)
+        thread = threading.Thread(target=self._publish_gauge, args=(rate_hz,),
+                                  name="bench-gauge", daemon=True)
         self._threads.append(thread)
         thread.start()
 
@@ -446,16 +480,16 @@ class MockHardwareNode(Node):
                             "running; restart the node to run it again")
         return response
 
-    def _publish_gauge(self) -> None:
+    def _publish_gauge(self, rate_hz: float) -> None:
         """Stage and gauge at ``gauge_rate``, each sample stamped with its own time. The
         world is evaluated a block of samples at a time and both messages go out as CDR
         bytes (nodes/reading_cdr.py): one sample a millisecond leaves no room for per-sample
         numpy calls or message objects."""
-        period_ns = int(1e9 / self.values["gauge_rate"])
+        period_ns = int(1e9 / rate_hz)
         block = max(1, int(GAUGE_BLOCK_S * 1e9) // period_ns)
         burst_ns = max(period_ns, int(GAUGE_BURST_S * 1e9))
         stage: JointStateCdr | None = None
-        gauge = WrenchCdr("force_gauge")
+        gauge = WrenchCdr(self._truth_frame)
         first_ns, block_start, rows = 0, None, []  # the block: samples from first_ns on
         next_ns = time.time_ns()
         while not self._stop.is_set():
@@ -473,7 +507,7 @@ class MockHardwareNode(Node):
                          else np.maximum(0.0, (times - start) * 1e-9))
                     positions, forces = stage_and_gauge_block(self.world, t)
                     rows = list(zip(positions.tolist(), forces.tolist(), strict=True))
-                    joints = WRENCH_STAGE_JOINTS[:positions.shape[1]]
+                    joints = self._truth_joints[:positions.shape[1]]
                     if stage is None or stage.names != joints:
                         stage = JointStateCdr("", joints)
                 position, f = rows[i]
@@ -482,6 +516,27 @@ class MockHardwareNode(Node):
                 self.published_until_ns = next_ns
                 self.gauge_published += 1
                 next_ns += period_ns
+
+    # -- bend ----------------------------------------------------------------------------------
+    def _build_bend(self, physics: Any, cache: Path | None) -> None:
+        """The finger: its FEM response and actuator (nodes/bend_physics.py), the protocol's
+        bends or the user's actuation; the true angle on ~/joint_states and the fingertip's
+        contact on ~/tip/wrench, published at truth_rate as the bench's stage and gauge."""
+        from tactile_sensor.nodes.bend_physics import bend_world
+        from tactile_sensor.sim.bend_world import JOINT_NAME
+
+        v = self.values
+        self.get_logger().info("loading the finger's FEM (a first run computes it)")
+        self.world = bend_world(v, cache, self._progress)  # type: ignore[assignment]
+        self.source = ProtocolSource(self.world)  # type: ignore[arg-type]
+        self._start_host_ns = None
+        self.published_until_ns = 0
+        self.gauge_published = 0
+        self._stage_pub = self.create_publisher(JointState, "~/joint_states", 1000)
+        self._gauge_pub = self.create_publisher(WrenchStamped, "~/tip/wrench", 1000)
+        self._truth_joints = (JOINT_NAME,)
+        self._truth_frame = "fingertip"
+        self._start_services(v["truth_rate"])
 
     # -- gripper -------------------------------------------------------------------------------
     def _held_object(self, physics: Any, cache: Path | None) -> Any:

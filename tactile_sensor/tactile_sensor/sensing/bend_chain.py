@@ -22,6 +22,7 @@ import threading
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from tactile_sensor.hardware.health import Health, Level
 from tactile_sensor.sensing.bend_calibration import (
     JOINT,
     TIP,
@@ -292,3 +293,25 @@ class BendChain(SampleSteps[tuple[float, ...], BendReading]):
         contact = self._contact.update(force if force == force else 0.0, t_us * 1e-6)
         return BendReading(volts[0], outputs[0], force, contact, not est.in_range, t_us,
                            host_ns, est.angle_rad, volts, outputs)
+
+
+def bend_health(health: Health, chain: BendChain, reported: int) -> Health:
+    """The ADC's health with what the finger's chain adds: a WARN while angles fell beyond
+    the calibration's range since the last report (``reported``: the count then), and
+    whether the force is observed."""
+    cal = chain.calibration
+    values = dict(health.values)
+    values["bend_modules"] = ", ".join(chain.faces)
+    values["angles_out_of_range"] = str(chain.out_of_range)
+    values["tip_force"] = ("none" if cal is None else "observed" if cal.separates
+                           else f"NaN: {cal.separation}")
+    if cal is not None:
+        lo, hi = cal.angle_range_rad
+        values["angle_range_rad"] = f"{lo:.4f}..{hi:.4f}"
+    level, message = health.level, health.message
+    beyond = chain.out_of_range - reported
+    if beyond > 0 and level == Level.OK:
+        level = Level.WARN
+        message = (f"{beyond} angle(s) beyond the calibration's range since the last report "
+                   "(published as NaN)")
+    return Health(level, message, values)
