@@ -38,6 +38,9 @@ JOINT_NAME = "finger_joint"
 #: at most.
 MAX_FREQUENCY_HZ = 5.0
 MAX_TIP_FORCE_N = 10.0
+#: How far past the FEM's angle range a protocol may reach and be held at its end [rad]
+#: (a protocol's 1.5708 for 90 deg).
+ANGLE_TOLERANCE_RAD = 1e-3
 
 
 class BendResponseLike(Protocol):
@@ -200,10 +203,11 @@ class BendWorld:
         lo, hi = (float(v) for v in response.angle_range_rad)
         if actuation is None:
             target = np.asarray(path.angle(self._t), float)
-            if target.max() > hi + 1e-9:
+            if target.max() > hi + ANGLE_TOLERANCE_RAD:
                 peak = math.degrees(path.angle_rad)
                 raise SimError(f"The protocol bends the finger to {peak:.1f} deg, beyond "
                                f"the FEM's {math.degrees(hi):.1f} deg; lower protocol.angle.")
+            target = np.minimum(target, hi)  # 1.5708 for a pi / 2 range
             u = actuation_for(actuator, target, tip, hi)
         else:
             u = np.asarray(actuation.at(self._t), float)
@@ -211,7 +215,7 @@ class BendWorld:
         if not np.all(np.isfinite(angle)):
             raise SimError("The actuator's map gave a non-finite angle; check the physics "
                            "parameters of the finger.")
-        if angle.max() > hi + 1e-6 or angle.min() < lo - 1e-6:
+        if angle.max() > hi + ANGLE_TOLERANCE_RAD or angle.min() < lo - ANGLE_TOLERANCE_RAD:
             raise SimError(f"The actuation bends the finger to {math.degrees(angle.max()):.1f}"
                            f" deg, outside the FEM's {math.degrees(lo):.0f}-"
                            f"{math.degrees(hi):.0f} deg; give a smaller actuation.")

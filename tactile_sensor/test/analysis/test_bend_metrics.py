@@ -53,11 +53,13 @@ def test_contact_bends_form_their_own_phase_and_nan_is_counted():
 
 
 def test_hysteresis_is_the_largest_gap_between_the_branches_in_percent():
-    up = np.linspace(0, 1, 101)
+    up = np.linspace(0, 1, 1001)
     truth = np.concatenate([up, up[::-1][1:]])
     est = truth.copy()
-    est[101:] += 0.02  # the way down reads 2 % of the range high
+    est[1001:] += 0.02  # the way down reads 2 % of the range high
     assert hysteresis_pct(truth, est) == pytest.approx(2.0, abs=1e-6)
+    noisy = est + np.random.default_rng(1).normal(0, 0.005, est.size)
+    assert hysteresis_pct(truth, noisy) == pytest.approx(2.0, abs=0.5)
 
 
 def test_a_run_without_a_whole_bend_has_none():
