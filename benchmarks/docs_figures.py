@@ -108,15 +108,89 @@ def saved(fig: Any, path: Path) -> Path:
 
 
 def grasp_trace(series: Series, path: Path) -> Path:
-    """One grasp as its controller saw it: the sensed force closing on the target while the
-    opening narrows (the package draws no plot of a grasp; the demo prints a summary)."""
+    """One whole grasp as the mock's world felt it: the true and the sensed force closing
+    on the target, holding there, and falling to zero as the release opens the fingers
+    (the package draws no plot of a grasp; the demo prints a summary)."""
     plt = pyplot()
+    t = series["t_s"]
+    target = float(series["target_n"][0])
+    release = float(series["release_start_s"][0])
+    released = float(series["release_end_s"][0])
+    touched = t[np.nonzero(series["true_force_n"] > 0.02)[0]]
+    contact = float(touched[0]) if touched.size else float("nan")
     fig, (force, opening) = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
-    force.plot(series["t_s"], series["force_n"], lw=0.9, color="tab:red")
-    force.set(ylabel="sensed force [N]", title="Grasp: force and opening from the goal on")
-    opening.plot(series["t_s"], series["opening_m"] * 1e3, lw=0.9, color="tab:blue")
-    opening.set(xlabel="time from the goal [s]", ylabel="opening [mm]")
-    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.92, hspace=0.15)
+    force.plot(t, series["sensed_force_n"], lw=0.6, color="0.6", label="sensed (what the goal saw)")
+    force.plot(t, series["true_force_n"], lw=1.2, color="tab:red", label="true force, finger A")
+    force.axhline(target, color="k", ls="--", lw=0.9, label=f"target {target:g} N")
+    opening.plot(t, series["opening_m"] * 1e3, lw=1.2, color="tab:blue")
+    for ax in (force, opening):
+        for x0, x1, name, shade in ((t[0], contact, "close", "0.97"),
+                                    (contact, release, "hold", "#e8f4e8"),
+                                    (release, released, "release", "#fdebd8")):
+            if np.isfinite(x0) and np.isfinite(x1) and x1 > x0:
+                ax.axvspan(x0, x1, color=shade, zorder=0)
+                if ax is force:
+                    ax.text((x0 + x1) / 2, target * 1.22, name, ha="center", fontsize=9)
+    force.set(ylabel="force [N]", ylim=(-0.1, target * 1.35),
+              title="Grasp, hold and release: the force settles on the target, then falls to 0")
+    force.legend(fontsize=8, loc="center left")
+    opening.set(xlabel="time from the grasp goal [s]", ylabel="opening [mm]")
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.1, top=0.92, hspace=0.12)
+    return saved(fig, path)
+
+
+def recording_costs(records: dict[str, dict[str, Any]], path: Path) -> Path:
+    """What a recording costs and risks: the time a kill -9 loses against the recorder's
+    0.5 s flush, and the time to read and analyse a 2.4 M-message recording per storage."""
+    plt = pyplot()
+    def value(name: str, figure: str) -> float:
+        for f in records[name]["figures"]:
+            if f["name"] == figure and f["value"] is not None:
+                return float(f["value"])
+        return float("nan")
+
+    fig, (kill, read) = plt.subplots(1, 2, figsize=(9, 3.6))
+    lost = [value("recording_kill", "time lost per kill: median"),
+            value("recording_kill", "time lost per kill: max")]
+    kill.bar(["median", "max"], lost, color="tab:red", width=0.5)
+    kill.axhline(0.5, color="k", ls="--", lw=0.9, label="flush period 0.5 s")
+    kill.set(ylabel="recording lost per kill -9 [s]", title="A killed recorder loses")
+    kill.legend(fontsize=8, loc="lower right")
+    storages = ("sqlite3", "mcap")
+    x = np.arange(len(storages))
+    for offset, part, colour in ((-0.2, "rosbags read + deserialize", "0.6"),
+                                 (0.2, "full analysis", "tab:blue")):
+        read.bar(x + offset, [value("analysis", f"{s}: {part}") for s in storages], 0.4,
+                 color=colour, label=part)
+    read.set_xticks(x, storages)
+    read.set(ylabel="time [s]", title="2.4 M messages: read, then analyse")
+    read.legend(fontsize=8)
+    fig.subplots_adjust(left=0.09, right=0.98, bottom=0.12, top=0.88, wspace=0.3)
+    return saved(fig, path)
+
+
+def goal_overview(records: dict[str, dict[str, Any]], path: Path) -> Path:
+    """Every published benchmark's figures with a goal, met and not met, beside those
+    without one (the page's tables hold the values)."""
+    plt = pyplot()
+    names = sorted(records)
+    met = [sum(f.get("met") is True for f in records[n]["figures"]) for n in names]
+    missed = [sum(f.get("met") is False for f in records[n]["figures"]) for n in names]
+    plain = [len(records[n]["figures"]) - a - b for n, a, b in zip(names, met, missed,
+                                                                    strict=True)]
+    y = np.arange(len(names))
+    fig, ax = plt.subplots(figsize=(9, 0.25 * len(names) + 1.2))
+    ax.barh(y, met, color="tab:green", label="goal met")
+    ax.barh(y, missed, left=met, color="tab:red", label="goal NOT met")
+    ax.barh(y, plain, left=np.add(met, missed), color="0.8", label="no goal (a measurement)")
+    ax.set_yticks(y, [f"{n} ({str(records[n]['date'])[:10]})" for n in names], fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xscale("symlog", linthresh=10)
+    ax.set(xlabel="figures (log scale past 10)",
+           title="Published benchmarks: red marks a goal not met")
+    ax.legend(fontsize=8, loc="lower right")
+    fig.subplots_adjust(left=0.3, right=0.98, bottom=0.5 / (0.25 * len(names) + 1.2) + 0.04,
+                        top=1 - 0.5 / (0.25 * len(names) + 1.2))
     return saved(fig, path)
 
 
@@ -236,35 +310,125 @@ def ambient_trace(series: Series, path: Path) -> Path:
 @dataclass(frozen=True)
 class PageFigure:
     """One figure of a docs page: the benchmark result it is drawn from (empty: drawn from
-    the package's configuration alone), what it shows, and the plot that draws it (None:
-    the benchmark keeps no series for it yet)."""
+    the package's configuration alone), what it shows, what to look at in it, and the plot
+    that draws it (None: the benchmark keeps no series for it yet). ``records`` names the
+    results a plot of their figures (not of a series) reads; ``("*",)`` is every one."""
 
     page: str
     name: str
     result: str
     shows: str
+    look: str
     draw: Callable[[Series, Path], Path] | None = None
+    records: tuple[str, ...] = ()
+    draw_records: Callable[[dict[str, dict[str, Any]], Path], Path] | None = None
 
 
 FIGURES = (
-    PageFigure("array", "module_layouts", "", "the module layouts", module_layouts),
+    PageFigure("array", "module_layouts", "", "the module layouts",
+               "Each red bar is a module's window on a side face, numbered by its ADC "
+               "channel: the array layout has one per face, the wrench layout two per face "
+               "at +-5.5 mm, which is what lets it read torque.", module_layouts),
     PageFigure("bench-calibration", "compression", "analysis",
-               "the compression curve beside the paper's", compression),
+               "the compression curve beside the paper's",
+               "Loading and unloading lie on one curve (the mock's skin has no hysteresis) "
+               "and end at the star, the paper's 7 N at 3 mm; the grey band is the paper's "
+               "nonlinear toe.", compression),
     PageFigure("array", "array_shear_direction", "array_shear",
-               "the shear direction, estimated against applied", shear_direction),
+               "the shear direction, estimated against applied",
+               "Left: the red estimates lie on the grey spokes of the eight applied "
+               "directions. Right: the error per direction stays within about +-15 deg, "
+               "centred on 0 (no direction is biased).", shear_direction),
     PageFigure("array", "array_torque_time", "bench_wrench",
-               "the torque, estimated against the gauge", torque_time),
-    PageFigure("design-studies", "pareto", study_name(), "the Pareto front", pareto),
+               "the torque, estimated against the gauge",
+               "The red estimate follows the black gauge on each axis; the number over each "
+               "shaded excursion is its gain (1.00 is exact), and the title of each panel "
+               "gives its RMSE over the range.", torque_time),
+    PageFigure("design-studies", "pareto", study_name(), "the Pareto front",
+               "The red line joins the designs no other beats on both full-scale force and "
+               "sensitivity; the star is the paper's design, left of the front: more range "
+               "is available at about the same sensitivity.", pareto),
     PageFigure("rate-calibration", "rate_errors", "rate_calibration",
-               "the rate errors per speed", rate_errors),
-    PageFigure("gripper-workflow", "grasp", "gripper",
-               "a grasp's force and opening over time", grasp_trace),
+               "the rate errors per speed",
+               "In every speed and phase the red bar (rate-aware) is below the blue (static "
+               "curve); the dashed line is the goal, and a red bar above it is a goal not "
+               "met.", rate_errors),
+    PageFigure("gripper-workflow", "grasp", "grasp_trace",
+               "one grasp, its hold and its release",
+               "The true force (red) rises at contact, settles on the dashed target and "
+               "stays there through the green hold; in the orange release it falls to 0 as "
+               "the opening returns to 60 mm. The grey sensed force is noisier and a few ms "
+               "late.", grasp_trace),
     PageFigure("ambient", "ambient_office", "bench_ambient",
                "the force under office light, today's driver beside each kind of module",
+               "Where the grey line (the stock module tared once) leaves the dashed gauge, "
+               "room light is read as force: the lamp switched on in press 1 and off in "
+               "press 2. The blue modulated module stays on the gauge through both.",
                ambient_trace),
-    PageFigure("gripper", "slip_study", "slip_study",
-               "a slip's tangential force and the detector's alarm", slip_trace),
+    PageFigure("gripper-slip", "slip_study", "slip_study",
+               "a slip's tangential force and the detector's alarm",
+               "Top: the blue tangential force reaches the dashed friction limit at the "
+               "purple onset. Bottom: the green margin crosses the red threshold at the red "
+               "alarm line; an alarm left of the onset warns before the slip starts.",
+               slip_trace),
+    PageFigure("recordings", "recording_costs", "", "what a recording risks and costs",
+               "Left: a kill -9 loses at most about the 0.5 s the recorder flushes at "
+               "(dashed). Right: most of an analysis is reading the bag (grey), and MCAP "
+               "reads faster than sqlite3.",
+               records=("recording_kill", "analysis"), draw_records=recording_costs),
+    PageFigure("benchmarks", "goal_overview", "", "every published benchmark's goals",
+               "A red segment is a figure that missed its goal; grey ones are measurements "
+               "without a goal. The date beside each name says how old its run is.",
+               records=("*",), draw_records=goal_overview),
+    PageFigure("benchmarks", "grasp", "grasp_trace", "one grasp, its hold and its release",
+               "The force settles on the dashed target, holds, and falls to 0 at the release.",
+               grasp_trace),
+    PageFigure("benchmarks", "slip_study", "slip_study",
+               "a slip's tangential force and the detector's alarm",
+               "The alarm (red line) against the slip's onset (purple).", slip_trace),
+    PageFigure("benchmarks", "ambient_office", "bench_ambient",
+               "the force under office light",
+               "Grey leaving the dashed gauge is room light read as force; blue, the "
+               "modulated module, stays on it.", ambient_trace),
+    PageFigure("benchmarks", "rate_errors", "rate_calibration", "the rate errors per speed",
+               "Red (rate-aware) below blue (static) in every row; the dashed line is the "
+               "goal.", rate_errors),
+    PageFigure("benchmarks", "array_torque_time", "bench_wrench",
+               "the torque, estimated against the gauge",
+               "The red estimate on the black gauge; the numbers are each excursion's gain.",
+               torque_time),
 )
+
+
+def caption(figure: PageFigure, source: str) -> list[str]:
+    """The figure's caption: what it shows, what to look at, then where it came from."""
+    return [f"**{figure.shows[0].upper()}{figure.shows[1:]}.** {figure.look} {source}", ":::",
+            ""]
+
+
+def records_lines(figure: PageFigure, results: Path, out: Path) -> list[str]:
+    """A figure drawn from the figures of several results (``*``: every published one)."""
+    assert figure.draw_records is not None
+    names = ([p.stem for p in sorted(results.glob("*.json"))] if figure.records == ("*",)
+             else list(figure.records))
+    records: dict[str, dict[str, Any]] = {}
+    for name in names:
+        path = results / f"{name}.json"
+        if not path.exists():
+            return [f"*No figure of {figure.shows}: the result {name} is not published "
+                    "yet; run its benchmark at a clean commit, then `make bench-publish`.*", ""]
+        try:
+            records[name] = read_results(path)
+        except ResultsError as exc:
+            return [f"*No figure of {figure.shows}: {exc}*", ""]
+    if not records:
+        return [f"*No figure of {figure.shows}: no result is published yet.*", ""]
+    image = figure.draw_records(records, out / f"{figure.name}.png")
+    sources = ", ".join(f"{r['benchmark']} (commit `{r['commit']}`, {str(r['date'])[:10]})"
+                        for r in records.values()) if len(records) <= 3 else (
+        f"{len(records)} results in `benchmarks/results`")
+    return [f":::{{figure}} _generated/{image.name}", f":alt: {figure.shows}", "",
+            *caption(figure, f"Drawn from the figures of {sources}.")]
 
 
 def column(values: list[object]) -> np.ndarray:
@@ -276,11 +440,13 @@ def column(values: list[object]) -> np.ndarray:
 
 def figure_lines(figure: PageFigure, results: Path, out: Path) -> list[str]:
     """The Markdown of one figure: the image and its caption, or the sentence why not."""
+    if figure.draw_records is not None:
+        return records_lines(figure, results, out)
     if not figure.result and figure.draw is not None:
         image = figure.draw({}, out / f"{figure.name}.png")
         return [f":::{{figure}} _generated/{image.name}", f":alt: {figure.shows}", "",
-                f"{figure.shows[0].upper()}{figure.shows[1:]}: drawn by `make docs` from the "
-                "package's configuration files.", ":::", ""]
+                *caption(figure, "This figure is drawn by `make docs` from the package's "
+                                 "configuration files.")]
     path = results / f"{figure.result}.json"
     if not path.exists():
         return [f"*No figure of {figure.shows}: the result {figure.result} is not published "
@@ -297,9 +463,9 @@ def figure_lines(figure: PageFigure, results: Path, out: Path) -> list[str]:
     columns = {k: column(v) for k, v in series.items()}
     image = figure.draw(columns, out / f"{figure.name}.png")
     return [f":::{{figure}} _generated/{image.name}", f":alt: {figure.shows}", "",
-            f"{figure.shows[0].upper()}{figure.shows[1:]}: benchmark {record['benchmark']} "
-            f"(`{record['command']}`), commit `{record['commit']}`, {record['date']}.",
-            ":::", ""]
+            *caption(figure, f"Measured by benchmark {record['benchmark']} "
+                             f"(`{record['command']}`), "
+                             f"commit `{record['commit']}`, {str(record['date'])[:10]}.")]
 
 
 def write_pages(results: Path, out: Path) -> list[Path]:

@@ -23,8 +23,8 @@ def _figure_placeholders() -> None:
     from pathlib import Path
 
     generated = Path(__file__).resolve().parent / "_generated"
-    pages = ("ambient", "array", "bench-calibration", "design-studies", "gripper",
-             "gripper-workflow", "rate-calibration")
+    pages = ("ambient", "array", "bench-calibration", "benchmarks", "design-studies",
+             "gripper-slip", "gripper-workflow", "rate-calibration", "recordings")
     for page in pages:
         target = generated / f"{page}.md"
         if not target.is_file():
@@ -42,3 +42,7 @@ myst_enable_extensions = ["colon_fence"]
 
 html_theme = "sphinx_rtd_theme"  # the theme docs.ros.org's rosdoc2 pages use
 html_title = "tactile_sensor"
+
+# Tables wrap to the page's width instead of scrolling (docs/_static/tables.css).
+html_static_path = ["_static"]
+html_css_files = ["tables.css"]

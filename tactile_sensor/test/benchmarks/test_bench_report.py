@@ -44,12 +44,20 @@ def test_page_holds_every_figure_with_command_commit_machine_and_date(tmp_path, 
     scripts.mkdir()
     for name in ("bench_adc.py", "bench_fem.py", "bench_model.py"):
         (scripts / name).write_text("")
+    (out.parent / "benchmarks").mkdir(parents=True)
+    (out.parent / "benchmarks" / "gone.md").write_text(report.MARKER)  # no longer published
     assert report.main(["--results", str(results), "--out", str(out),
                         "--benchmarks", str(scripts)]) == 0
     page = out.read_text()
-    assert "make bench-report" in page.split("## ")[0]  # says how it is made, at the top
-    assert "generated" in page.split("## ")[0].lower()
-    fem = page.split("## fem")[1]
+    assert "make bench-report" in page and "generated" in page.lower()
+    assert "_generated/benchmarks.md" in page  # the figures drawn from the results
+    assert "| [adc](benchmarks/adc.md) | 0 / 1 **NOT all met** | 2 |" in page
+    assert "| [fem](benchmarks/fem.md) | 1 / 1 | 3 |" in page
+    assert "`bench_model.py`" in page.split("| benchmark |")[0]  # listed as not measured
+    assert "bench_fem.py`" not in page.split("Not measured")[1].split("| benchmark |")[0]
+    assert not (out.parent / "benchmarks" / "gone.md").exists()
+    fem = (out.parent / "benchmarks" / "fem.md").read_text()
+    assert fem.startswith("# fem\n")
     assert "`python benchmarks/bench_fem.py --no-study`" in fem
     assert "| default sweep | 1.235 s | <= 2 s: met |" in fem
     assert "| force at 3 mm | 7.1 N |  |" in fem
@@ -59,12 +67,10 @@ def test_page_holds_every_figure_with_command_commit_machine_and_date(tmp_path, 
     assert f"commit `{record['commit']}`" in fem
     assert record["date"] in fem
     assert f"{record['machine']['cores']} cores, {record['machine']['cpu_model']}" in fem
-    adc = page.split("## adc")[1].split("## fem")[0]
+    adc = (out.parent / "benchmarks" / "adc.md").read_text()
     assert "| highest ingest rate | 40,000 frames/s | >= 5000: NOT met |" in adc
     assert "| lag \\| pipe | n/a |  |" in adc  # NaN is stored as null, shown as n/a
-    assert page.index("## adc") < page.index("## fem")
-    assert "`bench_model.py`" in page.split("## ")[0]  # listed as not measured
-    assert "bench_fem.py`" not in page.split("## ")[0].split("Not measured")[1]
+    assert page.index("[adc]") < page.index("[fem]")
 
 
 def test_write_results_names_the_script_relative_to_the_repository(tmp_path):
@@ -113,11 +119,15 @@ def test_a_missing_results_folder_says_to_run_the_benchmarks(tmp_path, capsys):
 def test_the_committed_page_is_what_the_committed_results_render():
     """docs/benchmarks.md is generated: a hand edit, or a results file added without
     `make bench-report`, shows here."""
-    page = report.OUT.read_text()
-    assert page == report.render(report.load(report.RESULTS),
-                                 report.benchmark_scripts(report.BENCHMARKS)), (
-        "docs/benchmarks.md differs from what benchmarks/results renders: run "
-        "`make bench-report` and commit the page")
+    records = report.load(report.RESULTS)
+    stale = "differs from what benchmarks/results renders: run `make bench-report` and commit"
+    assert report.OUT.read_text() == report.render(
+        records, report.benchmark_scripts(report.BENCHMARKS)), f"docs/benchmarks.md {stale}"
+    folder = report.OUT.with_suffix("")
+    pages = report.render_pages(records)
+    assert {p.stem for p in folder.glob("*.md")} == set(pages), f"docs/benchmarks/ {stale}"
+    for name, text in pages.items():
+        assert (folder / f"{name}.md").read_text() == text, f"docs/benchmarks/{name}.md {stale}"
 
 
 def test_a_benchmark_that_needs_ros2_says_so_and_is_skipped_not_failed(monkeypatch, capsys):

@@ -105,7 +105,7 @@ def test_the_slip_study_draws_its_trace_on_the_gripper_page(tmp_path):
                           directory=published, series=series)
     docs_figures.write_pages(published, out)
     assert (out / "slip_study.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "benchmark slip_study" in (out / "gripper.md").read_text()
+    assert "benchmark slip_study" in (out / "gripper-slip.md").read_text()
 
 
 def test_the_office_scenario_draws_each_driver_beside_the_gauge_with_blind_gaps(tmp_path):
@@ -125,3 +125,43 @@ def test_the_office_scenario_draws_each_driver_beside_the_gauge_with_blind_gaps(
     docs_figures.write_pages(published, out)
     assert (out / "ambient_office.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "benchmark bench_ambient" in (out / "ambient.md").read_text()
+
+
+def test_every_figure_says_what_to_look_at():
+    """A caption says what to look for in its figure, not only where it came from."""
+    for figure in docs_figures.FIGURES:
+        assert len(figure.look.split()) >= 8, f"{figure.page}/{figure.name}: no look text"
+
+
+def test_a_whole_grasp_draws_contact_hold_and_release_with_its_target(tmp_path):
+    published, out = tmp_path / "results", tmp_path / "generated"
+    t = np.arange(0.0, 5.0, 0.002)
+    force = np.clip((t - 2.0) * 5.0, 0.0, 1.5) * (t < 4.0)
+    series = {"t_s": t, "true_force_n": force, "sensed_force_n": force + 0.01,
+              "opening_m": np.where(t < 4.0, 0.06 - 0.01 * np.clip(t, 0, 2), 0.06),
+              "target_n": np.full(t.size, 1.5), "release_start_s": np.full(t.size, 3.9),
+              "release_end_s": np.full(t.size, 4.5)}
+    results.write_results("grasp_trace", [], argv=["benchmarks/bench_grasp_trace.py"],
+                          directory=published, series=series)
+    docs_figures.write_pages(published, out)
+    assert (out / "grasp.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    page = (out / "gripper-workflow.md").read_text()
+    assert "benchmark grasp_trace" in page and "target" in page and "release" in page
+
+
+def test_figures_drawn_from_several_results_name_them_or_say_which_is_missing(tmp_path):
+    published, out = tmp_path / "results", tmp_path / "generated"
+    results.write_results("recording_kill",
+                          [results.Figure("time lost per kill: median", 0.3, "s"),
+                           results.Figure("time lost per kill: max", 0.5, "s", "<= 1 s", True)],
+                          argv=["benchmarks/bench_recording_kill.py"], directory=published)
+    docs_figures.write_pages(published, out)
+    recordings = (out / "recordings.md").read_text()
+    assert "the result analysis is not published yet" in recordings
+    assert not (out / "recording_costs.png").exists()
+    assert "goal_overview.png" in (out / "benchmarks.md").read_text()  # every result: one
+    results.write_results("analysis", [results.Figure("mcap: full analysis", 12.0, "s")],
+                          argv=["benchmarks/bench_analysis.py"], directory=published)
+    docs_figures.write_pages(published, out)
+    recordings = (out / "recordings.md").read_text()
+    assert "recording_costs.png" in recordings and "recording_kill (commit `0123abc`" in recordings
