@@ -476,9 +476,9 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
     def _follow_rest(self) -> bool:
         """One step of the baseline toward the level of a window without contact, if it is
         sure to be at rest: steady (the tare's test) and its mean under the contact's
-        release force, judged on the mean so that noise does not hide a rest; a level that
-        fell is taken at once (``RestRetare.follow``). Whether it stepped (call with the
-        lock held)."""
+        release force, judged on the mean so that noise does not hide a rest; on a stock
+        module a level that fell is taken at once (``RestRetare.follow``). Whether it
+        stepped (call with the lock held)."""
         try:
             rest = self._tare.evaluate()
         except TareError:
@@ -488,8 +488,12 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
         output = (self._baseline_v - rest.baseline_v) * self._output_scale  # type: ignore[operator]
         if static is None or not static.force(output) < self._contact.off_n:
             return False
+        # a stock module's level falls with the room's light: taken at once; a modulated
+        # one rejects the room, so its level falls only as its emitter dims, slowly, and
+        # the time constant averages its noisier difference into the optical gain
+        fell_bound = rest.spread_v if self._pair is None else math.inf
         self._baseline_v = self._retare.follow(self._baseline_v,  # type: ignore[arg-type]
-                                               rest.baseline_v, rest.spread_v)
+                                               rest.baseline_v, fell_bound)
         self._update_gain()
         return True
 

@@ -11,11 +11,13 @@ release threshold, the detector not blind and the level steady (the tare's own t
   taken for light. A change that raises the force past the release threshold before the
   baseline catches it (a lamp switched on, a light step during a press) is read as force:
   a stock module has no reading without its emitter to tell the two apart.
-- **A level that fell** (less light: a lamp switched off, a shadow, a dimmer emitter) is
+- **A level that fell** on a stock module (less light: a lamp switched off, a shadow) is
   taken at once: a press only lowers the detector's voltage (the output rises), so a quiet
   window whose level stands above the baseline by more than the window's own spread can
   only be the module's level, never a touch. Followed with the time constant instead, a
   lamp switched off between presses left the next presses reading low for tens of seconds.
+  A modulated module rejects the room's light; its level falls only as the emitter dims,
+  slowly, and keeps the time constant, which averages its noisier signal into the gain.
 - **The optical gain** (``RestGain``): a modulated module's signal is the emitter's light
   alone, so its drop at rest below the supply is proportional to emitter x detector x skin
   reflectance. Against the drop when the calibration was taken it is the gain the

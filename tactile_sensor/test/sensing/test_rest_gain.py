@@ -229,6 +229,16 @@ def test_the_force_holds_as_the_emitter_dims_and_the_gain_is_reported(ratio):
     assert readings[False] == pytest.approx(5.0 * ratio, abs=0.08)
 
 
+def test_a_modulated_modules_fall_keeps_the_time_constant():
+    """Its level falls only as the emitter dims (it rejects the room): followed with the
+    time constant, which averages its noisier signal into the gain, never taken at once."""
+    chain = modulated_chain()
+    feed_pairs(chain, [3.0] * 100)
+    feed_pairs(chain, [2.1] * 60, 100)  # a window and a tenth after the emitter's fall
+    gain, _ = chain.optical_gain()  # type: ignore[misc]
+    assert 0.75 < gain < 0.99  # a step of the follow (alpha 0.39), not the fall's 0.70
+
+
 def test_a_new_calibration_takes_the_optics_as_they_are():
     chain = modulated_chain()
     feed_pairs(chain, [3.0] * 100 + [2.1] * 1500)
