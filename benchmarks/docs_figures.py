@@ -373,8 +373,8 @@ FIGURES = (
                slip_trace),
     PageFigure("recordings", "recording_costs", "", "what a recording risks and costs",
                "Left: a kill -9 loses at most about the 0.5 s the recorder flushes at "
-               "(dashed). Right: most of an analysis is reading the bag (grey), and MCAP "
-               "reads faster than sqlite3.",
+               "(dashed). Right: in both storages reading and deserialising the bag (grey) "
+               "takes longer than the analysis after it (blue).",
                records=("recording_kill", "analysis"), draw_records=recording_costs),
     PageFigure("benchmarks", "goal_overview", "", "every published benchmark's goals",
                "A red segment is a figure that missed its goal; grey ones are measurements "
