@@ -5,7 +5,7 @@ SHELL := /bin/bash
 DISTRO ?= jazzy
 export DISTRO
 
-.PHONY: help setup build test test-fast test-ros2 lint docs firmware demo demo-gripper demo-rate demo-wrench demo-ambient demo-lift bench bench-publish bench-report clean
+.PHONY: help setup build test test-fast test-ros2 lint docs firmware demo demo-gripper demo-rate demo-wrench demo-ambient demo-lift demo-bend bench bench-publish bench-report clean
 
 help:  ## list the targets (each takes DISTRO=jazzy|kilted; default jazzy)
 	@grep -E '^[a-z0-9-]+:.*##' $(MAKEFILE_LIST) | sed 's/:.*## /\t/'
@@ -53,6 +53,9 @@ demo-ambient: setup  ## force error in the dark, under light and drift: today's 
 
 demo-lift: setup  ## lift objects, double their load: slip of a fixed grasp beside the adaptive hold
 	@bash scripts/demo.sh lift
+
+demo-bend: setup  ## bend a soft finger: joint angle RMSE, lag and hysteresis against the truth, with and without a tip contact
+	@bash scripts/demo.sh bend
 
 bench: setup  ## every benchmark in benchmarks/: prints its figures, writes build/benchmarks/results/
 	@. scripts/env.sh && skipped=""; for b in benchmarks/bench_*.py; do echo "== $$b"; \

@@ -7,6 +7,7 @@
 #   scripts/demo.sh wrench [WRENCH_PROTOCOL]   (default wrench)
 #   scripts/demo.sh ambient
 #   scripts/demo.sh lift
+#   scripts/demo.sh bend
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -127,6 +128,35 @@ PY
     python benchmarks/bench_lift.py --demo | tee "$run/lift.txt"
     echo "== table: $run/lift.txt"
     ;;
+  bend)
+    # The bending finger (docs/bend.md): a slow sweep 0-90 deg, bends at 0.2, 0.5 and 1 Hz,
+    # and 0.5 Hz bends with a fingertip contact up to 2 N, read by the joint and fingertip
+    # modules; then the contact run again with the joint module alone. Each recording is
+    # analysed against the mock's true angle (a few minutes; a first run computes the FEM).
+    for protocol in sweep speeds contact; do
+      record bend "$protocol" "$run/$protocol" demo_badc
+      echo "== $protocol: the driver's joint angle against the truth (two modules)"
+      tactile-sensor analyze "$run/$protocol" --out "$run/$protocol-analysis" 2>&1 \
+        | sed -n 's/^bend: /  /p'
+    done
+    cat > "$run/one-module.yaml" <<YAML
+/**/bend:
+  ros__parameters:
+    bend.modules: joint
+/**/driver:
+  ros__parameters:
+    bend_modules: "0:joint"
+YAML
+    echo "== bend 'contact' with the joint module alone -> $run/contact-one"
+    tactile-sensor bringup bend --protocol contact --record "$run/contact-one" \
+      --config "$run/one-module.yaml" --port "adc_port=/tmp/tactile_sensor/demo_badc_$$"
+    echo "== contact: the driver's joint angle against the truth (one module: force NaN)"
+    tactile-sensor analyze "$run/contact-one" --out "$run/contact-one-analysis" 2>&1 \
+      | sed -n 's/^bend: /  /p'
+    echo "== plots"
+    ls -1 "$run"/*-analysis/*.png
+    echo "== reports: $run/*-analysis/report.md"
+    ;;
   gripper)
     echo "== gripper grasp/hold/release on mock hardware -> $run/bag"
     tactile-sensor bringup gripper --protocol grasp --record "$run/bag" \
@@ -135,7 +165,7 @@ PY
     ;;
   *)
     echo "usage: scripts/demo.sh bench [compression|repeatability|speeds] | gripper |" \
-      "rate [SPEEDS_PROTOCOL] | wrench [WRENCH_PROTOCOL] | ambient | lift" >&2
+      "rate [SPEEDS_PROTOCOL] | wrench [WRENCH_PROTOCOL] | ambient | lift | bend" >&2
     exit 2
     ;;
 esac

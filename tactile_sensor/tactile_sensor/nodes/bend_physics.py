@@ -18,13 +18,16 @@ from tactile_sensor.sensing.errors import CalibrationError
 from tactile_sensor.sim.bend_world import BendPath, BendWorld, parse_actuation_profile
 from tactile_sensor.sim.errors import SimError
 
-#: The calibration's table: angles over the response's range, tip forces to this [N] (the
-#: goal's 2 N contact with room for noise).
+#: The calibration's table over the response's angle and tip-force ranges: points in each.
 TABLE_ANGLES = 46
-TABLE_FORCES = 11
-TABLE_MAX_FORCE_N = 2.5
+TABLE_FORCES = 12
 #: The finger's actuator is its tendon (physics/fem/finger.py): a tension [N].
 ACTUATION_UNIT = "N"
+
+
+#: The places the driver and the mock name, and which of the FEM's modules each is (the
+#: physics' default layout: over the joint's middle, then at the fingertip).
+PLACES = ("joint", "tip")
 
 
 class _Modules:
@@ -33,12 +36,11 @@ class _Modules:
     def __init__(self, response: Any, places: tuple[str, ...]) -> None:
         if (refusal := bend_layout_refusal(places)) is not None:
             raise SimError(refusal)
-        names = tuple(str(getattr(m, "name", m)) for m in response.modules)
-        missing = [p for p in places if p not in names]
-        if missing:
-            raise SimError(f"The finger's FEM has modules {', '.join(names)}, not "
-                           f"{', '.join(missing)}; name modules among those.")
-        self.columns = [names.index(p) for p in places]
+        unknown = [p for p in places if p not in PLACES]
+        if unknown:
+            raise SimError(f"The finger has modules {', '.join(PLACES)}, not "
+                           f"{', '.join(unknown)}; name modules among those.")
+        self.columns = [PLACES.index(p) for p in places]
         self.response = response
 
     @property
@@ -51,8 +53,25 @@ class _Modules:
         return out[..., self.columns]
 
 
+class _Tendon:
+    """The finger's drive as the world takes it: the tension that holds an angle under a
+    tip force (the FEM's own unknown), and the angle a tension holds."""
+
+    unit = ACTUATION_UNIT
+
+    def __init__(self, response: Any) -> None:
+        self.response = response
+
+    def actuation_for(self, angle_rad: Any, tip_force_n: Any) -> np.ndarray:
+        return np.asarray(self.response.tension_n(angle_rad, tip_force_n), float)
+
+    def angle_rad(self, tension_n: Any, tip_force_n: Any) -> np.ndarray:
+        return np.asarray(self.response.angle_from_tension(tension_n, tip_force_n), float)
+
+
 def load_response(cache_dir: Path | str | None = None, progress: Any = None) -> Any:
-    """The finger's FEM response (computed and cached on a first run)."""
+    """The finger's FEM response for the default layout (computed and cached on a first
+    run; physics/bend.py)."""
     try:
         from tactile_sensor.physics import bend
         from tactile_sensor.physics.errors import PhysicsError
@@ -61,10 +80,17 @@ def load_response(cache_dir: Path | str | None = None, progress: Any = None) -> 
                        "complete tactile_sensor package.") from None
     try:
         return bend.load_or_compute_response(
-            bend.BendGeometry(), cache_dir=None if cache_dir is None else Path(cache_dir),
-            progress=progress)
+            bend.BendGeometry(), bend.DEFAULT_MODULES,
+            cache_dir=None if cache_dir is None else Path(cache_dir), progress=progress)
     except PhysicsError as exc:
         raise SimError(f"The finger's FEM failed ({exc}).") from None
+
+
+def _digest(response: Any) -> str:
+    from tactile_sensor.physics.bend import response_digest
+
+    return response_digest(response.geometry, response.modules,
+                           response.angles_rad.tolist(), response.forces_n.tolist())
 
 
 def fem_bend_calibration(places: tuple[str, ...], cache_dir: Path | str | None = None
@@ -76,13 +102,12 @@ def fem_bend_calibration(places: tuple[str, ...], cache_dir: Path | str | None =
     except SimError as exc:
         raise CalibrationError(str(exc)) from None
     lo, hi = modules.angle_range_rad
+    f_lo, f_hi = (float(v) for v in response.force_range_n)
     angles = np.linspace(lo, hi, TABLE_ANGLES)
-    forces = np.linspace(0.0, TABLE_MAX_FORCE_N, TABLE_FORCES)
+    forces = np.linspace(f_lo, f_hi, TABLE_FORCES)
     a, f = np.meshgrid(angles, forces, indexing="ij")
-    table = modules.output_v(a, f)
-    digest = getattr(response, "digest", "")
-    return BendCalibration.fit(places, angles, forces, table,
-                               source=f"fem-bend:{digest}" if digest else "fem-bend")
+    return BendCalibration.fit(places, angles, forces, modules.output_v(a, f),
+                               source=f"fem-bend:{_digest(response)}")
 
 
 def bend_world(values: dict[str, Any], cache_dir: Path | None, progress: Any = None
@@ -98,24 +123,12 @@ def bend_world(values: dict[str, Any], cache_dir: Path | None, progress: Any = N
     # refused before the FEM loads: the finger's tendon pulls, its tension is >= 0 N
     actuation = parse_actuation_profile(values["bend.actuation_profile"], ACTUATION_UNIT)
     response = load_response(cache_dir, progress)
-    actuator = response.actuator() if callable(getattr(response, "actuator", None)) else \
-        response.actuator
     modules = _Modules(response, places)
-    rest = np.asarray(response.voltage_v(0.0, 0.0), float)[modules.columns] if hasattr(
-        response, "voltage_v") else _rest_voltages(response, values, modules.columns)
+    rest = np.asarray(response.voltage_v(0.0, 0.0), float)[modules.columns]
     if not np.all(np.isfinite(rest)):
         raise SimError("The finger's modules have no finite voltage at rest; check the "
                        "physics parameters.")
-    return BendWorld(path, modules, actuator, rest, places, actuation)
-
-
-def _rest_voltages(response: Any, values: dict[str, Any], columns: list[int]) -> np.ndarray:
-    """Each module's photoreflector voltage at its rest gap (straight, no contact)."""
-    from tactile_sensor.physics.optics import Photoreflector
-
-    gap = np.asarray(response.gap_m(0.0, 0.0), float)[columns]
-    sensor = Photoreflector(values.get("pigment_white", 0.75), values.get("supply_voltage", 5.0))
-    return np.array([float(sensor.voltage(g)) for g in gap.tolist()])
+    return BendWorld(path, modules, _Tendon(response), rest, places, actuation)
 
 
 def describe_world(world: BendWorld) -> str:

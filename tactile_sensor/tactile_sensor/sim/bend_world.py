@@ -13,8 +13,9 @@ What drives it:
   straight to ``angle_rad`` and back, one raised-cosine cycle per period, ``cycles`` at each
   frequency, and with ``tip_force_n`` > 0 the same cycles again while a contact at the
   fingertip rises to that force and falls back (one raised cosine over the block). The
-  actuator's input that bends the finger so is found from the actuator's own map (its
-  inverse, tabulated), so the protocol is written in angles a user reads;
+  actuator's input that holds each angle under each tip force comes from the actuator's
+  own inverse (the FEM prescribes the angle and solves for the tendon's tension) or its
+  map tabulated, so the protocol is written in angles a user reads;
 - or an ``ActuationProfile`` a user gives (``bend.actuation_profile``): the actuator's input
   itself, 'time:value' points, linear in between; a non-finite or negative value is refused.
 """
@@ -207,14 +208,16 @@ class BendWorld:
                 peak = math.degrees(path.angle_rad)
                 raise SimError(f"The protocol bends the finger to {peak:.1f} deg, beyond "
                                f"the FEM's {math.degrees(hi):.1f} deg; lower protocol.angle.")
-            target = np.minimum(target, hi)  # 1.5708 for a pi / 2 range
-            u = actuation_for(actuator, target, tip, hi)
+            # the input that holds each angle: the finger bends as the protocol says
+            angle = np.minimum(target, hi)  # 1.5708 for a pi / 2 range
+            u = actuation_for(actuator, angle, tip, hi)
         else:
             u = np.asarray(actuation.at(self._t), float)
-        angle = np.asarray(actuator.angle_rad(u, tip), float)
-        if not np.all(np.isfinite(angle)):
-            raise SimError("The actuator's map gave a non-finite angle; check the physics "
-                           "parameters of the finger.")
+            angle = np.asarray(actuator.angle_rad(u, tip), float)
+        if not np.all(np.isfinite(angle)) or not np.all(np.isfinite(u)):
+            raise SimError(f"The actuation bends the finger beyond the FEM's "
+                           f"{math.degrees(hi):.0f} deg (or under a tip force beyond its "
+                           "range); give a smaller actuation or protocol.tip_force.")
         if angle.max() > hi + ANGLE_TOLERANCE_RAD or angle.min() < lo - ANGLE_TOLERANCE_RAD:
             raise SimError(f"The actuation bends the finger to {math.degrees(angle.max()):.1f}"
                            f" deg, outside the FEM's {math.degrees(lo):.0f}-"
