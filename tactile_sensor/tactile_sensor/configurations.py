@@ -79,7 +79,7 @@ GRIPPER = Configuration(
     name="gripper",
     description="The paper's soft gripper: XM430 on a rack, tactile module on a fingertip.",
     nodes=(
-        _mock_hardware("gripper_world", ("physics.yaml", "gripper.yaml"),
+        _mock_hardware("gripper_world", ("physics.yaml", "gripper.yaml", "gripper_mock.yaml"),
                        ("adc_link", "adc_port"), ("servo_link", "servo_port")),
         _MODEL,
         replace(_DRIVER, config_files=(*SENSOR_FILES, "gripper.yaml")),

@@ -115,6 +115,17 @@ class GripperWorld:
             return True
 
     @property
+    def rod_clearance_rad(self) -> float:
+        """The pinion's free turn from the open fingers to the rod's nearer side (inf: no
+        rod): a play as large would leave the fingers unable to tell touching from not."""
+        rod = self._rod
+        if rod is None:
+            return float("inf")
+        diameter, offset = rod
+        gap_m = 0.5 * (self.geometry.open_opening_m - diameter) - abs(offset)
+        return max(gap_m, 0.0) / self.geometry.pitch_radius_m
+
+    @property
     def initial_position_rad(self) -> float:
         return self.geometry.open_position_rad
 

@@ -7,6 +7,16 @@ exactly that (instead of a stiff second-order plant) stays stable at any step si
 a stiff rod, and gives the two things the gripper cares about: where the fingers stop and
 what Present Current reads while they press.
 
+With a :class:`~tactile_sensor.sim.drivetrain.Drivetrain` (the default: sources in
+sim/drivetrain.py) the output is no longer ideal: current-based position mode's P loop
+sets the current from the trajectory's lead over the output (clipped at the current
+limit), the motor's torque meets the friction budget (torque offset, Coulomb, Stribeck,
+load-dependent, viscous) and the load through the play between the output and the racks.
+Each 1 ms step the output sticks while the net torque stays within the budget at rest, or
+moves to where the net torque equals the budget at the speed it moves with (no inertia:
+the 212.6:1 gear's reflected inertia settles within a step). ``drivetrain=None`` keeps the
+ideal servo (torque = current x the datasheet's constant, 0.02 A of friction).
+
 Sign convention: positive angle closes the gripper; ``load_torque(position)`` is the torque
 the motor must supply to hold that position (positive when the load pushes back against
 closing).
@@ -17,6 +27,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+
+from tactile_sensor.sim.drivetrain import DEFAULT_DRIVETRAIN, Drivetrain
 
 #: Torque constant at the output shaft [N m/A] (3.0 N m stall at 2.3 A, 12 V datasheet).
 TORQUE_CONSTANT_NM_PER_A = 3.0 / 2.3
@@ -44,16 +56,21 @@ class MotorCommand:
     #: Current Limit in position mode).
     current_limit_a: float
     input_voltage_v: float = 12.0
+    #: Position P Gain (control table item 84; factory 800).
+    position_p_gain: float = 800.0
 
 
 @dataclass
 class MotorState:
+    #: The output shaft (what Present Position reads).
     position_rad: float
     velocity_rad_s: float = 0.0
     current_a: float = 0.0
     trajectory_position_rad: float = 0.0
     trajectory_velocity_rad_s: float = 0.0
     stalled: bool = False
+    #: Where the racks (the fingers) are, in pinion angle: the output less the play.
+    rack_position_rad: float = 0.0
 
 
 class MotorModel:
@@ -61,9 +78,17 @@ class MotorModel:
 
     def __init__(self, position_rad: float = 0.0,
                  load_torque: Callable[[float], float] | None = None,
-                 ambient_temperature_c: float = 30.0) -> None:
+                 ambient_temperature_c: float = 30.0,
+                 drivetrain: Drivetrain | None = DEFAULT_DRIVETRAIN,
+                 pitch_radius_m: float = 0.014) -> None:
+        #: Torque the load needs at a rack position (positive resists closing).
         self.load_torque = load_torque or (lambda _p: 0.0)
-        self.state = MotorState(position_rad, trajectory_position_rad=position_rad)
+        self.drivetrain = drivetrain
+        #: Where the fingers' guide friction acts on the pinion [m].
+        self.pitch_radius_m = pitch_radius_m
+        # the fingers last opened: the racks sit on the pinion's opening face
+        self.state = MotorState(position_rad, trajectory_position_rad=position_rad,
+                                rack_position_rad=position_rad)
         self.temperature_c = ambient_temperature_c
         self.ambient_temperature_c = ambient_temperature_c
         #: Seconds the current has been at the stall value (drives the overload flag).
@@ -135,6 +160,74 @@ class MotorModel:
         return inside
 
     def _step(self, dt: float, command: MotorCommand) -> None:
+        if self.drivetrain is not None:
+            self._step_drivetrain(dt, command, self.drivetrain)
+        else:
+            self._step_ideal(dt, command)
+        self._heat(dt, command)
+
+    def _current_cap_a(self, command: MotorCommand) -> float:
+        stall_a = max(command.input_voltage_v, 0.0) / WINDING_RESISTANCE_OHM
+        return min(abs(command.current_limit_a), stall_a)
+
+    def _rack_at(self, output_rad: float, train: Drivetrain) -> tuple[float, bool]:
+        """(rack position, whether the pinion bears on it) with the output there: the play
+        operator; inside the play a rack the skin pushes open goes to the closing face."""
+        before = self.state.rack_position_rad
+        rack = train.rack_after(before, output_rad)
+        closing_face = output_rad - train.backlash_rad
+        if rack > closing_face and self.load_torque(rack) > 0.0:
+            rack = closing_face
+        return rack, rack != before or rack in (closing_face, output_rad)
+
+    def _step_drivetrain(self, dt: float, command: MotorCommand, train: Drivetrain) -> None:
+        s = self.state
+        if command.torque_on:
+            self._advance_profile(dt, command)
+        else:
+            self.reset_trajectory()
+        trajectory = s.trajectory_position_rad
+        cap = self._current_cap_a(command)
+        kp = train.gain_a_per_rad(command.position_p_gain)
+        guide_nm = 2.0 * train.guide_friction_n * self.pitch_radius_m
+
+        def current(output: float) -> float:
+            if not command.torque_on:
+                return 0.0
+            return max(-cap, min(cap, kp * (trajectory - output)))
+
+        def net_and_budget(output: float, velocity: float) -> tuple[float, float]:
+            rack, engaged = self._rack_at(output, train)
+            torque = TORQUE_CONSTANT_NM_PER_A * current(output)
+            budget = train.friction_nm(velocity, torque, guide_nm if engaged else 0.0)
+            if not command.torque_on:
+                budget = max(budget, BACKDRIVE_TORQUE_NM)
+            return torque - self.load_torque(rack), budget
+
+        p0 = s.position_rad
+        # Without inertia the output slides at the trajectory's speed or rests: a sliding
+        # output keeps sliding against the friction at that speed, one at rest breaks away
+        # only past the friction at rest (the stick-slip of a trajectory that starts).
+        sliding = abs(s.trajectory_velocity_rad_s)
+        net0, holding = net_and_budget(p0, sliding if s.velocity_rad_s else 0.0)
+        p1 = p0
+        if abs(net0) > holding:
+            direction = math.copysign(1.0, net0)
+            far = p0 + direction * self._speed_limit(command.input_voltage_v) * dt
+
+            def surplus(output: float) -> float:
+                net, budget = net_and_budget(output, sliding)
+                return direction * net - budget
+
+            at_far = surplus(far)
+            p1 = far if at_far >= 0.0 else _root(surplus, p0, abs(net0) - holding, far, at_far)
+        s.rack_position_rad = self._rack_at(p1, train)[0]
+        s.velocity_rad_s = (p1 - p0) / dt
+        s.position_rad = p1
+        s.current_a = current(p1)
+        s.stalled = command.torque_on and abs(s.current_a) >= cap > 0.0 and p1 == p0
+
+    def _step_ideal(self, dt: float, command: MotorCommand) -> None:
         s = self.state
         capacity = self._capacity_nm(command)
         p0 = s.position_rad
@@ -173,6 +266,10 @@ class MotorModel:
         else:
             current = 0.0
         s.position_rad, s.velocity_rad_s, s.current_a = p1, velocity, current
+        s.rack_position_rad = p1
+
+    def _heat(self, dt: float, command: MotorCommand) -> None:
+        current = self.state.current_a
         # first-order thermal model: ~10 K/W, 60 s time constant
         heat_w = current * current * WINDING_RESISTANCE_OHM
         target = self.ambient_temperature_c + 10.0 * heat_w
@@ -182,3 +279,29 @@ class MotorModel:
             self.overload_time_s += dt
         else:
             self.overload_time_s = 0.0
+
+
+def _root(f: Callable[[float], float], inside: float, f_inside: float, outside: float,
+          f_outside: float, tolerance_rad: float = 1e-7) -> float:
+    """A root of ``f`` between ``inside`` (f > 0 there, ``f_inside``) and ``outside``
+    (f < 0): the Illinois variant of regula falsi, a handful of load evaluations where
+    bisection takes forty."""
+    a, fa = inside, f_inside
+    b, fb = outside, f_outside
+    side = 0
+    for _ in range(40):
+        c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        fc = f(c)
+        if fc >= 0.0:
+            a, fa = c, fc
+            if side == 1:
+                fb *= 0.5
+            side = 1
+        else:
+            b, fb = c, fc
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        if abs(b - a) < tolerance_rad:
+            break
+    return a

@@ -8,7 +8,8 @@ set in every status while Hardware Error Status is non-zero. Replies are delayed
 Return Delay Time plus the wire time of both packets at the configured baud rate, so a
 faster link really is faster; a host whose port is set to another baud rate gets no reply.
 
-A :class:`MotorModel` moves the output toward Goal Position under the profile and the current
+A :class:`MotorModel` (through the drivetrain of sim/drivetrain.py) moves the output toward
+Goal Position under the profile and the current
 limit; an optional :class:`GripperWorld` loads it (fingers, skin, rod). Faults can be injected
 through methods or, from another process, through a line-based control FIFO
 (``--control PATH``, ``sim/control_fifo.py``; see :data:`CONTROL_HELP`). The control table's
@@ -32,6 +33,7 @@ from types import TracebackType
 from tactile_sensor.hardware import xm430_table as table
 from tactile_sensor.hardware.xm430_table import OperatingMode
 from tactile_sensor.sim.control_fifo import ControlFifo
+from tactile_sensor.sim.drivetrain import DEFAULT_DRIVETRAIN, Drivetrain
 from tactile_sensor.sim.dynamixel_packets import (
     ALERT_BIT,
     BROADCAST_ID,
@@ -96,7 +98,8 @@ class Xm430Emulator:
 
     def __init__(self, link_path: Path | str, servo_id: int = 1, baudrate: int = 57_600,
                  world: GripperWorld | None = None, control_path: Path | str | None = None,
-                 reboot_s: float = 0.05, clock: Callable[[], float] = time.monotonic) -> None:
+                 reboot_s: float = 0.05, clock: Callable[[], float] = time.monotonic,
+                 drivetrain: Drivetrain | None = DEFAULT_DRIVETRAIN) -> None:
         if not 0 <= servo_id <= table.BY_NAME["ID"].maximum:
             raise SimError(f"Servo id {servo_id} is outside 0..252; choose another --id.")
         self.link = PtyLink(link_path)
@@ -121,7 +124,9 @@ class Xm430Emulator:
         self._shutdown = False
         self._t0 = clock()
         start = world.initial_position_rad if world else math.pi
-        self.motor = MotorModel(start, world.load_torque_nm if world else None)
+        self.motor = MotorModel(start, world.load_torque_nm if world else None,
+                                drivetrain=drivetrain,
+                                pitch_radius_m=world.geometry.pitch_radius_m if world else 0.014)
         self._publish_motor()
         #: Every (instruction, error) answered, for tests and the log.
         self.counters: dict[str, int] = {"packets": 0, "replies": 0, "crc_errors": 0}
@@ -576,6 +581,7 @@ class Xm430Emulator:
             * table.RAD_S2_PER_ACCELERATION_UNIT,
             current_limit_a=current_limit * table.A_PER_CURRENT_UNIT,
             input_voltage_v=self.faults.input_voltage_v,
+            position_p_gain=t.get("Position P Gain"),
         )
 
     def _advance(self, now: float) -> None:
@@ -592,7 +598,7 @@ class Xm430Emulator:
             self._latch(1 << table.HardwareErrorBit.OVERHEATING)
         self._publish_motor()
         if self.world is not None:
-            self.world.update(now - self._t0, self.motor.state.position_rad)
+            self.world.update(now - self._t0, self.motor.state.rack_position_rad)
 
     def _publish_motor(self) -> None:
         s, t = self.motor.state, self.table
