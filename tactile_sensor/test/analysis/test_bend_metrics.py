@@ -44,7 +44,7 @@ def test_a_bias_is_the_rmse_and_no_hysteresis():
 
 def test_contact_bends_form_their_own_phase_and_nan_is_counted():
     t, truth, est, force = traces(BendPath(PEAK, (0.5,), 4, 2.0, 1.0))
-    est[100:200] = np.nan
+    est[1500:1600] = np.nan  # in the first bend (the rest before it is not scored)
     found = phases(t, truth, est, force, force + 0.1)
     assert [(p["contact"], p["bends"]) for p in found] == [(False, 4), (True, 4)]
     assert found[1]["max_tip_force_n"] > 1.5

@@ -4,7 +4,8 @@ A recording of the bend configuration holds the true joint angle and fingertip f
 mock's ground truth) and the driver's estimate, on their own stamps. The truth is
 interpolated to the estimate's stamps, and the run is cut into bends:
 
-- a **bend** runs from one rest (minimum of the true angle) to the next, through one peak
+- a **bend** runs from one rest (the last minimum of the true angle before it rises) to the
+  next (the first minimum after it falls), through one peak
   above half the run's largest angle; its rate is 1 / (2 x the time above half its own
   peak), exact for the protocols' raised cosines;
 - a bend is **with contact** where the true tip force exceeds ``CONTACT_N`` in it;
@@ -69,7 +70,8 @@ def cut_bends(t: np.ndarray, truth: np.ndarray) -> list[tuple[int, int, float]]:
         lo = int(prev_down[-1]) if prev_down.size else 0
         next_up = ups[ups > d]
         hi = int(next_up[0]) if next_up.size else truth.size
-        start = lo + int(np.argmin(truth[lo:u]))
+        before = truth[lo:u][::-1]  # the rest's last sample: a bend, not the rest before it
+        start = u - 1 - int(np.argmin(before))
         end = d + int(np.argmin(truth[d:hi])) + 1
         own_half = 0.5 * float(truth[start:end].max())
         width = np.flatnonzero(truth[start:end] > own_half)
