@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from . import metrics as m
+from . import uncertainty as u
 from .alignment import Aligned, align
 from .array import analysis as arr
 from .array.fit import ArrayFit, fit_array_recording
@@ -32,6 +33,18 @@ PAPER: dict[str, Any] = {
     "peak_output_cv_pct": None,  # "no change was observed in the maximum output"
     "drift_pct": None,
 }
+
+
+UNCERTAINTY_NOTE = ("*_ci95 keys: half-width of the 95 % interval over the cycles (Student's "
+                    "t; medians' standard error 1.2533 sd/sqrt(n)); null with one cycle: "
+                    f"{u.ONE_CYCLE}. docs/analysis-metrics.md, Uncertainties.")
+
+#: The reference speed's uncertainty keys (static_uncertainty), all null without a press.
+UNCERTAINTY_KEYS = (
+    "full_scale_ci95_n", "full_scale_output_ci95_v", "sensitivity_se_v_per_n",
+    "sensitivity_ci95_v_per_n", "noise_ci95_v", "noise_runs", "resolution_ci95_n",
+    "dynamic_range_ci95_db", "hysteresis_ci95_pct_fs", "hysteresis_cycles_pct_fs",
+    "peak_output_cv_ci95_pct", "drift_ci95_pct", "peak_outputs_v")
 
 
 @dataclass(frozen=True)
@@ -156,6 +169,8 @@ class _StaticFigures:
     dynamic_range_db: float | None
     hysteresis: m.Hysteresis | None
     repeatability: m.Repeatability
+    #: 95 % intervals and standard errors (metrics.json keys, docs/analysis-metrics.md)
+    uncertainty: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -196,9 +211,15 @@ def full_scale(sig: m.Signals, seg: Segmentation) -> _FullScale:
                       float(np.median(peaks[:, 1])))
 
 
+def _ci(values: Any, statistic: str = "mean") -> float | None:
+    """Half-width of the 95 % interval over cycles (None for one cycle)."""
+    return _num(u.spread(values, statistic).ci95)
+
+
 def speed_table(sig: m.Signals, seg: Segmentation, rate_hz: float
                 ) -> tuple[dict[str, Any], dict[str, float | None]]:
-    """Each speed's sensitivity, peaks and phase lag: the paper's across-speed figure."""
+    """Each speed's sensitivity, peaks and phase lag, each with its 95 % interval over
+    the speed's cycles: the paper's across-speed figure."""
     by_speed: dict[str, Any] = {}
     lags: dict[str, float | None] = {}
     for key, members in seg.speed_groups.items():
@@ -206,18 +227,26 @@ def speed_table(sig: m.Signals, seg: Segmentation, rate_hz: float
         fit = m.sensitivity(sig, group)
         gpeaks = np.array([m.peak_values(sig, c) for c in group])
         per_cycle = m.phase_lags(sig, group, rate_hz)
-        lags[key] = float(np.median(per_cycle)) if per_cycle else None
+        lag = u.spread(per_cycle, "median")
+        lags[key] = lag.centre
         by_speed[key] = {
             "cycles": len(group),
             "loading_speed_mm_s": _num(float(np.median([c.speed_mm_s for c in group]))),
             "unloading_speed_mm_s": _num(float(np.median([c.unload_speed_mm_s
                                                           for c in group]))),
             "sensitivity_v_per_n": _num(fit.slope) if fit else None,
+            "sensitivity_se_v_per_n": _num(fit.slope_se) if fit else None,
+            "sensitivity_ci95_v_per_n": _ci(m.sensitivities(sig, group)),
             "sensitivity_r2": _num(fit.r2) if fit else None,
             "peak_force_n": _num(float(np.median(gpeaks[:, 1]))),
+            "peak_force_ci95_n": _ci(gpeaks[:, 1], "median"),
             "peak_output_v": _num(float(np.median(gpeaks[:, 0]))),
+            "peak_output_ci95_v": _ci(gpeaks[:, 0], "median"),
             "phase_lag_s": _num(lags[key]),
-            "phase_lag_sem_s": _num(m.lag_standard_error(per_cycle)),
+            "phase_lag_sem_s": _num(lag.se),
+            "phase_lag_ci95_s": _num(lag.ci95),
+            "phase_lag_cycles": lag.cycles,
+            "phase_lags_s": [_num(x) for x in lag.values],
         }
     return by_speed, lags
 
@@ -230,9 +259,51 @@ def static_figures(sig: m.Signals, seg: Segmentation, scale: _FullScale,
                   if noise and sens and sens.slope > 0 and noise.sigma_v > 0 else None)
     dyn = (20 * math.log10(scale.force_n / resolution)
            if resolution and scale.force_n > 0 else None)
-    return _StaticFigures(sens, noise, resolution, dyn,
-                          m.hysteresis(sig, scale.ref_cycles, scale.force_n, scale.output_v),
-                          m.repeatability(scale.peaks[:, 0]))
+    hyst = m.hysteresis(sig, scale.ref_cycles, scale.force_n, scale.output_v)
+    rep = m.repeatability(scale.peaks[:, 0])
+    figures = _StaticFigures(sens, noise, resolution, dyn, hyst, rep)
+    return replace(figures, uncertainty=static_uncertainty(sig, scale, figures))
+
+
+def static_uncertainty(sig: m.Signals, scale: _FullScale, figures: _StaticFigures
+                       ) -> dict[str, Any]:
+    """How sure each reference-speed figure is: 95 % intervals over the cycles, the
+    sensitivity fit's standard error, and resolution and dynamic range propagated from
+    the noise over rests, the sensitivity and the full scale (first order)."""
+    sens, noise, rep = figures.sensitivity, figures.noise, figures.repeatability
+    cycles = scale.ref_cycles
+    force, output = u.spread(scale.peaks[:, 1], "median"), u.spread(scale.peaks[:, 0], "median")
+    slopes = u.spread(m.sensitivities(sig, cycles))
+    noise_runs = u.spread(noise.runs_v if noise else ())
+    hyst = u.spread(m.hysteresis_per_cycle(sig, cycles, scale.force_n, scale.output_v)
+                    if figures.hysteresis else ())
+    # the sensitivity's error from press to press where there are presses to compare,
+    # else its fit's: the resolution moves with whichever is known
+    sens_se = slopes.se if slopes.se is not None else (sens.slope_se if sens else None)
+    rel_sens = u.relative_se(sens.slope if sens else None, sens_se)
+    rel_noise = u.relative_se(noise.sigma_v if noise else None, noise_runs.se)
+    res_se = (u.quotient_se(figures.resolution_n, rel_noise, rel_sens)
+              if figures.resolution_n else None)
+    dyn_se = (u.decibel_se(u.relative_se(scale.force_n, force.se),
+                           u.relative_se(figures.resolution_n, res_se))
+              if figures.dynamic_range_db is not None else None)
+    cv = u.cv_interval(rep.cv_pct, rep.peaks_v.size)
+    return {
+        "full_scale_ci95_n": _num(force.ci95),
+        "full_scale_output_ci95_v": _num(output.ci95),
+        "sensitivity_se_v_per_n": _num(sens.slope_se) if sens else None,
+        "sensitivity_ci95_v_per_n": _num(slopes.ci95),
+        "noise_ci95_v": _num(noise_runs.ci95),
+        "noise_runs": noise_runs.cycles,
+        "resolution_ci95_n": _num(u.normal_ci95(res_se)),
+        "dynamic_range_ci95_db": _num(u.normal_ci95(dyn_se)),
+        "hysteresis_ci95_pct_fs": _num(hyst.ci95),
+        "hysteresis_cycles_pct_fs": [_num(x) for x in hyst.values],
+        "peak_output_cv_ci95_pct": [_num(cv[0]), _num(cv[1])] if cv else None,
+        "drift_ci95_pct": _num(u.drift_ci95(rep.peaks_v, rep.drift_cycles)
+                               if rep.drift_pct is not None else None),
+        "peak_outputs_v": [_num(float(x)) for x in rep.peaks_v],
+    }
 
 
 def static_reference(recording: Recording, sig: m.Signals, scale: _FullScale
@@ -372,6 +443,8 @@ def characterisation_metrics(recording: Recording, aligned: Aligned, sig: m.Sign
         "drift_cycles_compared": rep.drift_cycles,
         "phase_lag_s": {k: _num(v) for k, v in lags.items()},
         "by_speed": by_speed,
+        **figures.uncertainty,
+        "uncertainty": UNCERTAINTY_NOTE,
         "calibration_error": cal_metrics,
         "prediction": pred_metrics,
         "paper": PAPER,
@@ -432,6 +505,7 @@ def unavailable_metrics(recording: Recording, note: str) -> dict[str, Any]:
         "dynamic_range_db": None, "hysteresis_pct_fs": None,
         "peak_output_cv_pct": None, "drift_pct": None, "drift_cycles_compared": None,
         "phase_lag_s": {}, "by_speed": {},
+        **dict.fromkeys(UNCERTAINTY_KEYS), "uncertainty": UNCERTAINTY_NOTE,
         "calibration_error": None, "prediction": None,
         "paper": PAPER, "notes": [*recording.notes, note],
     }

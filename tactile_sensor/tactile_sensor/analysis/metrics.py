@@ -14,6 +14,7 @@ import numpy as np
 
 from .alignment import Aligned
 from .segmentation import Cycle, Segmentation
+from .uncertainty import slope_standard_error
 
 PEAK_WINDOW = 0.98  # samples at >= 98 % of a cycle's peak indentation form its "peak"
 HYSTERESIS_RANGE = (0.05, 0.95)  # fraction of full-scale force compared
@@ -76,10 +77,12 @@ class LinearFit:
     slope: float
     intercept: float
     r2: float
+    slope_se: float | None = None  # the fit's standard error, correlated residuals counted
 
 
 def sensitivity(sig: Signals, cycles: Sequence[Cycle]) -> LinearFit | None:
-    """Least-squares slope of output against force over the loading ramps [V/N]."""
+    """Least-squares slope of output against force over the loading ramps [V/N], with its
+    standard error (``uncertainty.slope_standard_error``)."""
     idx = ramp_indices(cycles, "load")
     if idx.size < 3 or np.ptp(sig.force_n[idx]) <= 0:
         return None
@@ -88,7 +91,14 @@ def sensitivity(sig: Signals, cycles: Sequence[Cycle]) -> LinearFit | None:
     resid = y - (slope * x + intercept)
     ss = float(np.sum((y - y.mean()) ** 2))
     r2 = 1.0 - float(np.sum(resid ** 2)) / ss if ss > 0 else 0.0
-    return LinearFit(float(slope), float(intercept), r2)
+    return LinearFit(float(slope), float(intercept), r2, slope_standard_error(x, resid))
+
+
+def sensitivities(sig: Signals, cycles: Sequence[Cycle]) -> list[float | None]:
+    """Each cycle's own sensitivity [V/N] (None where its ramp gives no fit): their
+    spread is how much the pooled slope moves from press to press."""
+    fits = [sensitivity(sig, [c]) for c in cycles]
+    return [f.slope if f is not None else None for f in fits]
 
 
 @dataclass(frozen=True)
@@ -96,6 +106,7 @@ class Noise:
     sigma_v: float
     source: str
     samples: int
+    runs_v: tuple[float, ...] = ()  # the RMS of each rest (or hold) on its own
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -112,25 +123,26 @@ def noise(sig: Signals, seg: Segmentation, window: int) -> Noise | None:
 
     Falls back to the holds at peak when the recording has no rest long enough.
     """
-    def pooled(runs: list[tuple[int, int]]) -> np.ndarray:
+    def pooled(runs: list[tuple[int, int]]) -> tuple[np.ndarray, list[np.ndarray]]:
         parts = []
         for a, b in runs:
             if b - a < window + 5:
                 continue
             y = sig.output_v[a:b]
             parts.append(moving_average(y - y.mean(), window))
-        return np.concatenate(parts) if parts else np.zeros(0)
+        return (np.concatenate(parts) if parts else np.zeros(0)), parts
 
     settled = [(a + (b - a) // 4, b) for a, b in _runs(seg.rest)]  # skip the settling
-    values = pooled(settled)
+    values, parts = pooled(settled)
     source = f"rest (unloaded, between presses), {window}-point mean, mean removed per rest"
     if values.size < MIN_NOISE_SAMPLES:
         holds = [(c.load[1], c.unload[0]) for c in seg.cycles]
-        values = pooled(holds)
+        values, parts = pooled(holds)
         source = f"holds at peak indentation, {window}-point mean, mean removed per hold"
     if values.size < MIN_NOISE_SAMPLES:
         return None
-    return Noise(float(np.sqrt(np.mean(values ** 2))), source, int(values.size))
+    runs = tuple(float(np.sqrt(np.mean(p ** 2))) for p in parts if p.size >= MIN_NOISE_SAMPLES)
+    return Noise(float(np.sqrt(np.mean(values ** 2))), source, int(values.size), runs)
 
 
 @dataclass(frozen=True)
@@ -166,6 +178,14 @@ def hysteresis(sig: Signals, cycles: Sequence[Cycle], full_scale_n: float,
     centres = 0.5 * (edges[1:] + edges[:-1])
     gap = float(np.max(np.abs(lv[ok] - uv[ok])))
     return Hysteresis(100.0 * gap / full_scale_v, centres[ok], lv[ok], uv[ok])
+
+
+def hysteresis_per_cycle(sig: Signals, cycles: Sequence[Cycle], full_scale_n: float,
+                         full_scale_v: float) -> list[float | None]:
+    """Each cycle's own hysteresis [% FS] on the pooled bins (None where a cycle fills no
+    bin on both ramps): the pooled figure's scatter from press to press."""
+    found = [hysteresis(sig, [c], full_scale_n, full_scale_v) for c in cycles]
+    return [h.pct_fs if h is not None else None for h in found]
 
 
 @dataclass(frozen=True)
@@ -237,14 +257,6 @@ def phase_lag(sig: Signals, cycles: Sequence[Cycle], rate_hz: float) -> float | 
     cycles of :func:`phase_lags`; None when no cycle gives one."""
     lags = phase_lags(sig, cycles, rate_hz)
     return float(np.median(lags)) if lags else None
-
-
-def lag_standard_error(lags: Sequence[float]) -> float | None:
-    """Standard error of the median of per-cycle lags [s] (1.2533 s / sqrt(n)): the onset
-    fit scatters from cycle to cycle, and a reader must see how far to trust the median."""
-    if len(lags) < 2:
-        return None
-    return 1.2533 * float(np.std(lags, ddof=1)) / float(np.sqrt(len(lags)))
 
 
 def phase_lags(sig: Signals, cycles: Sequence[Cycle], rate_hz: float) -> list[float]:

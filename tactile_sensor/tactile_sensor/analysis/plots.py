@@ -20,6 +20,7 @@ from matplotlib.ticker import MaxNLocator
 from .array.analysis import AXES, ArrayAnalysis
 from .characterise import PAPER, Characterisation
 from .metrics import ramp_indices
+from .uncertainty import ONE_CYCLE
 
 MAX_POINTS = 4_000
 #: The paper's compression, as its text gives it (Sec. IV-A; Fig. 7a has no table): about
@@ -39,6 +40,15 @@ def _save(fig: Figure, path: Path, top: float = 0.9) -> Path:
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def _pm(value: float | None, ci95: float | None, unit: str, cycles: int) -> str:
+    """'0.062 ± 0.01 s (5 cycles)', or the value and 'one cycle: no estimate'."""
+    if value is None:
+        return "n/a"
+    if ci95 is None:
+        return f"{value:.3g} {unit} ({ONE_CYCLE})" if cycles == 1 else f"{value:.3g} {unit}"
+    return f"{value:.3g} ± {ci95:.2g} {unit} ({cycles} cycles)"
 
 
 def _ref_cycles(ch: Characterisation) -> list:
@@ -116,8 +126,12 @@ def output_vs_force(ch: Characterisation, path: Path) -> Path:
     if ch.evaluated is not None:
         cal = ch.evaluated
         ax.plot(cal.force_n, cal.output_v, "k--", lw=1, label="calibration")
+    mt = ch.metrics
+    hyst = _pm(mt.get("hysteresis_pct_fs"), mt.get("hysteresis_ci95_pct_fs"), "% FS",
+               len(cycles))
     ax.set(xlabel="force [N]", ylabel="output change [V]",
-           title="Output vs force, loading and unloading (cf. Fig. 7c)")
+           title=f"Output vs force (cf. Fig. 7c)\nhysteresis {hyst}")
+    ax.title.set_fontsize(9)
     ax.legend(markerscale=8)
     return _save(fig, path)
 
@@ -135,9 +149,19 @@ def cycles_over_time(ch: Characterisation, path: Path) -> Path:
            title=f"{len(cycles)} cycles at {seg.reference_key} mm/s (cf. Fig. 8a)")
     ax_f.set_ylabel("force [N]")
     peaks = ch.repeatability.peaks_v
-    ax2.plot(np.arange(1, peaks.size + 1), peaks, "o-", ms=3)
+    cycle_no = np.arange(1, peaks.size + 1)
+    mt = ch.metrics
+    centre, ci = mt.get("full_scale_output_v"), mt.get("full_scale_output_ci95_v")
+    if centre is not None and ci is not None:
+        # where the median peak lies (95 %): a cycle outside the band is more than noise
+        ax2.axhspan(centre - ci, centre + ci, color="tab:blue", alpha=0.15, lw=0,
+                    label="median ± 95 %")
+        ax2.axhline(centre, color="tab:blue", lw=0.8)
+        ax2.legend(fontsize=7, loc="lower right")
+    ax2.plot(cycle_no, peaks, "o-", ms=3)
     ax2.xaxis.set_major_locator(MaxNLocator(integer=True))  # no cycle 1.25
     ax2.set(xlabel="cycle", ylabel="peak output [V]")
+    ax2.set_title(f"peak output {_pm(centre, ci, 'V', peaks.size)}", fontsize=9)
     return _save(fig, path)
 
 
@@ -171,25 +195,89 @@ def first_last_cycles(ch: Characterisation, path: Path) -> Path:
     return _save(fig, path, top=0.82)
 
 
+def _stacked(x: np.ndarray, starts: list[int], before: int, length: int) -> np.ndarray:
+    """(cycles, length) windows of x from ``before`` samples ahead of each start."""
+    return np.stack([x[a - before:a - before + length] for a in starts])
+
+
 def speeds(ch: Characterisation, path: Path) -> Path:
+    """Each speed's cycles laid over each other from their press's start: the mean output
+    with a band of ± one standard deviation over the cycles, the mean force, and the lag
+    with its 95 % interval (Fig. 9)."""
     sig, seg = ch.signals, ch.segmentation
     keys = sorted(seg.speed_groups, key=float)
-    fig, axes = plt.subplots(1, len(keys), figsize=(4 * len(keys), 3.5), squeeze=False)
+    # a tenth of the press either side, but never into the next or last press
+    bounds = [0, *(x for c in seg.cycles for x in c.window), sig.t_s.size]
+    rest = min(b - a for a, b in zip(bounds[::2], bounds[1::2], strict=True))
+    fig, axes = plt.subplots(1, len(keys), figsize=(max(6, 4 * len(keys)), 3.5),
+                             squeeze=False)
     for ax, key in zip(axes[0], keys, strict=True):
-        cycle = seg.cycles[seg.speed_groups[key][0]]
-        a, b = cycle.window
-        pad = (b - a) // 10
-        idx = _thin(np.arange(max(0, a - pad), min(sig.t_s.size, b + pad)))
-        t = sig.t_s[idx] - sig.t_s[a]
-        ax.plot(t, sig.output_v[idx], lw=0.7, color="tab:red")
-        ax.set(xlabel="time [s]", ylabel="output change [V]")
-        lag = ch.lags_s.get(key)
-        ax.set_title(f"{key} mm/s, lag {lag:.3f} s" if lag is not None else f"{key} mm/s")
+        group = [seg.cycles[i] for i in seg.speed_groups[key]]
+        span = min(c.window[1] - c.window[0] for c in group)
+        pad = max(0, min(span // 10, rest // 2))
+        starts = [c.window[0] for c in group]
+        before = min(pad, *starts)
+        length = min(before + span + pad, *(sig.t_s.size - a + before for a in starts))
+        idx = _thin(np.arange(length))
+        t = (idx - before) / ch.aligned.rate_hz
+        out = _stacked(sig.output_v, starts, before, length)[:, idx]
+        force = _stacked(sig.force_n, starts, before, length)[:, idx].mean(axis=0)
+        mean = out.mean(axis=0)
+        if len(group) > 1:
+            sd = out.std(axis=0, ddof=1)
+            ax.fill_between(t, mean - sd, mean + sd, color="tab:red", alpha=0.25, lw=0)
+        ax.plot(t, mean, lw=0.7, color="tab:red")
+        ax.set(xlabel="time from the press's start [s]", ylabel="output change [V]")
+        speed = ch.metrics["by_speed"].get(key, {})
+        lag = _pm(speed.get("phase_lag_s"), speed.get("phase_lag_ci95_s"), "s",
+                  speed.get("phase_lag_cycles", len(group)))
+        ax.set_title(f"{key} mm/s, {len(group)} cycle{'s' if len(group) > 1 else ''}\n"
+                     f"lag {lag}", fontsize=9)
         axf = ax.twinx()
-        axf.plot(t, sig.force_n[idx], lw=0.7, color="tab:gray")
+        axf.plot(t, force, lw=0.7, color="tab:gray")
         axf.set_ylabel("force [N]")
-    fig.suptitle("Response at each indentation speed (cf. Fig. 9)")
-    return _save(fig, path, top=0.8)
+    fig.suptitle("Response at each speed (cf. Fig. 9): mean output (red),\nband ± 1 sd over "
+                 "the cycles, mean force (grey)", fontsize=9)
+    return _save(fig, path, top=0.76)
+
+
+def speed_summary(ch: Characterisation, path: Path) -> Path:
+    """Peak force, peak output and phase lag against speed, each with its 95 % interval
+    over the speed's cycles (bars), the paper's lags beside them: what Fig. 9 says in
+    numbers, and how sure each is."""
+    by_speed = ch.metrics["by_speed"]
+    keys = sorted(by_speed, key=float)
+    v = np.array([float(k) for k in keys])
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6))
+    panels = (("peak_force_n", "peak_force_ci95_n", "peak force [N]", 1.0),
+              ("peak_output_v", "peak_output_ci95_v", "peak output change [V]", 1.0),
+              # the lag as indentation: the paper's lags are about one distance (50-70 µm)
+              # at every speed, so the three share one scale and one axis
+              ("phase_lag_s", "phase_lag_ci95_s", "phase lag x speed [µm]", 1e3))
+    for ax, (name, ci_name, label, scale) in zip(axes, panels, strict=True):
+        factor = v * scale if name == "phase_lag_s" else np.ones_like(v)
+        y = factor * np.array([np.nan if by_speed[k][name] is None else by_speed[k][name]
+                               for k in keys])
+        err = factor * np.array([by_speed[k].get(ci_name) or 0.0 for k in keys])
+        known = np.array([by_speed[k].get(ci_name) is not None for k in keys])
+        ax.errorbar(v[known], y[known], yerr=err[known], fmt="o", ms=4, capsize=3,
+                    color="tab:red", label="measured ± 95 %")
+        if np.any(~known):
+            ax.plot(v[~known], y[~known], "o", ms=4, mfc="none", color="tab:red",
+                    label=ONE_CYCLE)
+        if name == "phase_lag_s":
+            paper = [(float(k), 1e3 * float(k) * t) for k, t in PAPER["phase_lag_s"].items()]
+            ax.plot(*zip(*paper, strict=True), "k*", ms=8, label="paper")
+        ax.set_xscale("log")
+        ax.set(xlabel="indentation speed [mm/s]", ylabel=label)
+        ax.legend(fontsize=7)
+    cycles = ", ".join(f"{by_speed[k]['cycles']} at {k}" for k in keys)
+    fig.suptitle(f"Peaks and lag at each speed, 95 % intervals over the cycles ({cycles} "
+                 "mm/s) (cf. Fig. 9)", fontsize=10)
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.15, top=0.85, wspace=0.35)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
 
 
 def force_estimates(ch: Characterisation, path: Path) -> Path:
@@ -226,6 +314,7 @@ def all_figures(ch: Characterisation, out_dir: Path) -> dict[str, Path]:
         "cycles": cycles_over_time,
         "first_last_cycles": first_last_cycles,
         "speeds": speeds,
+        "speed_summary": speed_summary,
     }
     if ch.static_reference is not None and ch.evaluated is not None and ch.evaluated.rate:
         makers["force_estimates"] = force_estimates

@@ -6,6 +6,8 @@ import html
 from pathlib import Path
 from typing import Any, Protocol
 
+from .uncertainty import ONE_CYCLE
+
 
 class _HasMetrics(Protocol):
     metrics: dict[str, Any]
@@ -17,26 +19,70 @@ def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
     return f"{value:.{digits}g}{(' ' + unit) if unit else ''}"
 
 
+def _cycles(n: int | None, noun: str = "cycle") -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def _pm(value: float | None, ci95: float | None, unit: str, n: int | None,
+        digits: int = 3, noun: str = "cycle", count: bool = True) -> str:
+    """A measured figure with its 95 % interval and (``count``) how many values it rests
+    on; one value says it has no estimate, rather than a bare number that looks exact."""
+    if value is None:
+        return "n/a"
+    if ci95 is not None:
+        return (f"{value:.{digits}g} ± {_fmt(ci95, unit, 2)} ({_cycles(n, noun)})"
+                if n and count else f"{value:.{digits}g} ± {_fmt(ci95, unit, 2)}")
+    if n == 1:
+        return f"{_fmt(value, unit, digits)} ({ONE_CYCLE})"
+    return f"{_fmt(value, unit, digits)} (no estimate)"
+
+
+def _cv(mt: dict[str, Any], n: int) -> str:
+    ci = mt.get("peak_output_cv_ci95_pct")
+    if mt["peak_output_cv_pct"] is None:
+        return f"n/a ({ONE_CYCLE})" if n == 1 else "n/a"
+    interval = f"95 %: {_fmt(ci[0])}-{_fmt(ci[1], '%')}, " if ci else ""
+    return f"{_fmt(mt['peak_output_cv_pct'], '%')} ({interval}{_cycles(n)})"
+
+
+def _drift(mt: dict[str, Any], n: int) -> str:
+    if mt["drift_pct"] is None:
+        return f"n/a ({ONE_CYCLE})" if n == 1 else "n/a"
+    k = mt["drift_cycles_compared"]
+    ci = mt.get("drift_ci95_pct")
+    value = (f"{mt['drift_pct']:.3g} ± {_fmt(ci, '%', 2)}" if ci is not None
+             else _fmt(mt["drift_pct"], "%"))
+    return f"{value} (first {k} vs last {k} of {n} cycles)"
+
+
 def rows(ch: _HasMetrics) -> list[tuple[str, str, str]]:
-    """(metric, measured, paper) rows of the summary table."""
+    """(metric, measured, paper) rows of the summary table; measured figures carry their
+    95 % interval over cycles (metrics.json's *_ci95 keys)."""
     mt, paper = ch.metrics, ch.metrics["paper"]
+    get = mt.get
+    ref = mt["by_speed"].get(_ref_key(mt), {})
+    n = ref.get("cycles")
+    sens = _pm(mt["sensitivity_v_per_n"], get("sensitivity_ci95_v_per_n"), "V/N", n)
+    if get("sensitivity_se_v_per_n") is not None:
+        sens += f"; fit SE {_fmt(get('sensitivity_se_v_per_n'), 'V/N', 2)}"
     out = [
-        ("Full scale force", _fmt(mt["full_scale_n"], "N"),
+        ("Full scale force", _pm(mt["full_scale_n"], get("full_scale_ci95_n"), "N", n),
          f"~{paper['full_scale_n']:g} N at 3 mm"),
-        ("Sensitivity", _fmt(mt["sensitivity_v_per_n"], "V/N"),
-         _fmt(paper["sensitivity_v_per_n"], "V/N")),
-        ("Dynamic range", _fmt(mt["dynamic_range_db"], "dB", 4),
-         _fmt(paper["dynamic_range_db"], "dB", 4)),
-        ("Noise (output)", _fmt(mt["noise_v"], "V"), "not reported"),
-        ("Hysteresis", _fmt(mt["hysteresis_pct_fs"], "% FS"), "low (not quantified)"),
-        ("Peak output CV", _fmt(mt["peak_output_cv_pct"], "%"), "no change over 100 cycles"),
-        ("Drift (first vs last cycles)", _fmt(mt["drift_pct"], "%"), "none observed"),
+        ("Sensitivity", sens, _fmt(paper["sensitivity_v_per_n"], "V/N")),
+        ("Dynamic range", _pm(mt["dynamic_range_db"], get("dynamic_range_ci95_db"), "dB", None,
+                              4), _fmt(paper["dynamic_range_db"], "dB", 4)),
+        ("Noise (output)", _pm(mt["noise_v"], get("noise_ci95_v"), "V", get("noise_runs"),
+                               noun="rest"), "not reported"),
+        ("Hysteresis", _pm(mt["hysteresis_pct_fs"], get("hysteresis_ci95_pct_fs"), "% FS", n),
+         "low (not quantified)"),
+        ("Peak output CV", _cv(mt, n or 0), "no change over 100 cycles"),
+        ("Drift (first vs last cycles)", _drift(mt, n or 0), "none observed"),
     ]
     for key in sorted(mt["phase_lag_s"], key=float):
-        sem = mt["by_speed"].get(key, {}).get("phase_lag_sem_s")
+        speed = mt["by_speed"].get(key, {})
         out.append((f"Phase lag at {key} mm/s (onset)",
-                    _fmt(mt["phase_lag_s"][key], "s")
-                    + (f" ± {_fmt(sem, 's')}" if sem is not None else ""),
+                    _pm(mt["phase_lag_s"][key], speed.get("phase_lag_ci95_s"), "s",
+                        speed.get("phase_lag_cycles", speed.get("cycles"))),
                     _fmt(paper["phase_lag_s"].get(key), "s")))
     cal = mt.get("calibration_error")
     if cal:
@@ -65,6 +111,36 @@ def rows(ch: _HasMetrics) -> list[tuple[str, str, str]]:
     out.append(("Model vs measured output (RMSE)",
                 _fmt(pred["rmse_v"], "V") if pred else "n/a", "\"agreed well\""))
     return out
+
+
+def _ref_key(mt: dict[str, Any]) -> str | None:
+    ref = mt.get("reference_speed_mm_s")
+    return None if ref is None else str(float(ref))
+
+
+def speed_rows(mt: dict[str, Any]) -> list[tuple[str, ...]]:
+    """(speed, cycles, peak force, peak output, sensitivity) per speed: the peaks of
+    Fig. 9, each with its 95 % interval over the speed's cycles."""
+    out = []
+    for key in sorted(mt["by_speed"], key=float):
+        s = mt["by_speed"][key]
+        n = s["cycles"]
+        cells = [_pm(s[name], s.get(ci), unit, n, count=False) for name, ci, unit in (
+            ("peak_force_n", "peak_force_ci95_n", "N"),
+            ("peak_output_v", "peak_output_ci95_v", "V"),
+            ("sensitivity_v_per_n", "sensitivity_ci95_v_per_n", "V/N"))]
+        out.append((f"{key} mm/s", str(n), *cells))
+    return out
+
+
+def speed_lines(mt: dict[str, Any]) -> list[str]:
+    """The per-speed table (Markdown); empty without presses."""
+    found = speed_rows(mt)
+    if not found:
+        return []
+    return ["", "Peaks at each speed (median over the speed's cycles ± 95 % interval):", "",
+            "| speed | cycles | peak force | peak output | sensitivity |",
+            "|---|---|---|---|---|"] + [f"| {' | '.join(r)} |" for r in found]
 
 
 def array_fit_lines(fit: dict[str, Any] | None) -> list[str]:
@@ -150,9 +226,12 @@ def write_report(ch: _HasMetrics, figures: dict[str, Path], out_dir: Path
     lines = [f"# {title}", "",
              f"{mt['cycles']} cycles, {mt['duration_s']} s at {mt['sample_rate_hz']} Hz "
              f"({mt['storage']}); reference speed {mt['reference_speed_mm_s']} mm/s. "
-             "Definitions: docs/analysis-metrics.md.", "",
+             "± is the half-width of a 95 % interval over the cycles (docs/analysis-metrics.md "
+             "gives every definition).", "",
              "| metric | measured | paper |", "|---|---|---|"]
     lines += [f"| {a} | {b} | {c} |" for a, b, c in rows(ch)]
+    speeds_md = speed_lines(mt)
+    lines += speeds_md
     section = array_lines(mt)
     lines += section
     lines += [""] + [f"![{name}]({p.name})" for name, p in figures.items()]
@@ -166,6 +245,11 @@ def write_report(ch: _HasMetrics, figures: dict[str, Path], out_dir: Path
     imgs = "".join(f'<img src="{html.escape(p.name)}" alt="{html.escape(n)}">'
                    for n, p in figures.items())
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in mt["notes"])
+    speed_html = ("<h2>Peaks at each speed</h2><table><tr><th>speed</th><th>cycles</th>"
+                  "<th>peak force</th><th>peak output</th><th>sensitivity</th></tr>"
+                  + "".join("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r)
+                            + "</tr>" for r in speed_rows(mt)) + "</table>"
+                  if speeds_md else "")
     array_html = (f"<h2>Module array</h2><pre>{html.escape(chr(10).join(section[3:]))}</pre>"
                   if section else "")
     page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}"
@@ -174,7 +258,7 @@ def write_report(ch: _HasMetrics, figures: dict[str, Path], out_dir: Path
             "img{max-width:49%;margin:2px}</style></head><body>"
             f"<h1>{html.escape(title)}</h1><p>{html.escape(lines[2])}</p>"
             f"<table><tr><th>metric</th><th>measured</th><th>paper</th></tr>{table}</table>"
-            f"{array_html}<div>{imgs}</div><ul>{notes}</ul></body></html>\n")
+            f"{speed_html}{array_html}<div>{imgs}</div><ul>{notes}</ul></body></html>\n")
     page_path = out_dir / "report.html"
     page_path.write_text(page, encoding="utf-8")
     return md, page_path
