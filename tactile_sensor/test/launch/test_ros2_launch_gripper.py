@@ -40,12 +40,15 @@ def documented_command(start: str) -> str:
 
 
 def header_stamps(bag: Path, topic: str) -> np.ndarray:
+    """The topic's header stamps [s], sorted: the bag orders messages by their reception
+    time, and a sample the middleware repairs (resent after a loss) is received after later
+    ones, although delivered in order."""
     with AnyReader([bag]) as reader:
         connections = [c for c in reader.connections if c.topic == topic]
         stamps = [(m := reader.deserialize(raw, c.msgtype)).header.stamp.sec
                   + m.header.stamp.nanosec * 1e-9
                   for c, _, raw in reader.messages(connections=connections)]
-    return np.array(stamps)
+    return np.sort(np.array(stamps))
 
 
 def test_gripper_launch_with_the_readme_grasp_and_runtime_commands(
