@@ -238,6 +238,8 @@ def speed_table(sig: m.Signals, seg: Segmentation, rate_hz: float
             "sensitivity_se_v_per_n": _num(fit.slope_se) if fit else None,
             "sensitivity_ci95_v_per_n": _ci(m.sensitivities(sig, group)),
             "sensitivity_r2": _num(fit.r2) if fit else None,
+            "peak_indentation_m": _num(float(np.median([c.peak_indentation_m
+                                                        for c in group]))),
             "peak_force_n": _num(float(np.median(gpeaks[:, 1]))),
             "peak_force_ci95_n": _ci(gpeaks[:, 1], "median"),
             "peak_output_v": _num(float(np.median(gpeaks[:, 0]))),

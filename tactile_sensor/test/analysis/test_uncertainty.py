@@ -185,7 +185,8 @@ def test_one_cycle_says_it_has_no_estimate(single, tmp_path):
                  "Drift (first vs last cycles)", "Phase lag at 1.0 mm/s (onset)"):
         assert u.ONE_CYCLE in measured[name], (name, measured[name])
     (row,) = speed_rows(mt)
-    assert row[:2] == ("1.0 mm/s", "1") and all(u.ONE_CYCLE in c for c in row[2:])
+    assert row[:2] == ("1.0 mm/s", "1") and all(u.ONE_CYCLE in c for c in row[3:])
+    assert float(row[2].removesuffix(" mm")) == pytest.approx(1.0, abs=0.01)  # the depth
     figures = plots.all_figures(single, tmp_path)
     assert figures["speed_summary"].stat().st_size > 0
 
