@@ -77,7 +77,7 @@ def closing_record(curve: object, stiffness: float, emitter: float, rod_offset_m
         volts = []
         for _ in range(int(TICK_S / ADC_S)):
             s = motor.step(ADC_S, command)
-            world.update(0.0, s.position_rad)
+            world.update(0.0, s.rack_position_rad)
             v = float(module_output_v(world.latest.voltages_v[0], 0.0, 0.0, state))
             volts.append(round((v + rng.normal(0.0, sigma)) / lsb) * lsb)
         s = motor.state

@@ -112,17 +112,25 @@ class DriveTrain:
     compliance_m_per_n: float = 0.0
     #: One unit of Present Current [A].
     current_resolution_a: float = A_PER_CURRENT_UNIT
+    #: Friction at rest per N m the gears transmit [1]: the sources' 0.234 (Dynamixel
+    #: MX-64, Duclusaud et al. 2024, model M4; sim/drivetrain.py). A close cannot measure
+    #: it: the motor's torque u meets ``u (1 - ratio) = skin + friction`` however the
+    #: current goes (opening, the motor pulls against friction the skin's force cannot
+    #: overcome, and the same relation holds), so a higher ratio reads exactly as a
+    #: stiffer skin. It is the servo's constant, as the torque constant is.
+    load_friction_ratio: float = 0.234
 
     def __post_init__(self) -> None:
         if not (self.torque_constant_nm_per_a > 0 and self.backlash_rad >= 0
-                and self.compliance_m_per_n >= 0):
-            raise ValueError("need a positive torque constant and a non-negative backlash "
-                             "and compliance")
+                and self.compliance_m_per_n >= 0 and 0 <= self.load_friction_ratio < 1):
+            raise ValueError("need a positive torque constant, a non-negative backlash "
+                             "and compliance and a load friction ratio in [0, 1)")
 
     def rack_force_n(self, current_a: FloatArray, free_current_a: float) -> FloatArray:
-        """The force both racks push with [N] (the sum of the two fingers' skin forces)."""
-        return (self.torque_constant_nm_per_a * (current_a - free_current_a)
-                / self.geometry.pitch_radius_m)
+        """The force both racks push with [N] (the sum of the two fingers' skin forces):
+        the torque over the free close's, less the friction that torque brings."""
+        return (self.torque_constant_nm_per_a * (1.0 - self.load_friction_ratio)
+                * (current_a - free_current_a) / self.geometry.pitch_radius_m)
 
     def rack_positions_rad(self, positions_rad: FloatArray) -> FloatArray:
         """Where the racks are, in pinion angle: the play operator on the servo's positions,

@@ -53,7 +53,9 @@ def closing(gain: float, stiffness: float, *, lead_m: float = 0.0, train: DriveT
         travel = r * (rack - contact) - train.compliance_m_per_n * force
         d_a, d_b = np.maximum(travel, 0.0), np.maximum(travel + lead_m, 0.0)
         force = stiffness * (PREDICTION.force(d_a) + PREDICTION.force(d_b)) if rod else 0 * d_a
-    current = free_current_a + force * r / train.torque_constant_nm_per_a
+    # the load-dependent friction: u (1 - ratio) = skin force x r (sim/drivetrain.py)
+    current = free_current_a + force * r / (train.torque_constant_nm_per_a
+                                            * (1.0 - train.load_friction_ratio))
     current = current + rng.normal(0.0, current_noise_a, current.size)
     current = np.round(current / 2.69e-3) * 2.69e-3
     out = 0.002 + gain * PREDICTION.output(d_a) * rod + rng.normal(0.0, output_noise_v,
@@ -73,6 +75,18 @@ def test_both_factors_come_back_through_play_compliance_and_an_off_centre_object
     assert fit.optical_gain == pytest.approx(gain, abs=0.03)
     assert fit.stiffness == pytest.approx(stiffness, abs=0.03)
     assert 0.0 < fit.optical_gain_sigma < 0.015 and 0.0 < fit.stiffness_sigma < 0.015
+
+
+def test_a_servo_whose_load_friction_is_left_out_reads_a_stiffer_skin():
+    """The load-dependent friction scales the current as a stiffer skin would: the train's
+    ratio is what tells them apart (1 / (1 - 0.234) = 1.31 x without it)."""
+    record = closing(1.0, 1.0)
+    assert fit_self_check(record, PREDICTION).stiffness == pytest.approx(1.0, abs=0.03)
+    lossless = DriveTrain(load_friction_ratio=0.0)
+    assert fit_self_check(record, PREDICTION, lossless).stiffness == pytest.approx(
+        1.0 / (1.0 - 0.234), abs=0.03)
+    with pytest.raises(ValueError, match="load friction ratio"):
+        DriveTrain(load_friction_ratio=1.0)
 
 
 def test_a_map_without_the_trains_compliance_misreads_the_stiffness():

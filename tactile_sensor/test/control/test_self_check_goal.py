@@ -23,6 +23,7 @@ SKIN = SkinPrediction(tuple(D.tolist()), tuple((1.6e3 * D + 2.6e5 * D**2).tolist
 SETTINGS = GoalSettings(GraspConfig())
 GEOMETRY = SETTINGS.config.geometry
 R = GEOMETRY.pitch_radius_m
+LOAD_FRICTION = DriveTrain().load_friction_ratio
 PATIENCE_S = 30.0  # the bound of a wait that ends as soon as its reading came
 
 
@@ -81,7 +82,9 @@ class Close:
         d = self.indentation()  # the skin's law, past the table too
         force = 2.0 * self.stiffness * (1.6e3 * d + 2.6e5 * d**2)
         return NS(position_rad=self.position, velocity_rad_s=velocity, moving=True,
-                  hardware_error=frozenset(), current_a=0.0188 + force * R / (3.0 / 2.3))
+                  hardware_error=frozenset(),
+                  # the XM430's load-dependent friction on the motor's torque
+                  current_a=0.0188 + force * R / (3.0 / 2.3 * (1.0 - LOAD_FRICTION)))
 
     def run(self, apply: bool) -> tuple[object, object]:
         goal = accept_self_check(NS(closing_speed=0.0, apply=apply), SETTINGS, self.links,
