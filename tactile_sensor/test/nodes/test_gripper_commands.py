@@ -11,9 +11,7 @@ Each test starts the configuration once and runs a group of checks against it.
 from __future__ import annotations
 
 import math
-import os
 import statistics
-import subprocess
 import time
 from pathlib import Path
 
@@ -261,12 +259,21 @@ def test_both_control_msgs_interfaces_grip_the_rod_by_tactile_force_and_open(gri
 
 
 @pytest.mark.ros2_tools
-def test_the_ros2_action_cli_sends_a_gripper_command(gripper):
-    """The real ros2 CLI as the external client (what a user types first)."""
-    cli = _ros2("action", "send_goal", "/gripper/gripper_cmd",
+def test_the_ros2_action_cli_sends_a_gripper_command(gripper, spawn):
+    """The real ros2 CLI as the external client (what a user types first). With
+    ``--feedback`` it prints as the fingers move, so the wait lasts while it progresses
+    (starting the CLI, discovering the server and the move each take longer on a busy
+    machine), and a failure shows the step it stopped at."""
+    launch, _ = gripper
+    cli = spawn("ros2", "action", "send_goal", "--feedback", "/gripper/gripper_cmd",
                 "control_msgs/action/GripperCommand",
                 "{command: {position: 0.05, max_effort: 0.0}}")
-    assert "reached_goal: true" in cli and "SUCCEEDED" in cli, cli
+    assert cli.wait_for_output("Goal finished with status:", PATIENCE_S,
+                               while_progressing=True), (cli.output(), aborted_why(launch))
+    assert cli.proc.wait(PATIENCE_S) == 0, cli.output()  # and it ends by itself
+    output = cli.output()
+    assert "reached_goal: true" in output and "status: SUCCEEDED" in output, \
+        (output, aborted_why(launch))
 
 
 def test_invalid_goals_are_refused_before_anything_moves(gripper):
@@ -312,13 +319,6 @@ def test_invalid_goals_are_refused_before_anything_moves(gripper):
            "no ~/joint_states")
     after = [o for t, o in client.opening if t >= sent_at]
     assert after and max(abs(o - before) for o in after) < 2e-4, (before, after)
-
-
-def _ros2(*argv: str) -> str:
-    """A ros2 CLI verb's output (the real tool, as a user would type it)."""
-    done = subprocess.run(["ros2", *argv], capture_output=True, text=True, timeout=60,
-                          env=dict(os.environ))
-    return done.stdout + done.stderr
 
 
 def test_one_goal_policy_across_all_four_servers(gripper):
