@@ -36,7 +36,7 @@ firmware:  ## cross-compile the ADC sketch for Uno, Mega, Leonardo, 8-channel Na
 lint: setup  ## ruff only
 	@. scripts/env.sh && ruff check .
 
-demo: setup  ## bench compression protocol on mock hardware, recorded and analysed
+demo: setup  ## bench presses at 0.1, 1 and 10 mm/s on mock hardware, recorded and analysed (about a minute)
 	@bash scripts/demo.sh bench
 
 demo-gripper: setup  ## grasp the rod, hold, release on mock hardware
