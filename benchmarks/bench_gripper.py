@@ -29,6 +29,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tactile_sensor"))
 
 from grasp_hold import (  # noqa: E402
+    DRIVETRAINS,
     TARGETS_N,
     Bench,
     contact_goal_n,
@@ -185,19 +186,21 @@ def busy_core() -> Iterator[None]:
         proc.wait(timeout=5)
 
 
-def contact_and_hold(grasps: int) -> list[Figure]:
+def contact_and_hold(grasps: int, drivetrain: str = "default",
+                     targets: tuple[float, ...] = TARGETS_N) -> list[Figure]:
     """The contact and hold tables of the Grasp and of current-limited grasping."""
     figures: list[Figure] = []
     world = GripperWorld(skin()[0], rod_diameter_m=0.020)
+    print(f"drivetrain: {drivetrain} ({DRIVETRAINS[drivetrain]})")
     with tempfile.TemporaryDirectory() as tmp:
-        emulator, client = open_bench(Path(tmp) / "xm430", world)
+        emulator, client = open_bench(Path(tmp) / "xm430", world, DRIVETRAINS[drivetrain])
         try:
             bench = Bench(world, emulator, client)
             for label, grasp in (("tactile Grasp (node defaults)", bench.tactile_grasp),
                                  ("current-limited (current-based position mode)",
                                   lambda target, k: bench.current_limited_grasp(target))):
                 load = os.getloadavg()[0]
-                runs = run_grasps(bench, grasp, TARGETS_N, grasps)
+                runs = run_grasps(bench, grasp, targets, grasps)
                 rows = [summarise(t, g) for t, g in runs.items()]
                 print_table(f"{label}, {grasps} grasps per target; true force (load average "
                             f"{load:.1f} -> {os.getloadavg()[0]:.1f} on {os.cpu_count()} "
@@ -228,14 +231,20 @@ def main() -> int:
                     help="grasps per target force (default 20; 3 with --quick)")
     ap.add_argument("--tables-only", action="store_true",
                     help="only the contact and hold tables")
+    ap.add_argument("--drivetrain", choices=tuple(DRIVETRAINS), default="default",
+                    help="the emulated servo's drivetrain for the tables (grasp_hold.py)")
+    ap.add_argument("--targets", type=float, nargs="+", default=list(TARGETS_N),
+                    help="target forces of the tables [N]")
     args = ap.parse_args()
     seconds = 1.0 if args.quick else 3.0
     grasps = args.grasps or (3 if args.quick else 20)
     figures: list[Figure] = []
     with busy_core():
-        figures += contact_and_hold(grasps)
+        figures += contact_and_hold(grasps, args.drivetrain, tuple(args.targets))
     if args.tables_only:
-        write_results("gripper_hold", figures, notes=HOLD_NOTES)
+        suffix = "" if args.drivetrain == "default" else "_" + args.drivetrain.replace("-", "_")
+        write_results("gripper_hold" + suffix, figures,
+                      notes=f"{HOLD_NOTES} Drivetrain: {args.drivetrain} (grasp_hold.py).")
         return 0
 
     print("\ncontrol-loop rate, read_state() = one Sync Read, emulator in its own process")

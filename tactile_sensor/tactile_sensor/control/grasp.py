@@ -268,8 +268,49 @@ class BaseController:
         return self._finish(Outcome.CANCELED, "canceled", servo)
 
 
+@dataclass(frozen=True)
+class LoopLead:
+    """The position loop seen while the fingers closed in free air: the profile's lead
+    over the output [rad] and the current it drew [A]. Their ratio is the loop's gain
+    (A/rad: Position P Gain's, measured rather than assumed), the lead the friction in
+    motion needs."""
+
+    lead_rad: float
+    current_a: float
+
+    def lead_for_n(self, rack_force_n: float, pitch_radius_m: float) -> float:
+        """The lead [rad] over the free one that a rack force needs: its torque at the
+        datasheet's torque constant over the loop's gain (an underestimate by the gears'
+        load-dependent friction, so a correction from it stops short rather than over)."""
+        if not (self.lead_rad > 0 and self.current_a > 0):
+            return 0.0
+        gain_a_per_rad = self.current_a / self.lead_rad
+        return (rack_force_n * pitch_radius_m / XM430_TORQUE_CONSTANT_NM_PER_A
+                / gain_a_per_rad)
+
+
+#: XM430-W210 at 12 V: stall torque 3.0 N m at 2.3 A (e-manual) [N m/A].
+XM430_TORQUE_CONSTANT_NM_PER_A = 3.0 / 2.3
+
+
+def loop_lead_rad(servo: ServoReading) -> float | None:
+    """How far the servo's profile leads its output [rad] (None: the sample does not say):
+    the position loop's error, which a geared servo's friction needs to turn the output."""
+    trajectory = getattr(servo, "trajectory_position_rad", None)
+    if not isinstance(trajectory, float):
+        return None
+    return trajectory - servo.position_rad
+
+
 class GraspController(BaseController):
-    """Close until the tactile force reaches the target, then hold."""
+    """Close until the tactile force reaches the target, then hold.
+
+    Through a geared servo's friction the output trails its profile by the position loop's
+    error (about 17 encoder pulses on the XM430's sources: the torque offset and friction
+    at 8 A/rad). The grasp learns that lead while closing in free air and puts it on every
+    goal: the leash's end and the contact stop are where the output is to be, the goal
+    that far ahead. The output then comes to rest a little short of the stop (the friction
+    at rest exceeds that in motion), so the hold approaches the target from below."""
 
     def __init__(self, config: GraspConfig | None = None) -> None:
         super().__init__(config or GraspConfig())
@@ -277,6 +318,10 @@ class GraspController(BaseController):
         self._speed_rad_s = 0.0
         self._trace = PositionTrace()
         self._paused = False
+        #: The loop's lead while closing in free air [rad] (0 until seen).
+        self.lead_rad = 0.0
+        #: That lead and the current it drew (None until seen): the hold's loop gain.
+        self.free_loop: LoopLead | None = None
 
     def start(self, request: GraspRequest, now_s: float, servo: ServoReading) -> Step:
         request.validate(self.max_speed_m_s)
@@ -294,7 +339,8 @@ class GraspController(BaseController):
         ticking (a starved machine) leaves the fingers at the leash's end, not on the
         object at full current."""
         leash = self._speed_rad_s * self.config.leash_s
-        goal = min(self.config.geometry.closed_position_rad, position_rad + leash)
+        goal = min(self.config.geometry.closed_position_rad,
+                   position_rad + self.lead_rad + leash)
         return ServoCommand(goal, self._speed_rad_s, self.config.closing_current_a)
 
     def tick(self, now_s: float, force_n: float | None, force_stamp_s: float | None,
@@ -317,12 +363,19 @@ class GraspController(BaseController):
         assert force_n is not None and force_stamp_s is not None
         if age > cfg.pause_after_s:
             return self._pause(servo, force_n)
+        lead = loop_lead_rad(servo)
+        if (lead is not None and servo.moving
+                and force_n < cfg.slowdown_from_fraction * self.request.target_force_n):
+            self.lead_rad = max(0.0, lead)
+            current = getattr(servo, "current_a", None)
+            if isinstance(current, float):
+                self.free_loop = LoopLead(self.lead_rad, current)
         stop = self._contact_stop(force_n, force_stamp_s, servo)
         if stop is not None:
             return self._finish(Outcome.CONTACT, f"contact at {force_n:.2f} N", servo,
                                 force_n, hold=True, stop_at_rad=stop)
         opening = self._opening(servo)
-        if opening <= cfg.geometry.closed_opening_m + cfg.limit_tolerance_m:
+        if self._at_closed_limit(servo):
             return self._finish(Outcome.CLOSED_LIMIT_WITHOUT_CONTACT,
                                 f"closed to {opening * 1e3:.1f} mm",
                                 servo, force_n)
@@ -333,6 +386,16 @@ class GraspController(BaseController):
         # every tick moves the leash on
         return Step(self.phase, self._closing_command(servo.position_rad), None, "closing",
                     opening, force_n)
+
+    def _at_closed_limit(self, servo: ServoReading) -> bool:
+        """The fingers at the closed limit: there, or (through a geared servo's friction,
+        which leaves the output its loop's lead short) at rest with the profile there."""
+        g, tolerance = self.config.geometry, self.config.limit_tolerance_m
+        if self._opening(servo) <= g.closed_opening_m + tolerance:
+            return True
+        trajectory = getattr(servo, "trajectory_position_rad", None)
+        return (isinstance(trajectory, float) and not servo.moving
+                and g.opening_m(trajectory) <= g.closed_opening_m + tolerance)
 
     def _pause(self, servo: ServoReading, force_n: float) -> Step:
         """Hold where the fingers are until a fresh force comes (once per pause)."""
@@ -353,8 +416,8 @@ class GraspController(BaseController):
         target = self.request.target_force_n
         if force_n >= target:
             at_force = self._trace.at(stamp_s)
-            return min(servo.position_rad, stop_goal_rad(force_n, at_force, target,
-                                                         self.newton_per_rad))
+            return min(servo.position_rad, self.lead_rad + stop_goal_rad(
+                force_n, at_force, target, self.newton_per_rad))
         if force_n < self.config.slowdown_from_fraction * target:
             return None
         at_force = self._trace.at(stamp_s)
@@ -364,7 +427,7 @@ class GraspController(BaseController):
                               self.config.command_latency_s)
         if ahead < target:
             return None
-        return stop_goal_rad(force_n, at_force, target, self.newton_per_rad)
+        return self.lead_rad + stop_goal_rad(force_n, at_force, target, self.newton_per_rad)
 
     def _scheduled_speed(self, force_n: float) -> float:
         """The requested speed, or slower: the speed at which the missing force would take

@@ -21,16 +21,29 @@ that range (effective gain 0.56 to 0.91).
 Settled when a window's mean is within ``tolerance`` of the target, or when the correction
 is under half a position pulse (the servo cannot place the fingers finer).
 
+Through the friction of a geared servo (sim/drivetrain.py) the output rests where the
+position loop's torque no longer beats the load and the friction at rest: short of its
+goal by the loop's lead after a close, past it after an opening, and a goal moved back
+within that band moves nothing (about 35 pulses wide on the XM430's sources). The hold
+therefore corrects from one side. A force too low raises the goal from the lead the loop
+had at rest after closing (``closing_lead_rad``, read from the servo's Position
+Trajectory), so the output moves by the correction whatever side of the band it sat on; a
+force too high opens the goal by that lead and the correction below where the fingers
+are, so the output comes to rest under the target, and the next correction closes onto it.
+Within the band the output moves in the steps of its stick-slip (the friction at rest
+over that in motion), not in single pulses.
+
 An adaptive hold (one that raises the grip on slip) is a different regulator with the same
 two calls: ``add`` the forces, ``command`` the next goal.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from tactile_sensor.control.geometry import GripperGeometry
-from tactile_sensor.control.grasp import ServoCommand, ServoReading
+from tactile_sensor.control.grasp import LoopLead, ServoCommand, ServoReading, loop_lead_rad
 from tactile_sensor.hardware.xm430_table import RAD_PER_PULSE
 
 
@@ -47,18 +60,29 @@ class ForceSettler:
     window_s: float = 0.1
     max_window_s: float = 0.4
     gain: float = 0.8
+    #: One tactile sample's noise [N] (the paper's 31.5 dB: 0.56 N at 1 kHz): a mean whose
+    #: error is within twice its own σ is not corrected on (each correction through the
+    #: friction costs the band's crossing), its window widens instead.
+    sample_noise_n: float = 0.56
     #: The mean [N] of the last window judged: the force the hold reports once settled
     #: (a single reading carries the sensor's full noise, 0.19 N σ after the filter).
     judged_n: float | None = None
+    #: The loop's lead at rest after a close [rad]: what a goal needs over the output to
+    #: move it closed (None until the first judged window reads it).
+    closing_lead_rad: float | None = None
+    #: The loop as the close saw it in free air (None: not known): the lead a force needs.
+    loop: LoopLead | None = None
     _sum_n: float = 0.0
     _count: int = 0
     _window_from_s: float | None = None
+    _last_closed: bool = True
 
     def __post_init__(self) -> None:
         if not (self.target_force_n > 0 and self.skin_stiffness_n_per_m > 0
-                and self.window_s >= 0 and 0 < self.gain <= 1 and self.tolerance >= 0):
+                and self.window_s >= 0 and 0 < self.gain <= 1 and self.tolerance >= 0
+                and self.sample_noise_n >= 0):
             raise ValueError("ForceSettler needs a positive target and stiffness, a window "
-                             "of at least 0 s and a gain in (0, 1].")
+                             "of at least 0 s, a gain in (0, 1] and a noise of at least 0.")
 
     def add(self, sum_n: float, count: int, now_s: float) -> None:
         """Forces that arrived since the last call (their sum and how many); the window
@@ -79,6 +103,7 @@ class ForceSettler:
             return None, False
         self.judged_n = self._sum_n / self._count
         error = self.judged_n - self.target_force_n
+        sigma_n = self.sample_noise_n / math.sqrt(self._count)
         self.restart_window()
         if abs(error) <= self.tolerance * self.target_force_n:
             return None, True
@@ -86,5 +111,32 @@ class ForceSettler:
                                         * self.geometry.pitch_radius_m)
         if abs(step_rad) < 0.5 * RAD_PER_PULSE:
             return None, True
+        if abs(error) <= 2.0 * sigma_n:
+            # the mean cannot tell this error from its noise: judge a longer one
+            self.window_s = min(2.0 * self.window_s, max(self.max_window_s, self.window_s))
+            return None, False
         self.window_s = min(2.0 * self.window_s, max(self.max_window_s, self.window_s))
-        return ServoCommand(servo.position_rad - step_rad, velocity_rad_s, current_a), False
+        return ServoCommand(self._goal_rad(servo, step_rad), velocity_rad_s, current_a), False
+
+    def _goal_rad(self, servo: ServoReading, step_rad: float) -> float:
+        """The goal that moves the output by ``-step_rad`` through the loop's friction.
+
+        The band's closing edge is the free close's lead plus the lead the target's rack
+        force needs (``LoopLead``), or a lead seen at rest after a close if larger; its
+        opening edge is as far under the force's lead as the free lead is over it."""
+        lead = loop_lead_rad(servo)
+        if lead is not None and self._last_closed and lead > (self.closing_lead_rad or 0.0):
+            self.closing_lead_rad = lead  # at rest after a close: on the closing edge
+        closing = step_rad < 0.0
+        self._last_closed = closing
+        free = self.loop.lead_rad if self.loop is not None else 0.0
+        # both fingers push the target: the rack force is twice finger A's
+        force_lead = (self.loop.lead_for_n(2.0 * self.target_force_n,
+                                           self.geometry.pitch_radius_m)
+                      if self.loop is not None else 0.0)
+        if closing:
+            edge = max(self.closing_lead_rad or 0.0, free + force_lead)
+            present_goal = servo.position_rad + (lead if lead is not None else 0.0)
+            return max(present_goal, servo.position_rad + edge) - step_rad
+        edge = force_lead - max(free, self.closing_lead_rad or 0.0)
+        return servo.position_rad + edge - step_rad - 2.0 * RAD_PER_PULSE

@@ -228,3 +228,42 @@ def test_release_aborts_and_rejects_bad_requests():
     with pytest.raises(InvalidRequest, match="timeout"):
         ReleaseController().start(0.05, 0.02, 0.0, 0.0, at(0.02))
 
+
+
+@dataclass(frozen=True)
+class GearedServo:
+    """A sample of a servo whose friction makes its profile lead the output."""
+
+    position_rad: float
+    trajectory_position_rad: float
+    current_a: float = 0.2
+    moving: bool = True
+    hardware_error: frozenset[str] = frozenset()
+
+
+def test_the_loops_lead_in_free_air_goes_on_the_leash_the_stop_and_the_closed_limit():
+    controller = started(target=2.0)
+    lead = 17 * 2 * 3.141592653589793 / 4096  # the sources' drivetrain at 10 mm/s
+    free = G.position_rad(0.030)
+    step = controller.tick(0.1, 0.0, 0.095, GearedServo(free, free + lead))
+    leash = controller._speed_rad_s * GraspConfig().leash_s
+    assert step.command.goal_position_rad == pytest.approx(free + lead + leash)
+    assert controller.free_loop is not None
+    assert controller.free_loop.current_a / controller.free_loop.lead_rad == pytest.approx(
+        0.2 / lead)
+    # past the target by less than the lead: the stop holds the output where it is (the
+    # lead would press on); the hold takes the excess off through the friction
+    touch = G.position_rad(0.018)
+    step = controller.tick(0.5, 2.1, 0.49, GearedServo(touch, touch + lead))
+    assert step.outcome is Outcome.CONTACT
+    assert step.command.goal_position_rad == pytest.approx(touch)
+
+
+def test_an_output_at_rest_its_lead_short_of_the_closed_limit_has_reached_it():
+    controller = started(target=2.0)
+    limit = G.closed_position_rad
+    short = GearedServo(limit - 0.03, limit, moving=False)
+    step = controller.tick(1.0, 0.0, 0.99, short)
+    assert step.outcome is Outcome.CLOSED_LIMIT_WITHOUT_CONTACT
+    moving = started(target=2.0).tick(1.0, 0.0, 0.99, GearedServo(limit - 0.03, limit))
+    assert moving.outcome is None

@@ -49,7 +49,7 @@ def test_settles_within_tolerance_over_the_fem_skin_stiffness(stiffness, target,
     """The FEM skin's stiffness range (1750..2850 N/m) against the 2500 N/m assumption,
     starting under or over the target, without noise."""
     servo = Servo(CONTACT + max(0.0, target + start_n) / (stiffness * G.pitch_radius_m))
-    settler = ForceSettler(G, target)
+    settler = ForceSettler(G, target, sample_noise_n=0.0)  # a noiseless stream
     assert regulate(settler, servo, stiffness, 0.0, np.random.default_rng(0))
     pulse_n = stiffness * G.pitch_radius_m * RAD_PER_PULSE
     assert abs(force(servo.position_rad, stiffness) - target) <= max(
@@ -87,7 +87,8 @@ def test_a_correction_under_half_a_pulse_counts_as_settled():
 
 
 @pytest.mark.parametrize("kw", [dict(target_force_n=0.0), dict(skin_stiffness_n_per_m=0.0),
-                                dict(window_s=-0.1), dict(gain=1.5), dict(tolerance=-1)])
+                                dict(window_s=-0.1), dict(gain=1.5), dict(tolerance=-1),
+                                dict(sample_noise_n=-0.1)])
 def test_rejects_a_configuration_that_cannot_regulate(kw):
     with pytest.raises(ValueError, match="ForceSettler needs"):
         ForceSettler(**{"geometry": G, "target_force_n": 1.0, **kw})
@@ -102,3 +103,49 @@ def test_the_force_a_hold_reports_is_the_mean_it_judged(forces):
     settler.add(float(sum(forces)), len(forces), 0.0)
     assert settler.command(0.1, Servo(CONTACT + 0.02), 0.6, 6.0) == (None, True)
     assert settler.judged_n == pytest.approx(float(np.mean(forces)))
+
+
+@dataclass
+class GearedServo:
+    """A sample of the motor model through its drivetrain (with its Position Trajectory)."""
+
+    position_rad: float
+    trajectory_position_rad: float
+    moving: bool = False
+    hardware_error: frozenset = frozenset()
+
+
+@pytest.mark.parametrize("start_n", [1.5, 2.6, 3.4, 4.5])
+def test_the_hold_corrects_through_the_drivetrains_friction_from_either_side(start_n):
+    """On the sources' drivetrain a goal moved back within the friction's band moves
+    nothing: the hold raises the goal from the loop's lead after a close and lowers it past
+    the band, so a 3 N hold comes within 5 % from under and from over the target."""
+    from tactile_sensor.sim.gripper_world import GripperWorld
+    from tactile_sensor.sim.motor_model import MotorCommand, MotorModel
+    from tactile_sensor.test.emulated_xm430 import linear_skin
+
+    world = GripperWorld(linear_skin(), G, rod_diameter_m=0.020)
+    motor = MotorModel(G.position_rad(0.024), world.load_torque_nm)
+
+    def run(goal_rad: float, seconds: float = 0.3) -> float:
+        motor.step(seconds, MotorCommand(True, round(goal_rad / RAD_PER_PULSE) * RAD_PER_PULSE,
+                                         6.0, 0.0, 0.6))
+        return world.update(0.0, motor.state.rack_position_rad).force_a_n
+
+    # close onto the rod until the force passes the start, as the contact stop leaves it
+    goal = motor.state.position_rad
+    while run(goal, 0.02) < start_n:
+        goal += RAD_PER_PULSE
+    held = run(goal)
+    settler = ForceSettler(G, 3.0, skin_stiffness_n_per_m=2333.0)
+    for k in range(12):
+        settler.add(100 * held, 100, float(k))
+        s = motor.state
+        command, settled = settler.command(k + settler.window_s, GearedServo(
+            s.position_rad, s.trajectory_position_rad), 0.6, 6.0)
+        if settled:
+            break
+        if command is not None:
+            held = run(command.goal_position_rad)
+    assert settled
+    assert held == pytest.approx(3.0, rel=0.05)
