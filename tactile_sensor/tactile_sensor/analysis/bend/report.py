@@ -43,7 +43,8 @@ def summary_lines(metrics: dict[str, Any]) -> list[str]:
         rmse = "n/a" if p["rmse_deg"] is None else f"{p['rmse_deg']:.2f} deg"
         force = p.get("tip_force_rmse_n")
         tip = "" if not p["contact"] else (
-            "; tip force NaN (one module)" if force is None else f"; tip force rmse {force:.3f} N")
+            "; tip force NaN (not observed by this layout)" if force is None
+            else f"; tip force rmse {force:.3f} N")
         out.append(f"{p['rate_hz']:g} Hz {contact} ({p['bends']} bends to "
                    f"{p['peak_deg']:.0f} deg): angle rmse {rmse}, lag "
                    f"{_pm(p['lag_s'], 1e3, 1)} ms, hysteresis "
