@@ -41,11 +41,16 @@ def _study_options(st: argparse.ArgumentParser) -> None:
 
 
 def study(args: argparse.Namespace) -> int:
+    from tactile_sensor.physics.yaml_file import read_yaml
+
+    from .bend_placement import is_bend_spec
     from .report import fmt_metric, pareto_rows, write_results
     from .run import run_study
     from .spec import StudySpecError, load_spec
 
     try:
+        if is_bend_spec(read_yaml(args.spec, "the study spec", StudySpecError, "")):
+            return _bend_study(args)
         spec = load_spec(args.spec)
     except StudySpecError as err:
         raise UsageError(str(err)) from None
@@ -85,6 +90,29 @@ def study(args: argparse.Namespace) -> int:
     front = pareto_rows(rows, spec)
     lines.append(f"pareto          {len(front)} designs: "
                  + ", ".join(r.design for r in front))
+    lines += [f"{p.name:<15} {p}" for p in paths.values()]
+    print("\n".join(lines))
+    return 0
+
+
+def _bend_study(args: argparse.Namespace) -> int:
+    """A placement study of the bending finger's joint module (``kind: bend_placement``)."""
+    from .bend_placement import load_bend_spec, run_bend_study, write_bend_results
+
+    spec = load_bend_spec(args.spec)
+    started = time.perf_counter()
+    rows = run_bend_study(spec, scheduler=args.scheduler, workers=args.workers or 1,
+                          cache_dir=args.cache_dir, progress=StderrProgress(not args.quiet))
+    paths = write_bend_results(rows, spec, args.out)
+    lines = [f"study           {spec.name}",
+             f"designs         {len(rows)} ({sum(not r.error for r in rows)} solved), "
+             f"{time.perf_counter() - started:.1f} s"]
+    for r in rows:
+        m = r.metrics
+        lines.append(f"{r.module.label:<32} " + (r.error or (
+            f"{m['sensitivity_v_per_rad']:.3f} V/rad, cond {m['jacobian_condition']:.1f}, "
+            f"angle std {m['angle_sigma_deg']:.2f} deg, one module under contact "
+            f"{m['one_module_contact_error_deg']:.0f} deg")))
     lines += [f"{p.name:<15} {p}" for p in paths.values()]
     print("\n".join(lines))
     return 0

@@ -44,7 +44,8 @@ Progress = Callable[[float, str], None]
 _RESIDUAL_TOL = 1e-7   # converged when |out-of-balance| < this * mu * thickness^2 [N]
 _NEWTON_MAX = 25
 _MAX_CUTS = 6
-_ROUNDOFF = 1e3   # a stalled Newton within this many tolerances has converged
+_ROUNDOFF = 1.6e4  # a Newton stalled within this many tolerances (~10 mN, ~1e-3 of the
+#                   7 N tension at 2 N contact) is taken as balanced; docs/bend.md
 
 
 @dataclass(frozen=True)
@@ -377,7 +378,7 @@ class FingerModel:
                 alpha *= 0.5
                 if alpha < 1e-3:
                     if norm < _ROUNDOFF * tol:
-                        return q          # at the round-off floor of a large deformation
+                        return q          # balanced to ~10 mN (see _ROUNDOFF)
                     raise ConvergenceError(f"The finger's FEM Newton solve stalled at a "
                                            f"residual of {norm:.2g} N; use more angle steps "
                                            "or a finer mesh.")
