@@ -280,17 +280,28 @@ class LoopLead:
 
     def lead_for_n(self, rack_force_n: float, pitch_radius_m: float) -> float:
         """The lead [rad] over the free one that a rack force needs: its torque at the
-        datasheet's torque constant over the loop's gain (an underestimate by the gears'
-        load-dependent friction, so a correction from it stops short rather than over)."""
+        datasheet's torque constant over the loop's gain."""
         if not (self.lead_rad > 0 and self.current_a > 0):
             return 0.0
         gain_a_per_rad = self.current_a / self.lead_rad
         return (rack_force_n * pitch_radius_m / XM430_TORQUE_CONSTANT_NM_PER_A
                 / gain_a_per_rad)
 
+    def closing_edge_rad(self, rack_force_n: float, pitch_radius_m: float) -> float:
+        """The lead at which the output, at rest under that rack force, moves closed: the
+        free lead and the force's, which the gears' load-dependent friction raises by
+        1 / (1 - ratio). The free lead is the friction in motion, under that at rest, so
+        the estimate falls short of the edge by a pulse or two, never past it."""
+        return self.lead_rad + self.lead_for_n(rack_force_n, pitch_radius_m) / (
+            1.0 - XM430_LOAD_FRICTION_RATIO)
+
 
 #: XM430-W210 at 12 V: stall torque 3.0 N m at 2.3 A (e-manual) [N m/A].
 XM430_TORQUE_CONSTANT_NM_PER_A = 3.0 / 2.3
+#: Friction at rest per N m the XM430's gears transmit: the sources' 0.234 (Dynamixel
+#: MX-64, Duclusaud et al. 2024, model M4; sim/drivetrain.py). No close measures it
+#: (control/self_check.py): it is the servo's constant, as its torque constant is.
+XM430_LOAD_FRICTION_RATIO = 0.234
 
 
 def loop_lead_rad(servo: ServoReading) -> float | None:
@@ -334,13 +345,24 @@ class GraspController(BaseController):
         return Step(self.phase, self._closing_command(servo.position_rad), None, "closing",
                     self._opening(servo))
 
-    def _closing_command(self, position_rad: float) -> ServoCommand:
+    def _closing_command(self, position_rad: float, servo: ServoReading | None = None,
+                         force_n: float = 0.0) -> ServoCommand:
         """Close on, at most ``leash_s`` of travel past ``position_rad``: a loop that stops
         ticking (a starved machine) leaves the fingers at the leash's end, not on the
-        object at full current."""
+        object at full current. Through a geared servo's friction the leash starts at the
+        loop's lead: the free close's, and in contact the closing edge at the force felt;
+        an output that rests anyway (the edge estimated short) is moved on from its
+        profile, one leash a tick."""
         leash = self._speed_rad_s * self.config.leash_s
-        goal = min(self.config.geometry.closed_position_rad,
-                   position_rad + self.lead_rad + leash)
+        lead = self.lead_rad
+        if self.free_loop is not None and force_n > 0.0:
+            lead = self.free_loop.closing_edge_rad(2.0 * force_n,
+                                                   self.config.geometry.pitch_radius_m)
+        start = position_rad + lead
+        trajectory = getattr(servo, "trajectory_position_rad", None)
+        if servo is not None and not servo.moving and isinstance(trajectory, float):
+            start = max(start, trajectory)
+        goal = min(self.config.geometry.closed_position_rad, start + leash)
         return ServoCommand(goal, self._speed_rad_s, self.config.closing_current_a)
 
     def tick(self, now_s: float, force_n: float | None, force_stamp_s: float | None,
@@ -364,12 +386,17 @@ class GraspController(BaseController):
         if age > cfg.pause_after_s:
             return self._pause(servo, force_n)
         lead = loop_lead_rad(servo)
-        if (lead is not None and servo.moving
+        if (lead is not None and servo.moving and lead > 0.0
                 and force_n < cfg.slowdown_from_fraction * self.request.target_force_n):
-            self.lead_rad = max(0.0, lead)
+            # the least lead in motion: a sample taken as the output broke away from rest
+            # carries the friction at rest, which a moving close does not need
             current = getattr(servo, "current_a", None)
-            if isinstance(current, float):
-                self.free_loop = LoopLead(self.lead_rad, current)
+            if isinstance(current, float) and (self.free_loop is None
+                                               or lead < self.free_loop.lead_rad):
+                self.free_loop = LoopLead(lead, current)
+                self.lead_rad = lead
+            elif not isinstance(current, float):
+                self.lead_rad = lead
         stop = self._contact_stop(force_n, force_stamp_s, servo)
         if stop is not None:
             return self._finish(Outcome.CONTACT, f"contact at {force_n:.2f} N", servo,
@@ -384,7 +411,8 @@ class GraspController(BaseController):
                                                               * self._speed_rad_s):
             self._speed_rad_s, self._paused = speed, False
         # every tick moves the leash on
-        return Step(self.phase, self._closing_command(servo.position_rad), None, "closing",
+        return Step(self.phase, self._closing_command(servo.position_rad, servo,
+                                                      max(force_n, 0.0)), None, "closing",
                     opening, force_n)
 
     def _at_closed_limit(self, servo: ServoReading) -> bool:
@@ -414,9 +442,11 @@ class GraspController(BaseController):
         air the travel since a force was sampled adds no force."""
         assert self.request is not None
         target = self.request.target_force_n
+        lead = self._stop_lead_rad(target)
         if force_n >= target:
             at_force = self._trace.at(stamp_s)
-            return min(servo.position_rad, self.lead_rad + stop_goal_rad(
+            # no further than where the output is: its goal the closing edge ahead of it
+            return lead + min(servo.position_rad, stop_goal_rad(
                 force_n, at_force, target, self.newton_per_rad))
         if force_n < self.config.slowdown_from_fraction * target:
             return None
@@ -427,7 +457,15 @@ class GraspController(BaseController):
                               self.config.command_latency_s)
         if ahead < target:
             return None
-        return self.lead_rad + stop_goal_rad(force_n, at_force, target, self.newton_per_rad)
+        return lead + stop_goal_rad(force_n, at_force, target, self.newton_per_rad)
+
+    def _stop_lead_rad(self, target_n: float) -> float:
+        """How far ahead of where the output is to rest the stop's goal goes: the closing
+        edge at the target's force (both fingers push it), or the free lead."""
+        if self.free_loop is None:
+            return self.lead_rad
+        return self.free_loop.closing_edge_rad(2.0 * target_n,
+                                               self.config.geometry.pitch_radius_m)
 
     def _scheduled_speed(self, force_n: float) -> float:
         """The requested speed, or slower: the speed at which the missing force would take

@@ -43,7 +43,13 @@ import math
 from dataclasses import dataclass
 
 from tactile_sensor.control.geometry import GripperGeometry
-from tactile_sensor.control.grasp import LoopLead, ServoCommand, ServoReading, loop_lead_rad
+from tactile_sensor.control.grasp import (
+    XM430_LOAD_FRICTION_RATIO,
+    LoopLead,
+    ServoCommand,
+    ServoReading,
+    loop_lead_rad,
+)
 from tactile_sensor.hardware.xm430_table import RAD_PER_PULSE
 
 
@@ -121,22 +127,24 @@ class ForceSettler:
     def _goal_rad(self, servo: ServoReading, step_rad: float) -> float:
         """The goal that moves the output by ``-step_rad`` through the loop's friction.
 
-        The band's closing edge is the free close's lead plus the lead the target's rack
-        force needs (``LoopLead``), or a lead seen at rest after a close if larger; its
-        opening edge is as far under the force's lead as the free lead is over it."""
+        The band's closing edge ``e_c`` is the free close's lead plus the lead the
+        target's rack force needs (``LoopLead``), or a lead seen at rest after a close if
+        larger. Its opening edge: with the motor's torque ``u = Kp e``, closing
+        ``u (1 - ratio) = load + f`` and opening ``u (1 - ratio) = load - f`` (the motor
+        pulls against friction the load cannot overcome), so ``e_o = 2 e_load / (1 -
+        ratio) - e_c``, ``ratio`` the gears' load-dependent friction."""
         lead = loop_lead_rad(servo)
         if lead is not None and self._last_closed and lead > (self.closing_lead_rad or 0.0):
             self.closing_lead_rad = lead  # at rest after a close: on the closing edge
         closing = step_rad < 0.0
         self._last_closed = closing
-        free = self.loop.lead_rad if self.loop is not None else 0.0
         # both fingers push the target: the rack force is twice finger A's
-        force_lead = (self.loop.lead_for_n(2.0 * self.target_force_n,
-                                           self.geometry.pitch_radius_m)
-                      if self.loop is not None else 0.0)
+        rack_n, radius = 2.0 * self.target_force_n, self.geometry.pitch_radius_m
+        force_lead = self.loop.lead_for_n(rack_n, radius) if self.loop is not None else 0.0
+        estimate = self.loop.closing_edge_rad(rack_n, radius) if self.loop is not None else 0.0
+        closing_edge = max(estimate, self.closing_lead_rad or 0.0)
         if closing:
-            edge = max(self.closing_lead_rad or 0.0, free + force_lead)
             present_goal = servo.position_rad + (lead if lead is not None else 0.0)
-            return max(present_goal, servo.position_rad + edge) - step_rad
-        edge = force_lead - max(free, self.closing_lead_rad or 0.0)
+            return max(present_goal, servo.position_rad + closing_edge) - step_rad
+        edge = 2.0 * force_lead / (1.0 - XM430_LOAD_FRICTION_RATIO) - closing_edge
         return servo.position_rad + edge - step_rad - 2.0 * RAD_PER_PULSE

@@ -36,6 +36,7 @@ import numpy.typing as npt
 
 from tactile_sensor.control.errors import ControlError
 from tactile_sensor.control.geometry import GripperGeometry
+from tactile_sensor.control.grasp import XM430_LOAD_FRICTION_RATIO
 from tactile_sensor.hardware.xm430_table import A_PER_CURRENT_UNIT
 
 #: XM430-W210 at 12 V: stall torque 3.0 N m at 2.3 A (ROBOTIS e-Manual), at the output.
@@ -112,13 +113,12 @@ class DriveTrain:
     compliance_m_per_n: float = 0.0
     #: One unit of Present Current [A].
     current_resolution_a: float = A_PER_CURRENT_UNIT
-    #: Friction at rest per N m the gears transmit [1]: the sources' 0.234 (Dynamixel
-    #: MX-64, Duclusaud et al. 2024, model M4; sim/drivetrain.py). A close cannot measure
-    #: it: the motor's torque u meets ``u (1 - ratio) = skin + friction`` however the
-    #: current goes (opening, the motor pulls against friction the skin's force cannot
-    #: overcome, and the same relation holds), so a higher ratio reads exactly as a
-    #: stiffer skin. It is the servo's constant, as the torque constant is.
-    load_friction_ratio: float = 0.234
+    #: Friction at rest per N m the gears transmit [1] (``XM430_LOAD_FRICTION_RATIO``).
+    #: A close cannot measure it: the motor's torque u meets ``u (1 - ratio) = skin +
+    #: friction`` however the current goes (opening, the motor pulls against friction the
+    #: skin's force cannot overcome, and the same relation holds), so a higher ratio reads
+    #: exactly as a stiffer skin. It is the servo's constant, as the torque constant is.
+    load_friction_ratio: float = XM430_LOAD_FRICTION_RATIO
 
     def __post_init__(self) -> None:
         if not (self.torque_constant_nm_per_a > 0 and self.backlash_rad >= 0
