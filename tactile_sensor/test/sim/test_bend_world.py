@@ -96,7 +96,7 @@ def test_a_bad_actuation_profile_is_refused_in_one_sentence(items, match):
 
 
 def test_an_actuation_beyond_the_fems_range_is_refused():
-    with pytest.raises(SimError, match="beyond the FEM|outside the FEM"):
+    with pytest.raises(SimError, match=r"beyond the FEM|outside the FEM"):
         world(BendPath(), actuation=ActuationProfile((0.0, 1.0), (0.0, 60_000.0)))
     with pytest.raises(SimError, match="beyond the FEM"):
         world(BendPath(angle_rad=2.0))
