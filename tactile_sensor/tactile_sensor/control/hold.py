@@ -66,8 +66,8 @@ class ForceSettler:
     window_s: float = 0.1
     max_window_s: float = 0.4
     gain: float = 0.8
-    #: One tactile sample's noise [N] (the paper's 31.5 dB: 0.56 N at 1 kHz): a mean whose
-    #: error is within twice its own σ is not corrected on (each correction through the
+    #: One tactile sample's noise [N] (the paper's 31.5 dB: 0.56 N at 1 kHz): a mean over
+    #: the target by less than twice its own σ is not lowered on (lowering through the
     #: friction costs the band's crossing), its window widens instead.
     sample_noise_n: float = 0.56
     #: The mean [N] of the last window judged: the force the hold reports once settled
@@ -117,8 +117,10 @@ class ForceSettler:
                                         * self.geometry.pitch_radius_m)
         if abs(step_rad) < 0.5 * RAD_PER_PULSE:
             return None, True
-        if abs(error) <= 2.0 * sigma_n:
-            # the mean cannot tell this error from its noise: judge a longer one
+        if 0.0 < error <= 2.0 * sigma_n:
+            # the mean cannot tell this excess from its noise, and taking it off costs the
+            # crossing of the friction's band and an approach from below: judge a longer
+            # mean first (a force short of the target is raised at once: that is cheap)
             self.window_s = min(2.0 * self.window_s, max(self.max_window_s, self.window_s))
             return None, False
         self.window_s = min(2.0 * self.window_s, max(self.max_window_s, self.window_s))
