@@ -132,9 +132,10 @@ PY
     ;;
   bend)
     # The bending finger (docs/bend.md): a slow sweep 0-90 deg, bends at 0.2, 0.5 and 1 Hz,
-    # and 0.5 Hz bends with a fingertip contact up to 2 N, read by the joint and fingertip
-    # modules; then the contact run again with the joint module alone. Each recording is
-    # analysed against the mock's true angle (a few minutes; a first run computes the FEM).
+    # and 0.5 Hz bends with a fingertip contact up to 0.5 N (the FEM's limit), read by the
+    # joint and fingertip modules; then the contact run again with the joint module alone.
+    # Each recording is analysed against the mock's true angle (a few minutes; a first run
+    # computes the FEM).
     for protocol in sweep speeds contact; do
       record bend "$protocol" "$run/$protocol" demo_badc
       echo "== $protocol: the driver's joint angle against the truth (two modules)"

@@ -18,8 +18,10 @@ every module's output on a grid of (bend angle, tip force); the fit turns that t
   ``separation``.
 
 Outputs are taken against the straight finger without contact (the driver's tare), so the
-FEM's outputs are shifted to read 0 there. An angle beyond the calibration's range by more
-than ``RANGE_MARGIN`` of its span is NaN (``in_range`` False): the table says nothing there.
+FEM's outputs are shifted to read 0 there. Beyond the calibration's range the estimate is
+NaN (``in_range`` False): the table says nothing there. With the joint module alone that is
+an output past the curve's ends by more than ``OUTPUT_MARGIN_V``; with two, an angle past
+the range by more than ``RANGE_MARGIN`` of its span.
 """
 
 from __future__ import annotations
@@ -43,6 +45,11 @@ JOINT, TIP = "joint", "tip"
 #: How far beyond the fitted angle range [fraction of its span] an estimate may still be
 #: read (clamped to the range): noise on an output at a range end.
 RANGE_MARGIN = 0.03
+#: With the joint module alone, how far its output may pass the curve's ends and still be
+#: read as the end's angle [V]: four times the paper's 13 mV noise (31.5 dB, Sec. III-C).
+#: The curve flattens toward its top (the gap saturates), where an angle margin would let
+#: every noise excursion read NaN.
+OUTPUT_MARGIN_V = 0.05
 #: Largest held-out error on the FEM grid with which two modules still separate bend and
 #: contact (half the goals' 2 deg, and a twentieth of the 2 N contact).
 SEPARATION_ANGLE_RAD = math.radians(1.0)
@@ -170,7 +177,10 @@ class BendCalibration:
         if self.separates:
             angle, force = self._poly(outputs_v[0], outputs_v[1])
         else:
-            angle = self._curve(outputs_v[0])
+            o = self.curve_output_v
+            if not o or not o[0] - OUTPUT_MARGIN_V <= outputs_v[0] <= o[-1] + OUTPUT_MARGIN_V:
+                return BendEstimate(NAN, NAN, False)
+            angle = float(np.interp(outputs_v[0], o, self.curve_angle_rad))
             force = NAN
         if not lo - margin <= angle <= hi + margin:
             return BendEstimate(NAN, NAN, False)
@@ -189,16 +199,6 @@ class BendCalibration:
         found = [self.estimate(tuple(r.tolist())) for r in rows]
         return (np.array([e.angle_rad for e in found]), np.array([e.tip_force_n for e in found]),
                 np.array([e.in_range for e in found]))
-
-    def _curve(self, output_v: float) -> float:
-        o, a = self.curve_output_v, self.curve_angle_rad
-        if not o:
-            return NAN
-        if output_v < o[0] or output_v > o[-1]:  # linear beyond the ends: the margin test
-            k = 0 if output_v < o[0] else len(o) - 2
-            slope = (a[k + 1] - a[k]) / (o[k + 1] - o[k])
-            return a[k] + (output_v - o[k]) * slope
-        return float(np.interp(output_v, o, a))
 
     def _poly(self, joint_v: float, tip_v: float) -> tuple[float, float]:
         """(angle, force): the inverse polynomial's guess, then Newton steps on the forward

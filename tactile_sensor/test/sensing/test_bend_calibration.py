@@ -109,3 +109,10 @@ def test_the_file_round_trip_keeps_the_estimates(tmp_path):
         BendCalibration.from_file(path)
     with pytest.raises(CalibrationError, match="Cannot read"):
         BendCalibration.from_file(tmp_path / "missing.json")
+
+
+def test_noise_just_past_the_curves_top_reads_the_top_angle():
+    cal = BendCalibration.fit(("joint",), ANGLES, FORCES, table()[:, :, :1])
+    top = 0.4 * math.sin(0.9 * math.pi / 2)
+    est = cal.estimate((top + 0.02,))  # within four times the paper's noise
+    assert est.in_range and est.angle_rad == pytest.approx(math.pi / 2)
