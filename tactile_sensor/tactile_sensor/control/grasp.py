@@ -445,9 +445,13 @@ class GraspController(BaseController):
         lead = self._stop_lead_rad(target)
         if force_n >= target:
             at_force = self._trace.at(stamp_s)
-            # no further than where the output is: its goal the closing edge ahead of it
-            return lead + min(servo.position_rad, stop_goal_rad(
-                force_n, at_force, target, self.newton_per_rad))
+            if self.free_loop is not None:
+                # through a geared servo's friction a goal behind the output throws it
+                # open past the band's far edge on one noisy reading: hold where it is
+                # (the closing edge ahead of it) and let the hold take an excess off
+                return lead + servo.position_rad
+            return min(servo.position_rad, stop_goal_rad(force_n, at_force, target,
+                                                         self.newton_per_rad))
         if force_n < self.config.slowdown_from_fraction * target:
             return None
         at_force = self._trace.at(stamp_s)

@@ -251,17 +251,14 @@ def test_the_loops_lead_in_free_air_goes_on_the_leash_the_stop_and_the_closed_li
     assert controller.free_loop is not None
     assert controller.free_loop.current_a / controller.free_loop.lead_rad == pytest.approx(
         0.2 / lead)
-    # past the target: the stop backs off the excess from where the output is to rest,
-    # its goal the closing edge at the target's force ahead of that
+    # past the target: the stop holds the output where it is, its goal the closing edge
+    # at the target's force ahead of it (a goal behind it would throw it past the band)
     touch = G.position_rad(0.018)
     step = controller.tick(0.5, 2.1, 0.49, GearedServo(touch, touch + lead))
     assert step.outcome is Outcome.CONTACT
     edge = controller.free_loop.closing_edge_rad(2.0 * 2.0, G.pitch_radius_m)
     assert edge > lead  # the force's lead on top of the free one
-    back_rad = 0.1 / controller.newton_per_rad
-    at_force = controller._trace.at(0.49)
-    assert step.command.goal_position_rad == pytest.approx(
-        edge + min(touch, at_force - back_rad))
+    assert step.command.goal_position_rad == pytest.approx(touch + edge)
 
 
 def test_an_output_at_rest_its_lead_short_of_the_closed_limit_has_reached_it():
