@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from bend_tables import ANGLES, FORCES, table
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -14,21 +15,6 @@ from tactile_sensor.sensing.bend_calibration import (
     bend_layout_refusal,
 )
 from tactile_sensor.sensing.errors import CalibrationError
-
-ANGLES = np.linspace(0.0, math.pi / 2, 19)
-FORCES = np.linspace(0.0, 2.0, 9)
-
-
-def table(joint_force_gain: float = 0.02, tip_bend_gain: float = 0.05,
-          alike: bool = False) -> np.ndarray:
-    """A smooth table: the joint module saturating with the bend and a little force, the tip
-    reading the force and a little bend (or, ``alike``, both reading one mix)."""
-    a, f = np.meshgrid(ANGLES, FORCES, indexing="ij")
-    joint = 0.4 * np.sin(0.9 * a) + joint_force_gain * f
-    tip = 0.05 * f + 0.01 * f ** 2 + tip_bend_gain * a
-    if alike:
-        tip = 0.5 * joint
-    return np.stack([joint, tip], axis=-1)
 
 
 def test_one_module_reads_the_angle_without_contact_and_no_force():

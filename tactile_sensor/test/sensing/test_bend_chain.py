@@ -15,7 +15,7 @@ from tactile_sensor.sensing.chain import ChainConfig
 from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_bend_calibration import ANGLES, FORCES, table
+from bend_tables import ANGLES, FORCES, table
 
 REST_V = 2.5
 VPC = 5.0 / 4095
