@@ -304,6 +304,22 @@ XM430_TORQUE_CONSTANT_NM_PER_A = 3.0 / 2.3
 XM430_LOAD_FRICTION_RATIO = 0.234
 
 
+def profile_arrived(servo: ServoReading, geometry: GripperGeometry, opening_m: float,
+                    tolerance_m: float, current_limit_a: float) -> bool:
+    """The fingers within ``tolerance_m`` of an opening, or the servo's profile there with
+    the output short of it by friction alone: a geared servo's output rests its loop's
+    lead short of the goal (the friction over the P gain, ~0.9 mm of opening on the
+    XM430's sources), drawing the current that friction needs, well under the limit an
+    object it stalls on would take it to."""
+    if abs(geometry.opening_m(servo.position_rad) - opening_m) <= tolerance_m:
+        return True
+    trajectory = getattr(servo, "trajectory_position_rad", None)
+    current = getattr(servo, "current_a", None)
+    return (isinstance(trajectory, float) and isinstance(current, float)
+            and abs(geometry.opening_m(trajectory) - opening_m) <= tolerance_m
+            and abs(current) < 0.9 * current_limit_a)
+
+
 def loop_lead_rad(servo: ServoReading) -> float | None:
     """How far the servo's profile leads its output [rad] (None: the sample does not say):
     the position loop's error, which a geared servo's friction needs to turn the output."""
@@ -417,13 +433,13 @@ class GraspController(BaseController):
 
     def _at_closed_limit(self, servo: ServoReading) -> bool:
         """The fingers at the closed limit: there, or (through a geared servo's friction,
-        which leaves the output its loop's lead short) at rest with the profile there."""
+        which leaves the output its loop's lead short) at rest with the profile there and
+        drawing less than an object it stalls on would take (``profile_arrived``)."""
         g, tolerance = self.config.geometry, self.config.limit_tolerance_m
         if self._opening(servo) <= g.closed_opening_m + tolerance:
             return True
-        trajectory = getattr(servo, "trajectory_position_rad", None)
-        return (isinstance(trajectory, float) and not servo.moving
-                and g.opening_m(trajectory) <= g.closed_opening_m + tolerance)
+        return not servo.moving and profile_arrived(
+            servo, g, g.closed_opening_m, tolerance, self.config.closing_current_a)
 
     def _pause(self, servo: ServoReading, force_n: float) -> Step:
         """Hold where the fingers are until a fresh force comes (once per pause)."""
@@ -525,8 +541,10 @@ class ReleaseController(BaseController):
         if done is not None:
             return done
         opening = self._opening(servo)
-        if abs(opening - self.target_opening_m) <= self.config.open_tolerance_m and not (
-                servo.moving):
+        if not servo.moving and profile_arrived(servo, self.config.geometry,
+                                                self.target_opening_m,
+                                                self.config.open_tolerance_m,
+                                                self.config.closing_current_a):
             self.phase = Phase.DONE
             return Step(self.phase, None, Outcome.OPENED, f"opened to {opening * 1e3:.1f} mm",
                         opening)

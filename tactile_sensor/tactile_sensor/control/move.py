@@ -35,6 +35,7 @@ from tactile_sensor.control.grasp import (
     ServoReading,
     Step,
     hardware_error_detail,
+    profile_arrived,
     slowed_speed,
 )
 from tactile_sensor.control.tactile_force import stale_detail
@@ -143,7 +144,9 @@ class MoveController(BaseController):
                                                      * self._speed_rad_s):
                     self._speed_rad_s = speed
                     command = self._command()
-        if abs(opening - request.opening_m) <= request.tolerance_m and not servo.moving:
+        if not servo.moving and profile_arrived(servo, self.config.geometry,
+                                                request.opening_m, request.tolerance_m,
+                                                self.config.closing_current_a):
             self.phase = Phase.DONE
             return Step(self.phase, None, Outcome.REACHED,
                         f"reached {opening * 1e3:.1f} mm", opening, force_n)

@@ -269,3 +269,21 @@ def test_an_output_at_rest_its_lead_short_of_the_closed_limit_has_reached_it():
     assert step.outcome is Outcome.CLOSED_LIMIT_WITHOUT_CONTACT
     moving = started(target=2.0).tick(1.0, 0.0, 0.99, GearedServo(limit - 0.03, limit))
     assert moving.outcome is None
+    # stalled on an object the sensor cannot read (saturated, blind): the limit's current
+    pressed = GearedServo(limit - 0.3, limit, current_a=0.6, moving=False)
+    assert started(target=2.0).tick(1.0, 0.0, 0.99, pressed).outcome is None
+
+
+def test_a_release_resting_its_lead_short_of_the_opening_has_opened_unless_stalled():
+    """Through the friction the output rests its loop's lead short of the goal, drawing
+    the friction's current; one pressed on something draws the limit and has not."""
+    release = ReleaseController()
+    goal = G.position_rad(0.030)
+    release.start(0.030, 0.01, 5.0, 0.0, Servo(G.position_rad(0.020)))
+    short = goal + 0.03  # 0.8 mm of opening short: more than the tolerance
+    friction = GearedServo(short, goal, current_a=-0.2, moving=False)
+    assert release.tick(1.0, friction).outcome is Outcome.OPENED
+    release = ReleaseController()
+    release.start(0.030, 0.01, 5.0, 0.0, Servo(G.position_rad(0.020)))
+    stalled = GearedServo(short, goal, current_a=-0.6, moving=False)
+    assert release.tick(1.0, stalled).outcome is None
