@@ -29,6 +29,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tactile_sensor"))
 
+from grasp_hold import DRIVETRAINS  # noqa: E402
 from results import Figure, write_results  # noqa: E402
 
 from tactile_sensor.control.self_check import (  # noqa: E402
@@ -56,7 +57,7 @@ SPEED_M_S, CURRENT_A, PRESS_M = 0.001, 1.0, 0.0020
 
 
 def closing_record(curve: object, stiffness: float, emitter: float, rod_offset_m: float,
-                   seed: int) -> ClosingRecord:
+                   seed: int, drivetrain: str = "default") -> ClosingRecord:
     """One slow close on the rod, as the gripper node records it."""
     rng = np.random.default_rng(seed)
     skin = TabulatedSkin.from_prediction_curve(curve)
@@ -64,7 +65,7 @@ def closing_record(curve: object, stiffness: float, emitter: float, rod_offset_m
                          stiffness_ratio=stiffness)
     g = world.geometry
     start = g.position_rad(ROD_M + 2.0 * (START_GAP_M + abs(rod_offset_m)))
-    motor = MotorModel(start, world.load_torque_nm)
+    motor = MotorModel(start, world.load_torque_nm, drivetrain=DRIVETRAINS[drivetrain])
     speed = g.finger_speed_to_rad_s(SPEED_M_S)
     command = MotorCommand(True, g.closed_position_rad, speed, 0.0, CURRENT_A)
     state = DetectorState(emitter_ratio=emitter)
@@ -98,6 +99,8 @@ def main() -> int:
     parser.add_argument("--rod-offset", type=float, default=0.0005,
                         help="the rod's offset from the gripper centre [m]")
     parser.add_argument("--seeds", type=int, default=5, help="closes per case")
+    parser.add_argument("--drivetrain", choices=tuple(DRIVETRAINS), default="default",
+                        help="the servo's drivetrain (benchmarks/grasp_hold.py)")
     args = parser.parse_args()
     curve = load_or_compute_curve(PhysicsParams())
     prediction = SkinPrediction(tuple(curve.indentation_m.tolist()),
@@ -107,9 +110,10 @@ def main() -> int:
     figures: list[Figure] = []
     for stiffness, emitter in CASES:
         figures += run_case(curve, prediction, stiffness, emitter, args)
-    write_results("bench_self_check", figures, notes=(
+    suffix = "" if args.drivetrain == "default" else "_" + args.drivetrain.replace("-", "_")
+    write_results("bench_self_check" + suffix, figures, notes=(
         f"{args.seeds} closes per skin, rod {args.rod_offset * 1e3:g} mm off the centre "
-        "towards finger B; seeds 0.."))
+        f"towards finger B; seeds 0..; drivetrain {args.drivetrain}"))
     return 0
 
 
@@ -119,7 +123,8 @@ def run_case(curve: object, prediction: SkinPrediction, stiffness: float, emitte
     key = f"skin {stiffness:g} x, emitter {emitter:g} x"
     fits = []
     for seed in range(args.seeds):
-        record = closing_record(curve, stiffness, emitter, args.rod_offset, seed)
+        record = closing_record(curve, stiffness, emitter, args.rod_offset, seed,
+                                args.drivetrain)
         try:
             fits.append(fit_self_check(record, prediction))
         except SelfCheckError as exc:
