@@ -135,10 +135,11 @@ class Probe:
             return history[-1] if history else None
 
     def ready(self) -> bool:
-        """The driver streams (tared, calibrated) and the servo answers."""
+        """The driver streams (tared, calibrated) and the servo answers. Streaming is judged
+        on the frames it takes: its readings go out only while someone listens."""
         driver, gripper = self.last(DRIVER_DIAG), self.last(GRIPPER_DIAG)
         return (driver is not None and driver.level == 0
-                and int(driver.values.get("readings_published", "0")) > 0
+                and int(driver.values.get("frames", "0")) > 0
                 and gripper is not None and gripper.level == 0
                 and self.grasp.server_is_ready() and self.release.server_is_ready())
 
