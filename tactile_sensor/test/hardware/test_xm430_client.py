@@ -24,6 +24,7 @@ from tactile_sensor.hardware.errors import (
 )
 from tactile_sensor.hardware.xm430 import Xm430Client
 from tactile_sensor.hardware.xm430_table import OperatingMode
+from tactile_sensor.sim.drivetrain import Drivetrain
 from tactile_sensor.sim.gripper_world import GripperWorld
 from tactile_sensor.sim.xm430_emulator import Xm430Emulator
 
@@ -60,7 +61,19 @@ def test_connect_reads_model_and_state_in_si(client):
     assert state.hardware_error == frozenset() and not state.moving
 
 
-def test_closing_on_the_rod_raises_current_and_stalls(client, world):
+@pytest.fixture
+def ideal_client(tmp_path, world):
+    """A client of a servo without the drivetrain's losses: on the sourced drivetrain 0.1 A
+    is below what the torque offset and friction take, and nothing would close
+    (test_drivetrain.py, docs/gripper-drivetrain.md)."""
+    with Xm430Emulator(tmp_path / "ideal", baudrate=BAUD, world=world,
+                       drivetrain=Drivetrain.ideal()) as emu, \
+            Xm430Client(str(emu.link.link_path), BAUD, 1, timeout_s=PATIENT_TIMEOUT_S) as c:
+        yield c
+
+
+def test_closing_on_the_rod_raises_current_and_stalls(ideal_client, world):
+    client = ideal_client
     client.set_operating_mode(OperatingMode.CURRENT_BASED_POSITION)
     client.set_torque(True)
     g = world.geometry
