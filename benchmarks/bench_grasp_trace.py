@@ -36,13 +36,6 @@ from grasp_hold import (  # noqa: E402
 from results import Figure, write_results  # noqa: E402
 
 from tactile_sensor.control.actions import accept_grasp, accept_release  # noqa: E402
-from tactile_sensor.control.goal_runner import (  # noqa: E402
-    GoalLink,
-    GoalRunner,
-    GoalSlot,
-    RunnerTiming,
-)
-from tactile_sensor.control.servo_link import ServoLink  # noqa: E402
 from tactile_sensor.control.tactile_force import TactileForce  # noqa: E402
 from tactile_sensor.sim.gripper_world import GripperWorld  # noqa: E402
 
@@ -71,16 +64,8 @@ def grasp_hold_release(bench: Bench, target_n: float, hold_s: float
                        ) -> tuple[dict[str, list[float]], list[str], dict[str, float]]:
     """The trace, the two results' messages, and the instants [s from the goal] of the
     release's start and end."""
-    values, settings = bench.values, bench.settings
-    period = 1.0 / values["control_rate"]
-    servo = ServoLink(bench.client, settings.config, period_s=period,
-                      retries=values["comm_retries"])
-    forces = TactileForce()
-    runner = GoalRunner(servo, forces, GoalSlot(),
-                        RunnerTiming(period, 1.0 / values["feedback_rate"],
-                                     values["settle_time"]),
-                        on_hardware_error=lambda bits: None, log_error=print)
-    link = GoalLink(object(), lambda: False, lambda fields: None)
+    settings = bench.settings
+    servo, forces, runner, link = bench.goal_runner()
     grasp = SimpleNamespace(target_force=target_n, closing_speed=0.0, timeout=0.0)
     release = SimpleNamespace(opening=0.0)  # fully open, where the grasp started
     sampler = Sampler(bench, forces)

@@ -198,7 +198,9 @@ class Bench:
                 return float(forces.max(initial=0.0)), math.nan
             time.sleep(0.05)
 
-    def tactile_grasp(self, target_n: float, seed: int) -> Grasp:
+    def goal_runner(self) -> tuple[ServoLink, TactileForce, GoalRunner, GoalLink]:
+        """The gripper node's goal runner on this bench's servo, with the node's settings,
+        and a link for goals nobody cancels."""
         values, settings = self.values, self.settings
         period = 1.0 / values["control_rate"]
         servo = ServoLink(self.client, settings.config, period_s=period,
@@ -208,8 +210,12 @@ class Bench:
                             RunnerTiming(period, 1.0 / values["feedback_rate"],
                                          values["settle_time"]),
                             on_hardware_error=lambda bits: None, log_error=print)
+        return servo, forces, runner, GoalLink(object(), lambda: False, lambda fields: None)
+
+    def tactile_grasp(self, target_n: float, seed: int) -> Grasp:
+        settings = self.settings
+        servo, forces, runner, link = self.goal_runner()
         goal = SimpleNamespace(target_force=target_n, closing_speed=0.0, timeout=0.0)
-        link = GoalLink(object(), lambda: False, lambda fields: None)
         t_start = self.world_time()
         with TactileFeed(self.world, self.emulator._t0, forces, seed), ControlLoop(servo):
             servo.await_sample(1.0)
