@@ -70,6 +70,16 @@ def _field(default: Any, unit: str, doc: str) -> Any:
     return field(default=default, metadata={"unit": unit, "doc": doc})
 
 
+def _check_number(what: str, value: Any, unit: str, *, positive: bool) -> None:
+    """Refuse a parameter that is no finite number (or, ``positive``, not above 0) in one
+    sentence naming it and its unit; the finger and its modules share the rule."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or \
+            not math.isfinite(value):
+        raise PhysicsError(f"{what} is {value!r}; give a finite number in {unit}.")
+    if positive and value <= 0:
+        raise PhysicsError(f"{what} is {value!r}; give a positive number in {unit}.")
+
+
 @dataclass(frozen=True)
 class BendGeometry:
     """The finger: two rigid phalanges joined by a soft silicone joint, covered by skin.
@@ -118,15 +128,9 @@ class BendGeometry:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if f.name == "source":
-                continue
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise PhysicsError(f"Finger parameter {f.name!r} is {v!r}; give a finite "
-                                   f"number in {f.metadata['unit']}.")
-            if f.name not in ("c10",) and v <= 0:
-                raise PhysicsError(f"Finger parameter {f.name!r} is {v!r}; give a positive "
-                                   f"number in {f.metadata['unit']}.")
+            if f.name != "source":
+                _check_number(f"Finger parameter {f.name!r}", getattr(self, f.name),
+                              f.metadata["unit"], positive=f.name != "c10")
         if 2 * self.skin_thickness >= min(self.thickness, self.width):
             raise PhysicsError("The skin is as thick as the finger leaves no bone; give "
                                "skin_thickness below half the thickness and width.")
@@ -181,16 +185,10 @@ class BendModule:
                                f"{' or '.join(BEND_FACES)} (the palm is left free).")
         for name in ("arc_position_m", "standoff_m", "window_offset_m", "clip_length_m",
                      "window_length_m", "window_width_m", "clip_position_m"):
-            v = getattr(self, name)
-            if name == "clip_position_m" and v is None:
-                continue
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise PhysicsError(f"Module {name!r} is {v!r}; give a finite number of "
-                                   "metres.")
-        for name in ("standoff_m", "clip_length_m", "window_length_m", "window_width_m"):
-            if getattr(self, name) <= 0:
-                raise PhysicsError(f"Module {name!r} is {getattr(self, name)!r}; give a "
-                                   "positive number of metres.")
+            if name != "clip_position_m" or self.clip_position_m is not None:
+                _check_number(f"Module {name!r}", getattr(self, name), "m",
+                              positive=name in ("standoff_m", "clip_length_m",
+                                                "window_length_m", "window_width_m"))
         if self.window_length_m >= self.clip_length_m:
             raise PhysicsError("The module's window is as long as its clip; give "
                                "window_length_m below clip_length_m.")
@@ -376,11 +374,15 @@ class BendResponse:
               df: int = 0) -> np.ndarray:
         return spline.ev(a.ravel(), f.ravel(), dx=da, dy=df).reshape(a.shape)
 
+    def _gaps(self, a: np.ndarray, f: np.ndarray, da: int = 0, df: int = 0) -> np.ndarray:
+        """Each module's gap spline (or its derivative) on the clipped grid point, stacked
+        on a last axis."""
+        return np.stack([self._eval(s, a, f, da, df) for s in self._gap], axis=-1)
+
     def gap_m(self, angle_rad: npt.ArrayLike, tip_force_n: npt.ArrayLike = 0.0) -> np.ndarray:
         """Photoreflector-skin distance of each module [m], shape (..., n_modules)."""
         a, f, inside = self._grid(angle_rad, tip_force_n)
-        out = np.stack([self._eval(s, a, f) for s in self._gap], axis=-1)
-        return np.where(inside[..., None], out, np.nan)
+        return np.where(inside[..., None], self._gaps(a, f), np.nan)
 
     def voltage_v(self, angle_rad: npt.ArrayLike, tip_force_n: npt.ArrayLike = 0.0
                   ) -> np.ndarray:
@@ -401,11 +403,9 @@ class BendResponse:
         """d output / d(angle [rad], force [N]) of each module, shape (..., n_modules, 2)
         [V/rad, V/N], for a Newton inverse."""
         a, f, inside = self._grid(angle_rad, tip_force_n)
-        gap = np.stack([self._eval(s, a, f) for s in self._gap], axis=-1)
-        slope = self.optics.slope(np.maximum(gap, 1e-6))          # dV/dx
-        dga = np.stack([self._eval(s, a, f, da=1) for s in self._gap], axis=-1)
-        dgf = np.stack([self._eval(s, a, f, df=1) for s in self._gap], axis=-1)
-        jac = np.stack([-slope * dga, -slope * dgf], axis=-1)
+        slope = self.optics.slope(np.maximum(self._gaps(a, f), 1e-6))    # dV/dx
+        jac = np.stack([-slope * self._gaps(a, f, da=1), -slope * self._gaps(a, f, df=1)],
+                       axis=-1)
         return np.where(inside[..., None, None], jac, np.nan)
 
     def tension_n(self, angle_rad: npt.ArrayLike, tip_force_n: npt.ArrayLike = 0.0
@@ -433,7 +433,10 @@ class BendResponse:
             stop = int(np.argmin(rising)) if not rising.all() else fine.size
             branch_t, branch_a = curve[:stop], fine[:stop]
             value = float(t[idx])
-            if branch_t[0] - 1e-9 <= value <= branch_t[-1]:
+            # the spline's rounding is not monotone to the last bit: a tension read just
+            # inside the top angle can exceed the curve's top value by a few ulps
+            slack = 1e-9 * max(1.0, abs(float(branch_t[-1])))
+            if branch_t[0] - 1e-9 <= value <= branch_t[-1] + slack:
                 out[idx] = float(np.interp(value, branch_t, branch_a))
             elif value < branch_t[0]:
                 out[idx] = float(branch_a[0])    # slack: the contact holds it straight
