@@ -305,7 +305,7 @@ class DriverNode(GuardedLifecycleNode):
             return
         stamp, epoch, every = self._clock_map.stamp_ns, batch.epoch, self._publish_every_ns
         stamps = [stamp(epoch, r.device_time_us, r.host_time_ns) for r in readings]
-        due: list[int] = []  # the readings published, at publish_rate
+        due: list[int] = []  # the readings ~/wrench may carry, at publish_rate
         for i, stamp_ns in enumerate(stamps):
             if stamp_ns >= self._next_publish_ns:
                 self._next_publish_ns = stamp_ns + every
@@ -329,9 +329,12 @@ class DriverNode(GuardedLifecycleNode):
             first = self._live.first_live([stamps[i] for i in due],
                                           reader is not None and reader.samples_waiting > 0)
             live = set(due[first:])
-        if record or live:
+        if record:  # the record: every sample, whatever publish_rate paces ~/wrench at
+            for i, (reading, stamp_ns) in enumerate(zip(readings, stamps, strict=True)):
+                self._publish(reading, stamp_ns, True, i in live)
+        elif live:
             for i in due:
-                self._publish(readings[i], stamps[i], record, i in live)
+                self._publish(readings[i], stamps[i], False, i in live)
 
     def _publish(self, reading: Reading | ArrayReading | BendReading, stamp_ns: int,
                  record: bool, live: bool) -> None:

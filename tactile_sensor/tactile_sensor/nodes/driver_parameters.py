@@ -86,8 +86,9 @@ SPECS = [
     ParamSpec("filter.beta", 0.5, "one_euro speed coefficient [1/V]", minimum=0.0),
     ParamSpec("filter.d_cutoff_hz", 1.0, "one_euro derivative cutoff [Hz]", minimum=0.0,
               exclusive_minimum=True),
-    ParamSpec("publish_rate", 0.0, "rate [Hz] of ~/wrench and ~/reading; 0 = every sample "
-              "(the filter always sees every sample)", minimum=0.0, maximum=100_000.0),
+    ParamSpec("publish_rate", 0.0, "rate [Hz] of ~/wrench, the live force; 0 = every "
+              "sample (~/reading, the record, and the filter always get every sample)",
+              minimum=0.0, maximum=100_000.0),
     ParamSpec("live_window", DEFAULT_LIVE_WINDOW_S, "~/wrench carries the readings within "
               "this much of the newest sample [s]: a driver behind its ADC (a busy machine) "
               "skips the older ones there, counted in /diagnostics 'wrench_skipped'; "

@@ -18,7 +18,8 @@ Idle cost: the executor waits on the actions, services and parameters only. The 
 subscriptions are in ``TakenByTheLoop``, a callback group the executor never runs, and
 the loop takes what waits in them before each servo sample: a 250 Hz force stream cost an
 executor round (the wait set of five action servers rebuilt) per message, 0.3 of a core.
-``tactile_reading`` (1 kHz) is subscribed only while a self-check runs.
+``tactile_reading`` (the driver's record, every 1 kHz sample) is subscribed only while a
+self-check runs, and taken as bytes: the self-check reads each one's stamp and output.
 
 Goals are accepted and then aborted with the reason in the result when they cannot run
 (not active, invalid, the force stale): a rejected goal's reason reached only this node's
@@ -88,6 +89,7 @@ from tactile_sensor.nodes.parameters import (
     declare_parameters,
     read_parameters,
 )
+from tactile_sensor.nodes.reading_decode import stamp_and_output
 from tactile_sensor_interfaces.action import Grasp, Release, SelfCheck
 from tactile_sensor_interfaces.msg import CalibrationCorrection, SlipEvent, TactileReading
 from tactile_sensor_interfaces.srv import PredictOutput
@@ -352,11 +354,13 @@ class GripperNode(GuardedLifecycleNode):
             forces = [deserialize_message(data, WrenchStamped) for data in raw]
             if forces:
                 self._on_force(forces[0], forces[1:])
-            readings = _take(self._reading_sub, TactileReading)
+            # the record's every sample (1 kHz) during a self-check: as bytes, read for
+            # its stamp and output alone (nodes/reading_decode.py), no message object each
+            readings = _take(self._reading_sub, TactileReading, raw=True)
             now = time.monotonic()
-            for msg in readings:
-                stamp = msg.header.stamp
-                self._output.add(msg.output, now, stamp.sec + stamp.nanosec * 1e-9)
+            for data in readings:
+                stamp_s, output_v = stamp_and_output(data)
+                self._output.add(output_v, now, stamp_s)
 
     def _on_force(self, msg: WrenchStamped, more: list[WrenchStamped] | None = None) -> None:
         """``msg`` and the ``more`` that came after it: the newest, and the sums the hold

@@ -108,8 +108,8 @@ def _driver() -> NodeInterface:
                      "`publish_rate`, the newest only when the driver is behind its ADC"),
             Endpoint("~/reading", "tactile_sensor_interfaces/msg/TactileReading",
                      "voltage [V], inverted output [V], force [N] and contact of each "
-                     "sample at `publish_rate`, the record (with `modules`: each face's "
-                     "voltage and output too)"),
+                     "sample, every sample (the record; with `modules`: each face's voltage "
+                     "and output too)"),
             Endpoint("~/joint_states", _JOINTS, "with `bend_modules`: the finger's joint "
                      "angle [rad] (`joint_name`; 0 straight, REP 103) of each sample at "
                      "`publish_rate`, NaN beyond the calibration's range (/diagnostics WARN "
