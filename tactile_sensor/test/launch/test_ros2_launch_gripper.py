@@ -111,7 +111,7 @@ def test_gripper_launch_with_the_readme_grasp_and_runtime_commands(
     with AnyReader([bag]) as reader:
         assert [str(reader.message_count)] == closed, output[-2000:]
 
-    # ~/reading carries every reading at publish_rate; ~/wrench the newest only, so a
+    # ~/reading carries every reading; ~/wrench at publish_rate, the newest only, so a
     # driver behind skips some there (docs/CONTRACTS.md: live and recorded)
     for topic, least in (("/driver/wrench", 1), ("/driver/reading", 100)):
         stamps = header_stamps(bag, topic)
@@ -120,5 +120,5 @@ def test_gripper_launch_with_the_readme_grasp_and_runtime_commands(
         assert (stamps > resumed_at).sum() >= least, topic  # publishing again
     before = stamps[stamps < stopped_at - 0.5]  # /driver/reading's
     rate = (len(before) - 1) / (before[-1] - before[0])
-    assert rate == pytest.approx(250.0, rel=0.1)  # gripper.yaml publish_rate
+    assert rate == pytest.approx(1000.0, rel=0.1)  # every sample of the 1 kHz ADC
     assert own_processes() == []
