@@ -221,6 +221,10 @@ class SlipHold:
         self._ceiling_rad = position_rad + (config.ceiling_n - grip_n) / config.newton_per_rad
         self._goal_rad = position_rad
         self._commanded_s: float | None = None
+        #: The position loop's lead at rest after a close [rad] (the band's closing edge;
+        #: 0 until a rest shows it) and whether the last goal closed.
+        self._closing_lead_rad = 0.0
+        self._last_closed = True
         self._rest_sum, self._rest_count = 0.0, 0
         # (the last window's mean |Ft|, this window's start, its sum, sum of squares, count)
         self._steady: tuple[float, float | None, float, float, int] = (
@@ -411,7 +415,15 @@ class SlipHold:
     def _regulate(self, now_s: float, fn_n: float, position_rad: float, moving: bool,
                   urgent: bool) -> float | None:
         """The goal for the grip: at once when the grip target moved (a probe's step, a
-        reflex); after ``settle_s`` at rest, from the mean force of that rest."""
+        reflex); after ``settle_s`` at rest, from the mean force of that rest.
+
+        Through a geared servo's friction the output rests short of a closing goal by the
+        position loop's lead (the friction and the load over the P gain; control/hold.py),
+        and a goal moved within that band moves nothing. A grip to raise therefore gets
+        the largest lead seen at rest after a close on top of where the output is to be:
+        without it a raise the output cannot follow leaves the grip where it was while
+        the hold counts on the new one (a reflex that keeps nothing). A grip to lower gets
+        no lead: the output rests above an opening goal, on the side of more grip."""
         cfg = self.config
         grip = self.grip_n
         if self._commanded_s is not None and (moving or now_s - self._commanded_s
@@ -423,16 +435,23 @@ class SlipHold:
             if self._rest_count * (1.0 / cfg.control_rate_hz) >= cfg.settle_s:
                 mean = self._rest_sum / self._rest_count
                 self._rest_sum, self._rest_count = 0.0, 0
+                if self._last_closed and self._commanded_s is not None:
+                    # at rest after a close: the output sits on the band's closing edge
+                    self._closing_lead_rad = max(self._closing_lead_rad,
+                                                 self._goal_rad - position_rad)
                 # a mean under half the grip: the object is gone (dropped, pulled out);
                 # chasing the grip would close the fingers on nothing
                 if (abs(mean - grip) > cfg.tolerance * grip
                         and mean > 0.5 * grip):
                     self._anchor = (position_rad, mean)
         anchor_rad, anchor_n = self._anchor
-        goal = min(cfg.closed_position_rad, self._ceiling_rad,
-                   anchor_rad + (grip - anchor_n) / cfg.newton_per_rad)
+        target = min(self._ceiling_rad, anchor_rad + (grip - anchor_n) / cfg.newton_per_rad)
+        closing = target >= position_rad - 0.5 * RAD_PER_PULSE
+        goal = min(cfg.closed_position_rad,
+                   target + (self._closing_lead_rad if closing else 0.0))
         if abs(goal - self._goal_rad) < (0.5 if urgent else 1.0) * RAD_PER_PULSE:
             return None
         self._goal_rad, self._commanded_s = goal, now_s
+        self._last_closed = closing
         self._rest_sum, self._rest_count = 0.0, 0
         return goal

@@ -147,12 +147,24 @@ class Contact:
             self.rate.reset()
 
     def engage(self, x_m: float, h: float, normal_n: float, k: float, mu_s: float,
-               mu_k: float) -> float:
+               mu_k: float, velocity_m_s: float = 0.0) -> float:
         """The skin's force with the object at ``x_m`` after a step ``h`` [s]: the deflected
-        skin's (with the rate effect) while it sticks, else the kinetic friction."""
+        skin's (with the rate effect) while it sticks, else the kinetic friction.
+
+        A stuck contact breaks away only while the object moves along the skin's force
+        (``velocity_m_s``, the object's along +x): sliding must oppose the slide. An object
+        moving back against it unloads the skin, which then carries at most its static
+        limit; without this, a contact re-stuck at the limit (mu_k = mu_s) broke away
+        again at each step toward its force while the object moved the other way, and its
+        friction pushed the object on, out of the fingers."""
         e = k * (x_m - self.anchor_m)
         force = self.rate.step(e, h) if self.rate is not None else e
-        if self.stuck and abs(force) > mu_s * normal_n:
+        limit = mu_s * normal_n
+        if self.stuck and abs(force) > limit:
+            if velocity_m_s * force < 0:
+                force = math.copysign(limit, force)
+                self.force_n = force
+                return force
             self.stuck, self.direction = False, math.copysign(1.0, force)
         if not self.stuck:
             force = mu_k * normal_n * self.direction
@@ -279,7 +291,7 @@ class HeldObject:
             if n <= 0:
                 continue
             total += contact.engage(self.x_m, h, n, kk, s.friction_static,
-                                    s.friction_kinetic)
+                                    s.friction_kinetic, self.v_m_s)
         self.v_m_s += (self.load_n(t_s) - total) / s.mass_kg * h
         self.x_m += self.v_m_s * h
         for contact, n, kk in zip(self.contacts, normal_n, k, strict=True):

@@ -1,0 +1,122 @@
+"""Slip, do no harm: the adaptive hold against a fixed hold at the adaptive hold's own peak
+grip, on household objects, offline.
+
+What runs: ``bench_slip_hold``'s closed loop (the pure ``control.slip_hold.SlipHold`` at
+the control tick on the gripper world, the held object and the motor model with the
+default drivetrain, the fingertip's noise and 5 ms of delay, no ROS), on the objects of
+``sim.object_set.HOUSEHOLD_OBJECTS`` (YCB masses; silicone's friction on their surfaces).
+
+Each object is gripped at ``START_OVER_LEAST`` times the least grip for its weight at its
+kinetic friction (under the ceiling), lifted (its weight eased on over 0.3 s), held
+``HOLD_S`` while the adaptive hold probes, then its load doubles over 100 ms (a pull, or
+the object accelerated), and held ``AFTER_S`` more. The adaptive hold's peak grip is the
+largest true grip over the whole run; a fixed hold is then run at that peak from the
+start. Do no harm: every object the fixed hold at the peak keeps, the adaptive hold keeps.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/bench_slip_harm.py [--design-only] [--seeds N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
+
+from bench_slip_hold import CEILING_N, GRIPPED_S, TICK_S, WORLD_STEP_S, Loop
+
+from tactile_sensor.analysis.slip.signature import Scenario, least_grip_n
+from tactile_sensor.sim.object_set import HOUSEHOLD_OBJECTS, HouseholdObject
+
+#: The starting grip over the least grip for the weight at the kinetic friction [1].
+START_OVER_LEAST = 1.5
+#: Held after the lift before the doubling [s]; after the doubling starts [s].
+HOLD_S = 3.0
+AFTER_S = 1.5
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """One object under one hold: kept to the end, the peak true grip [N], its slip [mm]."""
+
+    kept: bool
+    peak_n: float
+    slip_mm: float
+    friction: float | None = None
+
+
+def scenario(obj: HouseholdObject) -> Scenario:
+    s = Scenario(obj.mass_kg, obj.friction_static, obj.friction_kinetic, 1.0,
+                 hold_s=HOLD_S, after_s=AFTER_S)
+    start = min(CEILING_N, START_OVER_LEAST * least_grip_n(s.weight_n, s.friction_kinetic))
+    return replace(s, grip_n=start)
+
+
+def run(s: Scenario, adaptive: bool, seed: int) -> Outcome:
+    """The world, the motor and the hold (adaptive) or the fingers where they closed."""
+    loop = Loop(s, adaptive, seed)
+    world = loop.world
+    steps = round((GRIPPED_S + s.duration_s) / WORLD_STEP_S)
+    per_tick = round(TICK_S / WORLD_STEP_S)
+    read = 0
+    for i in range(1, steps + 1):
+        if i == round(GRIPPED_S / WORLD_STEP_S):
+            world.lift()
+        loop.step(i * WORLD_STEP_S)
+        if i % per_tick == 0:
+            read = loop.tick(i * WORLD_STEP_S, read)
+    held = world.held
+    assert held is not None
+    peak = float(np.max([sample[1] for sample in loop.samples]))
+    return Outcome(not held.dropped, peak, abs(held.state.slip_m) * 1e3,
+                   loop.hold.friction if loop.hold is not None else None)
+
+
+def compare(obj: HouseholdObject, seed: int) -> tuple[Scenario, Outcome, Outcome]:
+    s = scenario(obj)
+    adaptive = run(s, True, seed)
+    fixed = run(replace(s, grip_n=adaptive.peak_n), False, seed)
+    return s, adaptive, fixed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--design-only", action="store_true",
+                        help="leave out the held-out objects")
+    parser.add_argument("--seeds", type=int, default=1,
+                        help="noise seeds per object (default 1)")
+    args = parser.parse_args()
+    if args.seeds < 1:
+        parser.error(f"--seeds {args.seeds} must be 1 or more")
+    objects = [o for o in HOUSEHOLD_OBJECTS if not (args.design_only and o.held_out)]
+    print(f"{'object':<26} {'g':>5} {'mu_s':>4} {'mu_k':>4} {'start':>5} {'seed':>4} | "
+          f"{'adaptive':>8} {'peak N':>6} {'slip':>6} {'mu':>5} | {'fixed@peak':>10} "
+          f"{'slip':>6} | harm")
+    harms = kept_fixed = kept_adaptive = runs = 0
+    for obj in objects:
+        number = HOUSEHOLD_OBJECTS.index(obj)
+        for seed in range(args.seeds):
+            s, a, f = compare(obj, 1000 * number + seed)
+            harm = f.kept and not a.kept
+            runs += 1
+            harms += harm
+            kept_fixed += f.kept
+            kept_adaptive += a.kept
+            learned = "-" if a.friction is None else f"{a.friction:.2f}"
+            name = obj.name + (" *" if obj.held_out else "")
+            print(f"{name:<26} {obj.mass_kg * 1e3:5.0f} {s.friction_static:4.2f} "
+                  f"{s.friction_kinetic:4.2f} {s.grip_n:5.2f} {seed:>4} | "
+                  f"{'kept' if a.kept else 'DROPPED':>8} {a.peak_n:6.2f} {a.slip_mm:6.2f} "
+                  f"{learned:>5} | {'kept' if f.kept else 'dropped':>10} {f.slip_mm:6.2f} | "
+                  f"{'HARM' if harm else '-'}")
+    print(f"runs {runs} (* held out); fixed at the adaptive peak kept {kept_fixed}; "
+          f"adaptive kept {kept_adaptive}; dropped by the adaptive hold where the fixed one "
+          f"kept: {harms} (goal 0: {'met' if harms == 0 else 'not met'})")
+
+
+if __name__ == "__main__":
+    main()
