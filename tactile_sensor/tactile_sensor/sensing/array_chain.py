@@ -14,43 +14,28 @@ outputs (docs/array.md: 11.5 mV per module at full twist), so its noise is large
 and that noise grows with the square root of the bandwidth.
 A component the calibration does not observe is NaN.
 
-Tare zeroes every module at once: one decision over all the channels' windows, refused if
-any module is not at rest (naming it), so the outputs the calibration sees always share one
-rest state. Forces are NaN until tared and calibrated.
-
-Threading as ``SignalChain``: ``process`` and ``process_batch`` in the reader's thread;
-``tare``, ``set_calibration`` and the properties from any other; one lock guards the state.
+Tare zeroes every module at once (``sensing.multi_module``, which holds the per-module
+filters, tare windows, baselines and threading), so the outputs the calibration sees always
+share one rest state. Forces are NaN until tared and calibrated.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
-import threading
 from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
 
 from tactile_sensor.sensing.array_calibration import FACES, ArrayCalibration, parse_label
-from tactile_sensor.sensing.blind import BLIND_MESSAGE
-from tactile_sensor.sensing.chain import (
-    ChainConfig,
-    SampleSteps,
-    SignalChain,
-    _Parts,
-    changed_parts,
-)
-from tactile_sensor.sensing.conversion import AdcConversion
+from tactile_sensor.sensing.chain import ChainConfig, SignalChain, _Parts, changed_parts
 from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
-from tactile_sensor.sensing.filters import Butterworth, Filter, make_filter
+from tactile_sensor.sensing.filters import Butterworth
 from tactile_sensor.sensing.modulation import Modulation, PairSignal
+from tactile_sensor.sensing.multi_module import MAX_CHANNEL, NAN, MultiModuleChain
 from tactile_sensor.sensing.rate_calibration import load_file
-from tactile_sensor.sensing.tare import TareWindow
 
-NAN = float("nan")
-MAX_CHANNEL = 7
 #: Default torque low-pass cutoff [Hz]: a grasp's torque changes over tenths of a second,
 #: and the torque's noise grows with the square root of the bandwidth.
 TORQUE_CUTOFF_HZ = 10.0
@@ -132,25 +117,13 @@ class ArrayReading(NamedTuple):
     blind: bool = False  # a module's detector at its rail (sensing/blind.py): wrench NaN
 
 
-class ArrayTareResult(NamedTuple):
-    baselines_v: tuple[float, ...]
-    spread_v: float  # the largest of the modules' spreads
-    samples: int
-    faces: tuple[str, ...]
-
-    def describe(self) -> str:
-        each = ", ".join(f"{face} {b:.4f} V" for face, b in zip(self.faces, self.baselines_v,
-                                                                 strict=True))
-        return f"baselines {each} (largest spread {self.spread_v * 1e3:.1f} mV)"
-
-
 #: What the array's step takes of one sample: every module's volts, in ``modules`` order,
 #: and the lowest voltage any module's detector shows (the on or off sample of a modulated
 #: module, whichever has more light).
 ArrayVolts = tuple[tuple[float, ...], float]
 
 
-class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
+class ArrayChain(MultiModuleChain[ArrayVolts, ArrayReading]):
     """Stateful per-sample processing for several modules; the surface of ``SignalChain``."""
 
     def __init__(self, config: ChainConfig, modules: Sequence[Module],
@@ -159,23 +132,12 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
         if len(modules) < 2:
             raise SensingError("An array chain needs two or more modules; use SignalChain "
                                "for one.")
-        self.config = config
-        self.config.validate()
         self.modules = tuple(Module(*m) for m in modules)
-        self.faces = tuple(m.face for m in self.modules)
-        self.channels = tuple(m.channel for m in self.modules)
-        self._lock = threading.Lock()
-        parts = _Parts(config)
-        self._conversion = parts.adc
-        self._volts_per_count = parts.adc.volts_per_count
+        parts = self._start(config, [m.face for m in self.modules],
+                            [m.channel for m in self.modules])
         self._pairs: list[PairSignal] | None = None  # a modulated device: one per module
-        self._filters = [parts.filter] + [self._new_filter() for _ in self.modules[1:]]
-        self._tares = [parts.tare] + [self._new_tare() for _ in self.modules[1:]]
-        self._contact = parts.contact
-        self._blind = parts.blind
         self._retare = parts.retare
         self._quiet = 0  # samples in a row sure to be at rest (re-tare at rest)
-        self._detector_v = NAN  # the lowest detector voltage of the last sample
         self.torque_cutoff_hz = float(torque_cutoff_hz)
         self._torque_filters = [self._new_torque_filter() for _ in range(3)]
         self._torque_seen = (False, False, False)
@@ -184,14 +146,7 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
         self._slow = False
         self._calibration: ArrayCalibration | None = None
         self.set_calibration(calibration)
-        self._baselines: tuple[float, ...] | None = None
-        self._auto_tare_every = max(1, self._tares[0].size // 10)
-        self._auto_tare_countdown = 0
         self.last: ArrayReading | None = None
-
-    def _new_filter(self) -> Filter:
-        c = self.config
-        return make_filter(c.filter_name, c.rate_hz, c.filter_params)
 
     def _new_torque_filter(self) -> Butterworth:
         try:
@@ -201,42 +156,11 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
                                f"the {self.config.rate_hz:g} Hz sample rate ({exc}); set it "
                                "below half the sample rate.") from None
 
-    def _new_tare(self) -> TareWindow:
-        c = self.config
-        return TareWindow(c.rate_hz, c.tare_window_s, c.tare_max_spread_v)
-
     # -- state others read or set ----------------------------------------------------------
-
-    @property
-    def baselines_v(self) -> tuple[float, ...] | None:
-        return self._baselines
-
-    @property
-    def top_channel(self) -> int:
-        """The highest ADC channel read (the device must send at least one more)."""
-        return max(self.channels)
-
-    @property
-    def baseline_v(self) -> float | None:
-        """The first module's baseline (as ``SignalChain.baseline_v``)."""
-        return None if self._baselines is None else self._baselines[0]
-
-    @property
-    def tared(self) -> bool:
-        return self._baselines is not None
-
-    def _detector_level_v(self) -> float:
-        """The most lit module's detector voltage in the last sample."""
-        return self._detector_v
 
     @property
     def calibration(self) -> ArrayCalibration | None:
         return self._calibration
-
-    @property
-    def calibration_source(self) -> str:
-        cal = self._calibration
-        return cal.source if cal is not None else "none"
 
     def set_calibration(self, calibration: ArrayCalibration | None) -> None:
         """Use ``calibration`` (its modules put in the channels' order); ``CalibrationError``
@@ -262,40 +186,16 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
         for f in (*self._torque_filters, *self._slow_filters):
             f.reset()
 
-    def tare(self) -> ArrayTareResult:
-        """Baselines of every module from the last window, all or none: ``TareError``
-        naming the first module that is not at rest."""
-        with self._lock:
-            if self._blind.blind:
-                raise TareError(f"Cannot tare: {BLIND_MESSAGE}.")
-            results = []
-            for module, window in zip(self.modules, self._tares, strict=True):
-                try:
-                    results.append(window.evaluate())
-                except TareError as exc:
-                    raise TareError(f"Module {module.face} (channel {module.channel}): "
-                                    f"{exc}") from None
-            self._baselines = tuple(r.baseline_v for r in results)
-            self._quiet = 0
-            self._contact.reset()
-            self._reset_torque()
-            return ArrayTareResult(self._baselines, max(r.spread_v for r in results),
-                                   results[0].samples, self.faces)
+    def _baselines_set(self) -> None:
+        """New baselines: the low-passes and the count toward a rest start over."""
+        self._quiet = 0
+        self._reset_torque()
 
-    @property
-    def conversion(self) -> AdcConversion:
-        return self._conversion
-
-    def set_conversion(self, conversion: AdcConversion) -> None:
-        """As ``SignalChain.set_conversion``: a change forgets filters and tare windows."""
-        with self._lock:
-            if conversion == self._conversion:
-                return
-            self._conversion = conversion
-            self._volts_per_count = conversion.volts_per_count
-            if self._pairs is not None:
-                self._pairs = self._new_pairs(self._pairs[0].modulation)
-            self._forget()
+    def _conversion_changed(self) -> None:
+        """Filters, tare windows and the modules' on/off pairs held the old volts."""
+        if self._pairs is not None:
+            self._pairs = self._new_pairs(self._pairs[0].modulation)
+        self._forget()
 
     @property
     def modulation(self) -> Modulation | None:
@@ -336,28 +236,17 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
             if changed & {"tare", "rest"}:
                 self._retare, self._quiet = parts.retare, 0
 
-    def reset(self) -> None:
-        """Forget filters, tare windows and contact state (after a reconnect); keep the
-        baselines."""
-        with self._lock:
-            self._forget()
-            self._contact.reset()
-
     @property
     def rest_retares(self) -> int:
         """How many steps the baselines took at rest since the re-tare was last configured."""
         return self._retare.retares
 
     def _forget(self) -> None:
-        self._blind.reset()
+        super()._forget()
         self._quiet = 0
-        for f in self._filters:
-            f.reset()
         for pair in self._pairs or ():
             pair.reset()
         self._reset_torque()
-        for t in self._tares:
-            t.clear()
 
     # -- per sample ------------------------------------------------------------------------
 
@@ -370,11 +259,6 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
                     min(min(on), min(off)))
         volts = tuple([counts[c] * scale for c in self.channels])
         return volts, min(volts)
-
-    def _missing_channel(self, channels: int) -> SensingError:
-        return SensingError(
-            f"The sample has {channels} channel(s) but the modules use channel "
-            f"{max(self.channels)}; wire fewer modules or raise CHANNELS in the firmware.")
 
     def _step(self, sample: ArrayVolts, t_us: int, host_ns: int) -> ArrayReading:
         """One sample of every module (call with the lock held)."""
@@ -393,13 +277,8 @@ class ArrayChain(SampleSteps[ArrayVolts, ArrayReading]):
                 [b - f for b, f in zip(baselines, filtered)])  # noqa: B905
             return ArrayReading(volts[0], outputs[0], NAN, False, False, t_us, host_ns, NAN,
                                 NAN, volts, outputs, blind=True)
-        if self._baselines is None and self.config.auto_tare and self._tares[0].ready:
-            self._auto_tare_countdown -= 1
-            if self._auto_tare_countdown <= 0:
-                self._auto_tare_countdown = self._auto_tare_every
-                with contextlib.suppress(TareError):  # not all at rest yet: retry later
-                    self._baselines = tuple(w.evaluate().baseline_v for w in self._tares)
-                    self._reset_torque()
+        if self._baselines is None:
+            self._auto_tare()
         baselines = self._baselines
         if baselines is None:
             return ArrayReading(volts[0], NAN, NAN, False, False, t_us, host_ns, NAN, NAN,

@@ -11,14 +11,12 @@ calibration's zero); refused naming the module not at rest. Until tared and cali
 angle is NaN. No re-tare at rest: a finger held bent is steady too, and following it would
 move the zero.
 
-Threading as ``SignalChain``: ``process`` and ``process_batch`` in the reader's thread;
-``tare``, ``set_calibration`` and the properties from any other; one lock guards the state.
+The per-module filters, tare windows, baselines and threading are those of every module
+layout (``sensing.multi_module``).
 """
 
 from __future__ import annotations
 
-import contextlib
-import threading
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -29,15 +27,14 @@ from tactile_sensor.sensing.bend_calibration import (
     BendCalibration,
     bend_layout_refusal,
 )
-from tactile_sensor.sensing.blind import BLIND_MESSAGE
-from tactile_sensor.sensing.chain import ChainConfig, SampleSteps, _Parts
-from tactile_sensor.sensing.conversion import AdcConversion
-from tactile_sensor.sensing.errors import CalibrationError, SensingError, TareError
-from tactile_sensor.sensing.filters import Filter, make_filter
-from tactile_sensor.sensing.tare import TareWindow
+from tactile_sensor.sensing.chain import ChainConfig, _Parts
+from tactile_sensor.sensing.errors import CalibrationError, SensingError
+from tactile_sensor.sensing.multi_module import (
+    MAX_CHANNEL,
+    NAN,
+    MultiModuleChain,
+)
 
-NAN = float("nan")
-MAX_CHANNEL = 7
 PLACES = (JOINT, TIP)
 
 
@@ -89,83 +86,30 @@ class BendReading(NamedTuple):
     blind: bool = False
 
 
-class BendTareResult(NamedTuple):
-    baselines_v: tuple[float, ...]
-    spread_v: float
-    samples: int
-    places: tuple[str, ...]
-
-    def describe(self) -> str:
-        each = ", ".join(f"{p} {b:.4f} V" for p, b in zip(self.places, self.baselines_v,
-                                                            strict=True))
-        return f"baselines {each} (largest spread {self.spread_v * 1e3:.1f} mV)"
-
-
-class BendChain(SampleSteps[tuple[float, ...], BendReading]):
+class BendChain(MultiModuleChain[tuple[float, ...], BendReading]):
     """Stateful per-sample processing for the finger's modules; the surface the driver and
     its diagnostics read of ``SignalChain``."""
 
+    CHANNELS_OWNER = "the finger's modules"
+
     def __init__(self, config: ChainConfig, modules: Sequence[BendModule],
                  calibration: BendCalibration | None = None) -> None:
-        self.config = config
-        self.config.validate()
         self.modules = tuple(BendModule(*m) for m in modules)
-        if (refusal := bend_layout_refusal([m.place for m in self.modules])) is not None:
+        self._start(config, [m.place for m in self.modules],
+                    [m.channel for m in self.modules])
+        if (refusal := bend_layout_refusal(self.faces)) is not None:
             raise SensingError(refusal)
-        self.faces = tuple(m.place for m in self.modules)
-        self.channels = tuple(m.channel for m in self.modules)
-        self._lock = threading.Lock()
-        parts = _Parts(config)
-        self._conversion = parts.adc
-        self._volts_per_count = parts.adc.volts_per_count
-        self._filters = [self._new_filter() for _ in self.modules]
-        self._tares = [self._new_tare() for _ in self.modules]
-        self._contact = parts.contact
-        self._blind = parts.blind
-        self._detector_v = NAN
-        self._baselines: tuple[float, ...] | None = None
         self._order: tuple[int, ...] = ()
         self._calibration: BendCalibration | None = None
         self.set_calibration(calibration)
-        self._auto_tare_every = max(1, self._tares[0].size // 10)
-        self._auto_tare_countdown = 0
         self.out_of_range = 0  # samples whose angle fell beyond the calibration's range
         self.last: BendReading | None = None
-
-    def _new_filter(self) -> Filter:
-        c = self.config
-        return make_filter(c.filter_name, c.rate_hz, c.filter_params)
-
-    def _new_tare(self) -> TareWindow:
-        c = self.config
-        return TareWindow(c.rate_hz, c.tare_window_s, c.tare_max_spread_v)
 
     # -- state others read or set ----------------------------------------------------------
 
     @property
-    def baselines_v(self) -> tuple[float, ...] | None:
-        return self._baselines
-
-    @property
-    def baseline_v(self) -> float | None:
-        return None if self._baselines is None else self._baselines[0]
-
-    @property
-    def top_channel(self) -> int:
-        return max(self.channels)
-
-    @property
-    def tared(self) -> bool:
-        return self._baselines is not None
-
-    @property
     def calibration(self) -> BendCalibration | None:
         return self._calibration
-
-    @property
-    def calibration_source(self) -> str:
-        cal = self._calibration
-        return cal.source if cal is not None else "none"
 
     @property
     def rest_retares(self) -> int:
@@ -174,9 +118,6 @@ class BendChain(SampleSteps[tuple[float, ...], BendReading]):
     def optical_gain(self) -> None:
         """Not measured: a stock module's level at rest holds the room's light too."""
         return None
-
-    def _detector_level_v(self) -> float:
-        return self._detector_v
 
     def set_calibration(self, calibration: BendCalibration | None) -> None:
         """Use ``calibration``; ``CalibrationError`` if it reads other modules."""
@@ -190,35 +131,6 @@ class BendChain(SampleSteps[tuple[float, ...], BendReading]):
             order = tuple(self.faces.index(m) for m in calibration.modules)
         with self._lock:
             self._calibration, self._order = calibration, order
-
-    def tare(self) -> BendTareResult:
-        """Baselines of every module from the last window, all or none."""
-        with self._lock:
-            if self._blind.blind:
-                raise TareError(f"Cannot tare: {BLIND_MESSAGE}.")
-            results = []
-            for module, window in zip(self.modules, self._tares, strict=True):
-                try:
-                    results.append(window.evaluate())
-                except TareError as exc:
-                    raise TareError(f"Module {module.place} (channel {module.channel}): "
-                                    f"{exc}") from None
-            self._baselines = tuple(r.baseline_v for r in results)
-            self._contact.reset()
-            return BendTareResult(self._baselines, max(r.spread_v for r in results),
-                                  results[0].samples, self.faces)
-
-    @property
-    def conversion(self) -> AdcConversion:
-        return self._conversion
-
-    def set_conversion(self, conversion: AdcConversion) -> None:
-        with self._lock:
-            if conversion == self._conversion:
-                return
-            self._conversion = conversion
-            self._volts_per_count = conversion.volts_per_count
-            self._forget()
 
     @property
     def modulation(self) -> None:
@@ -239,28 +151,11 @@ class BendChain(SampleSteps[tuple[float, ...], BendReading]):
             self._filters, self._tares, self._contact = filters, tares, parts.contact
             self._auto_tare_every = max(1, tares[0].size // 10)
 
-    def reset(self) -> None:
-        with self._lock:
-            self._forget()
-            self._contact.reset()
-
-    def _forget(self) -> None:
-        self._blind.reset()
-        for f in self._filters:
-            f.reset()
-        for t in self._tares:
-            t.clear()
-
     # -- per sample ------------------------------------------------------------------------
 
     def _volts(self, counts: tuple[int, ...]) -> tuple[float, ...]:
         scale = self._volts_per_count
         return tuple([counts[c] * scale for c in self.channels])
-
-    def _missing_channel(self, channels: int) -> SensingError:
-        return SensingError(
-            f"The sample has {channels} channel(s) but the finger's modules use channel "
-            f"{max(self.channels)}; wire fewer modules or raise CHANNELS in the firmware.")
 
     def _step(self, volts: tuple[float, ...], t_us: int, host_ns: int) -> BendReading:
         self._detector_v = min(volts)
@@ -271,12 +166,8 @@ class BendChain(SampleSteps[tuple[float, ...], BendReading]):
             self._contact.reset()
             return BendReading(volts[0], NAN, NAN, False, False, t_us, host_ns, NAN, volts,
                                (NAN,) * len(volts), blind=True)
-        if self._baselines is None and self.config.auto_tare and self._tares[0].ready:
-            self._auto_tare_countdown -= 1
-            if self._auto_tare_countdown <= 0:
-                self._auto_tare_countdown = self._auto_tare_every
-                with contextlib.suppress(TareError):  # not all at rest yet: retry later
-                    self._baselines = tuple(w.evaluate().baseline_v for w in self._tares)
+        if self._baselines is None:
+            self._auto_tare()
         baselines = self._baselines
         if baselines is None:
             return BendReading(volts[0], NAN, NAN, False, False, t_us, host_ns, NAN, volts,

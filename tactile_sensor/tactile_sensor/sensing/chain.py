@@ -83,6 +83,13 @@ class BatchLike(Protocol):
     def counts(self) -> Sequence[tuple[int, ...]]: ...
 
 
+class _Sourced(Protocol):
+    """What the chain needs of any calibration: where it came from."""
+
+    @property
+    def source(self) -> str: ...
+
+
 V = TypeVar("V")
 R = TypeVar("R")
 
@@ -95,6 +102,8 @@ class SampleSteps(ABC, Generic[V, R]):
     _lock: threading.Lock
     _blind: BlindDetector
     _conversion: AdcConversion
+    _volts_per_count: float
+    _calibration: _Sourced | None
     last: R | None
 
     @property
@@ -104,6 +113,30 @@ class SampleSteps(ABC, Generic[V, R]):
     @abstractmethod
     def _detector_level_v(self) -> float:
         """The lowest voltage a detector showed in the last sample (NaN: none yet)."""
+
+    @property
+    def calibration_source(self) -> str:
+        """Where forces come from: 'fem:<digest>', 'file:<path>', ... or 'none'."""
+        cal = self._calibration
+        return cal.source if cal is not None else "none"
+
+    @property
+    def conversion(self) -> AdcConversion:
+        return self._conversion
+
+    def set_conversion(self, conversion: AdcConversion) -> None:
+        """Use another counts -> volts conversion (the device stated its ADC); a change
+        forgets what held volts of the old one (``_conversion_changed``)."""
+        with self._lock:
+            if conversion == self._conversion:
+                return
+            self._conversion = conversion
+            self._volts_per_count = conversion.volts_per_count
+            self._conversion_changed()
+
+    @abstractmethod
+    def _conversion_changed(self) -> None:
+        """Forget the state whose volts meant something else (call with the lock held)."""
 
     @property
     def blind(self) -> bool:
@@ -330,12 +363,6 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
         return self._calibration
 
     @property
-    def calibration_source(self) -> str:
-        """Where forces come from: 'fem:<digest>', 'file:<path>', ... or 'none'."""
-        cal = self._calibration
-        return cal.source if cal is not None else "none"
-
-    @property
     def rate_aware(self) -> bool:
         """Whether forces include rate terms (a ``RateCalibration`` is set)."""
         return self._estimator is not None
@@ -368,25 +395,15 @@ class SignalChain(SampleSteps["float | tuple[float, float, float]", Reading]):
             self._restart_rate_terms()
             self._update_gain()
 
-    @property
-    def conversion(self) -> AdcConversion:
-        return self._conversion
-
-    def set_conversion(self, conversion: AdcConversion) -> None:
-        """Use another counts -> volts conversion (the device stated its ADC); a change
-        forgets the filter and tare window, whose volts meant something else."""
-        with self._lock:
-            if conversion == self._conversion:
-                return
-            self._conversion = conversion
-            self._volts_per_count = conversion.volts_per_count
-            if self._pair is not None:
-                self._pair = PairSignal(self._pair.modulation, conversion.vref_v)
-            self._filter.reset()
-            self._tare.clear()
-            self._restart_rate_terms()
-            self._gain.forget()
-            self._update_gain()
+    def _conversion_changed(self) -> None:
+        """The filter and tare window held volts of the old conversion."""
+        if self._pair is not None:
+            self._pair = PairSignal(self._pair.modulation, self._conversion.vref_v)
+        self._filter.reset()
+        self._tare.clear()
+        self._restart_rate_terms()
+        self._gain.forget()
+        self._update_gain()
 
     def ambient(self) -> tuple[float, float | None] | None:
         """The room's light on the detector as (drop below the supply [V], ratio of the
