@@ -33,7 +33,8 @@ def test_the_stamp_and_output_are_those_rclpy_serialised(frame_id, sec, nanosec,
 
 
 @pytest.mark.parametrize("data", [b"", b"\x00\x00\x00\x00" + bytes(40),
-                                  serialize_message(TactileReading())[:20]])
+                                  serialize_message(TactileReading())[:20]],
+                         ids=["empty", "zero_length_header", "truncated_reading"])
 def test_bytes_that_are_no_reading_are_refused(data):
     with pytest.raises(ValueError):
         stamp_and_output(data)
