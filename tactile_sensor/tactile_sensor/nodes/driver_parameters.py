@@ -76,8 +76,9 @@ SPECS = [
               "'savgol_mains' is 'savgol' until it finds a lamp's 100 or 120 Hz flicker, then "
               "also nulls it and its harmonics (half a flicker period of delay, 4.5 ms at "
               "100 Hz)", choices=tuple(FILTERS)),
-    ParamSpec("filter.window", 0, "window [samples] of savgol, savgol_mains or "
-              "moving_average; 0 = the filter's default (40, 40 or 9)", minimum=0, maximum=100_000),
+    ParamSpec("filter.window", 0, "window [samples] of savgol, savgol_mains, "
+              "savgol_quadratic, savgol_quadratic_mains or moving_average; 0 = the filter's "
+              "default (40, 40, 100, 100 or 9)", minimum=0, maximum=100_000),
     ParamSpec("filter.cutoff_hz", 50.0, "butterworth cutoff [Hz]", minimum=0.0,
               exclusive_minimum=True),
     ParamSpec("filter.order", 2, "butterworth order", minimum=1, maximum=8),

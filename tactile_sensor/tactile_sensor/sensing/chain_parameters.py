@@ -24,6 +24,7 @@ RUNTIME_PARAMETERS = frozenset({
 
 #: The ``filter.*`` parameters each filter reads.
 FILTER_KEYS = {"savgol": ("window",), "savgol_mains": ("window",), "moving_average": ("window",),
+               "savgol_quadratic": ("window",), "savgol_quadratic_mains": ("window",),
                "butterworth": ("order", "cutoff_hz"),
                "one_euro": ("min_cutoff_hz", "beta", "d_cutoff_hz"), "none": ()}
 

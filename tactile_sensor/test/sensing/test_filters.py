@@ -12,6 +12,7 @@ from tactile_sensor.sensing.filters import (
     FILTERS,
     MovingAverage,
     SavitzkyGolayLinear,
+    SavitzkyGolayQuadratic,
     make_filter,
 )
 
@@ -61,6 +62,47 @@ def test_default_filter_is_less_noisy_than_the_nine_point_average():
     assert np.std(ma9) == pytest.approx(1 / 3, rel=0.03)
 
 
+@settings(max_examples=40)
+@given(signals, st.integers(3, 60))
+def test_savgol_quadratic_is_the_least_squares_parabola_at_the_newest_sample(xs, window):
+    got = run(SavitzkyGolayQuadratic(window), xs)
+    for k, g in enumerate(got):
+        seg = np.asarray(xs[max(0, k - window + 1):k + 1])
+        if len(seg) < 3:
+            assert g == seg[-1]
+            continue
+        assert g == pytest.approx(np.polyval(np.polyfit(np.arange(len(seg)), seg, 2),
+                                             len(seg) - 1), abs=1e-7)
+
+
+def test_savgol_quadratic_stays_exact_past_its_running_sums_refresh():
+    xs = 1.5 + np.sin(np.arange(40_000) / 300.0)
+    got = run(SavitzkyGolayQuadratic(180), xs)
+    for k in (179, 16_383, 16_384, 39_999):
+        seg = xs[k - 179:k + 1]
+        want = np.polyval(np.polyfit(np.arange(180), seg, 2), 179)
+        assert got[k] == pytest.approx(want, abs=1e-8)
+
+
+def test_savgol_quadratic_holds_a_turnaround_where_the_line_overshoots():
+    t = np.arange(600) * 1e-3  # a bend's top: 90 deg - 222 deg/s² t², as rad
+    top = np.radians(90.0) - np.radians(222.0) * (t - 0.3) ** 2
+    line = run(SavitzkyGolayLinear(180), top)
+    parabola = run(SavitzkyGolayQuadratic(180), top)
+    np.testing.assert_allclose(parabola[180:], top[180:], atol=1e-9)
+    # the line's error: curvature x (window)² / 12, here 2 x 222 deg/s² x (0.18 s)² / 12
+    assert np.degrees(line[180:] - top[180:]).mean() == pytest.approx(
+        2 * 222 * 0.18 ** 2 / 12, rel=0.05)
+
+
+def test_savgol_quadratic_noise_gain_is_the_theory():
+    noise = np.random.default_rng(0).normal(0.0, 1.0, 100_000)
+    n = 180
+    got = run(make_filter("savgol_quadratic", 1000.0, {"window": n}), noise)[n:]
+    assert np.std(got) == pytest.approx(
+        np.sqrt((9 * n * n - 9 * n + 6) / (n * (n + 1) * (n + 2))), rel=0.03)
+
+
 def test_butterworth_matches_scipy_started_in_steady_state():
     xs = np.random.default_rng(1).normal(1.0, 0.1, 500)
     sos = butter(3, 40.0, fs=1000.0, output="sos")
@@ -91,6 +133,7 @@ def test_one_euro_follows_fast_moves_faster_than_slow_ones():
     ("moving_average", {"window": 2.5}, "window"),
     ("savgol", {"window": 1}, "window"),
     ("savgol", {"window": float("nan")}, "window"),
+    ("savgol_quadratic", {"window": 2}, "window"),
     ("butterworth", {"cutoff_hz": 600.0}, "cutoff_hz"),
     ("butterworth", {"order": 0}, "order"),
     ("one_euro", {"beta": -1.0}, "beta"),
