@@ -215,7 +215,9 @@ def contact_and_hold(grasps: int, drivetrain: str = "default",
                                f"{r.target_n:g} N", r.held_worst_error * 100, "%"),
                         Figure(f"{label}: grasps within 5 % and settled at {r.target_n:g} N",
                                f"{r.settled}/{r.count}", "",
-                               ">= 19 of 20", r.hold_met)]
+                               ">= 19 of 20", r.hold_met),
+                        Figure(f"{label}: grasps within 5 % when they answered at "
+                               f"{r.target_n:g} N", f"{r.within_answered}/{r.count}", "")]
         finally:
             client.close()
             emulator.stop()

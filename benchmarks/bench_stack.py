@@ -328,6 +328,9 @@ def rows_of(way: str, runs: list[Run], plan: Plan) -> list[Row]:
             Goal(">=", hold_goal(plan.busy_grasps))),
         Row("  settled and within 5 %", f"of {plan.busy_grasps}",
             each(lambda r: summarise(TARGET_N, r.grasps).settled if r.grasps else 0)),
+        Row("  true force within 5 % when the grasp answered", f"of {plan.busy_grasps}",
+            each(lambda r: summarise(TARGET_N, r.grasps).within_answered if r.grasps
+                 else 0)),
         Row("load average (1 min) at start, end", "", tuple(
             f"{r.load[0]:.1f}, {r.load[1]:.1f}" for r in runs)),
     ]

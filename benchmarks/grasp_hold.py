@@ -17,6 +17,7 @@ fingers through the pinion.
 Figures, per target force (ground truth = the world's finger-A force):
 - peak true force over the grasp, against target × 1.10 + 0.05 N;
 - true force 0.5 s after contact (first touch), within ±5 % of the target;
+- true force when the grasp answered (what the caller then holds), within ±5 %;
 - whether the result said "settled".
 """
 
@@ -75,6 +76,8 @@ class Grasp:
     held_n: float
     settled: bool
     message: str
+    #: The true force when the grasp answered (the hold a caller gets; NaN: unknown).
+    answered_n: float = math.nan
 
 
 class Background:
@@ -220,10 +223,12 @@ class Bench:
         with TactileFeed(self.world, self.emulator._t0, forces, seed), ControlLoop(servo):
             servo.await_sample(1.0)
             finish = runner.run(link, lambda: accept_grasp(goal, settings))
+            answered_s = self.world_time()
             peak, held = self.truth(t_start, HOLD_AFTER_S)
         if not math.isfinite(held):
             print(f"    no touch: {finish.message}")
-        return Grasp(peak, held, "settled at" in finish.message, finish.message)
+        return Grasp(peak, held, "settled at" in finish.message, finish.message,
+                     self.world.force_at(answered_s) if math.isfinite(held) else math.nan)
 
     def current_limited_grasp(self, target_n: float) -> Grasp:
         """Goal Current for the target, goal position at the closed limit."""
@@ -234,7 +239,7 @@ class Bench:
             lambda: self.client.command_position(self.geometry.closed_position_rad, speed,
                                                  goal_current_a=current_a))
         peak, held = self.truth(t_start, HOLD_AFTER_S)
-        return Grasp(peak, held, True, f"goal current {current_a:.3f} A")
+        return Grasp(peak, held, True, f"goal current {current_a:.3f} A", held)
 
 
 def run_grasps(bench: Bench, grasp: Callable[[float, int], Grasp], targets: tuple[float, ...],
@@ -259,6 +264,8 @@ class Row:
     within: int
     settled: int
     count: int
+    #: Grasps whose true force when they answered was within ±5 %.
+    within_answered: int = 0
 
     @property
     def hold_met(self) -> bool:
@@ -272,28 +279,31 @@ def summarise(target: float, grasps: list[Grasp]) -> Row:
               for g in grasps]
     within = sum(abs(e) <= 0.05 for e in errors)
     settled = sum(g.settled and abs(e) <= 0.05 for g, e in zip(grasps, errors, strict=True))
+    answered = sum(abs(g.answered_n - target) <= 0.05 * target for g in grasps)
     return Row(target, max(peaks), max(peaks) <= contact_goal_n(target),
                float(np.mean([g.held_n if math.isfinite(g.held_n) else 0.0
                               for g in grasps])),
-               max(errors, key=abs), within, settled, len(grasps))
+               max(errors, key=abs), within, settled, len(grasps), answered)
 
 
 def print_misses(target: float, grasps: list[Grasp]) -> None:
     """The grasps that missed the hold, with their answers (what a user would read)."""
     for g in grasps:
         if not (abs(g.held_n - target) <= 0.05 * target and g.settled):
-            print(f"    {target:g} N: held {g.held_n:.3f} N at 0.5 s, peak {g.peak_n:.2f} N:"
-                  f" {g.message}")
+            print(f"    {target:g} N: held {g.held_n:.3f} N at 0.5 s, {g.answered_n:.3f} N "
+                  f"at the answer, peak {g.peak_n:.2f} N: {g.message}")
 
 
 def print_table(title: str, rows: list[Row]) -> None:
     print(title)
-    print("  target   peak max  (goal)     held mean  worst err  within±5%  settled&within")
+    print("  target   peak max  (goal)     held mean  worst err  within±5%  settled&within"
+          "  at answer")
     for r in rows:
         print(f"  {r.target_n:4.1f} N   {r.peak_max_n:5.2f} N  (≤{contact_goal_n(r.target_n):4.2f})"
               f" {'met ' if r.contact_met else 'FAIL'}  {r.held_mean_n:5.2f} N  "
               f"{r.held_worst_error * 100:+6.1f} %   {r.within:2d}/{r.count}      "
-              f"{r.settled:2d}/{r.count} {'met' if r.hold_met else 'FAIL'}")
+              f"{r.settled:2d}/{r.count} {'met' if r.hold_met else 'FAIL'}     "
+              f"{r.within_answered:2d}/{r.count}")
 
 
 #: The drivetrains a run can take (sim/drivetrain.py): the mock's default (the XM430-W210

@@ -198,7 +198,9 @@ class Probe:
             return Grasp(peak, math.nan, False, message)
         times, forces = np.array(truth).T
         held = float(np.interp(touch + HOLD_AFTER_S, times, forces))
-        return Grasp(peak, held, "settled at" in message, message)
+        at_answer = float(np.interp(answered, times, forces)) if times[-1] >= answered else (
+            math.nan)
+        return Grasp(peak, held, "settled at" in message, message, at_answer)
 
     def close(self) -> None:
         self.spin.stop()

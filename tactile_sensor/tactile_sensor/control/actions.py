@@ -239,7 +239,6 @@ class TactileGoal(ActiveGoal):
         if step.outcome is not self.settle_after:
             return None
         return ForceSettler(self.settings.config.geometry, self.target_force_n,
-                            self.settings.skin_stiffness_n_per_m,
                             loop=getattr(self.controller, "free_loop", None))
 
     def slip_hold(self, held_n: float | None, servo: ServoReading | None) -> SlipHold | None:

@@ -321,7 +321,7 @@ class GoalRunner:
             if link.cancel_requested() and not self.slot.superseded(token):
                 return self._canceled(link, goal)
             step = self._at_rest(link, step)
-            held_n = settler.judged_n if settled else None
+            held_n = settler.judged_n  # the pooled mean, settled or not: not one reading
             # a hold that ran out of settle_time says so: its force may be off the target
             tail = (", settled at {force:.2f} N" if settled else
                     f", not settled within settle_time ({self.timing.settle_time_s:g} s): "

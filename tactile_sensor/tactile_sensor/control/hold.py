@@ -1,25 +1,31 @@
-"""The hold after contact: regulate the tactile force onto the target, on windowed means.
+"""The hold after contact: regulate the tactile force onto the target, on pooled means.
 
-Why windows: the tactile force carries the sensor's noise (the paper's 31.5 dB: 0.19 N σ
-after a 9-point mean, so about 0.56 N σ per 1 kHz sample), and the driver's filter makes
-consecutive forces correlated over its window (40 samples by default). A mean over a few
-control periods is a mean of a handful of independent values: today's settle once judged
-~30 ms means and held 2.33 N on a 2.0 N target. The regulator therefore gathers at least
-``window_samples`` forces (stamped after its last correction took effect: the runner gates
-them with ``TactileForce.count_after``) for ``window_s`` before it judges the error; the
-mean's σ falls as 1/√samples (0.1 s of the 1 kHz stream: 0.56 N / √100 ≈ 0.06 N). Each
-correction is smaller than the one before, so it needs a finer mean: the window doubles
-after every correction, up to ``max_window_s`` (0.1, 0.2, 0.4 s: σ 0.06, 0.04, 0.03 N).
+Why pooled means: the tactile force carries the sensor's noise (the paper's 31.5 dB: 0.19 N
+σ after a 9-point mean, so about 0.56 N σ per 1 kHz sample), and the driver's filter makes
+consecutive forces correlated over its window (40 samples by default). One reading, or a
+mean over a few control periods, cannot place a 1 N hold within 5 %: the mean's σ falls as
+1/√samples (0.1 s of the 1 kHz stream: 0.56 N / √100 ≈ 0.06 N; 0.4 s: 0.03 N).
 
-Each correction moves the goal by ``gain`` × the error over the skin's stiffness at the
-pinion. One radian of the pinion moves each finger ``pitch_radius_m``, and each finger's
-skin indents by that much against the fixed object, so the force changes by
-``k × pitch_radius_m`` per radian. The FEM skin stiffens from ~1750 N/m at touch to
-~2850 N/m at 3 mm; with the 2500 N/m default a gain of 0.8 converges without ringing over
-that range (effective gain 0.56 to 0.91).
+So the regulator keeps every force that arrived while the fingers were at rest since the
+contact stop, and refers each to where the fingers are now through the skin's stiffness at
+the pinion: one radian of the pinion moves each finger ``pitch_radius_m``, and each
+finger's skin indents by that much against the fixed object, so the force changes by
+``k × pitch_radius_m`` per radian. The servo's encoder says how far a correction really
+moved the output, so a correction does not throw the mean away: the estimate after it is
+the old mean plus the stiffness times the measured move, and a raise the stick-slip swallowed
+shows at once as no move. The stiffness is the FEM skin's tangent at the target (it stiffens
+from ~1750 N/m at touch to ~2850 N/m at 3 mm; ``fem_skin_stiffness_n_per_m``), so an error in
+it costs only a fraction of each move, not of the force.
 
-Settled when a window's mean is within ``tolerance`` of the target, or when the correction
-is under half a position pulse (the servo cannot place the fingers finer).
+It corrects an error beyond the tolerance once it is beyond ``significance`` σ of the
+pooled mean (a smaller one may be noise: more forces decide; a lowering, which crosses the
+friction's band, needs ``lowering_significance``), by ``gain`` × the error, and has settled
+when the error
+plus the mean's σ is within ``tolerance`` of the target (or the error is, and the mean is
+known to half the force of one position pulse), or when the correction is under half a
+pulse: the servo cannot place the fingers finer. One pulse (2π/4096 rad of the pinion, 21 µm
+of each finger) is 0.041 N on the FEM skin at 1 N and 0.043 N at 1.5 N: 4.1 and 2.8 % of
+those targets, so their ±5 % is ±1.2 and ±1.8 pulses.
 
 Through the friction of a geared servo (sim/drivetrain.py) the output rests where the
 position loop's torque no longer beats the load and the friction at rest: short of its
@@ -52,78 +58,157 @@ from tactile_sensor.control.grasp import (
 )
 from tactile_sensor.hardware.xm430_table import RAD_PER_PULSE
 
+#: The FEM skin under the module (physics' prediction curve, the one the model node
+#: serves): its tangent stiffness at touch [N/m] and its rise per newton of force [N/m/N],
+#: a line through the tangent at 0.05-7 N within 2 % (test_hold checks it against the FEM).
+FEM_TOUCH_STIFFNESS_N_PER_M = 1750.0
+FEM_STIFFENING_PER_N = 157.0
+
+
+def fem_skin_stiffness_n_per_m(force_n: float) -> float:
+    """The FEM skin's tangent stiffness at ``force_n`` [N/m]: what a hold there moves on."""
+    return FEM_TOUCH_STIFFNESS_N_PER_M + FEM_STIFFENING_PER_N * max(0.0, force_n)
+
 
 @dataclass
 class ForceSettler:
-    """Fixed-force hold: move the goal until a window's mean force sits at the target."""
+    """Fixed-force hold: move the goal until the pooled mean force sits at the target."""
 
     geometry: GripperGeometry
     target_force_n: float
-    skin_stiffness_n_per_m: float = 2500.0
+    #: The skin's stiffness at the target [N/m] (default: the FEM skin's there).
+    skin_stiffness_n_per_m: float = 0.0
     tolerance: float = 0.03
-    #: The span of forces the first judged mean takes [s] (the goal's clock); it doubles
-    #: after every correction up to ``max_window_s``.
-    window_s: float = 0.1
-    max_window_s: float = 0.4
-    gain: float = 0.8
-    #: One tactile sample's noise [N] (the paper's 31.5 dB: 0.56 N at 1 kHz): a mean over
-    #: the target by less than twice its own σ is not lowered on (lowering through the
-    #: friction costs the band's crossing), its window widens instead.
+    #: The least span of forces [s] (the goal's clock) and count before the first judgment:
+    #: the driver's filter correlates its forces over 40 ms.
+    window_s: float = 0.08
+    min_samples: int = 80
+    gain: float = 0.9
+    #: A correction needs the error beyond this many σ of the pooled mean: a raise is
+    #: cheap, a lowering crosses the friction's band and approaches again from below.
+    significance: float = 1.5
+    lowering_significance: float = 2.5
+    #: One tactile sample's noise [N] (the paper's 31.5 dB: 0.56 N at 1 kHz).
     sample_noise_n: float = 0.56
-    #: The mean [N] of the last window judged: the force the hold reports once settled
+    #: Forces of this long after the fingers came to rest are left out [s]: the driver's
+    #: filter (40 samples at 1 kHz) still carries the move in them.
+    transient_s: float = 0.04
+    #: The estimate [N] at the last judgment: the force the hold reports once settled
     #: (a single reading carries the sensor's full noise, 0.19 N σ after the filter).
     judged_n: float | None = None
     #: The loop's lead at rest after a close [rad]: what a goal needs over the output to
-    #: move it closed (None until the first judged window reads it).
+    #: move it closed (None until the first judgment reads it).
     closing_lead_rad: float | None = None
     #: The loop as the close saw it in free air (None: not known): the lead a force needs.
     loop: LoopLead | None = None
-    _sum_n: float = 0.0
+    #: Corrections sent so far.
+    corrections: int = 0
+    #: How far the skin under the fingers may be from that stiffness (relative): a mean
+    #: referred across a move is trusted less by that fraction of the force moved.
+    stiffness_uncertainty: float = 0.2
+    _pending_sum_n: float = 0.0
+    _pending_count: int = 0
+    _mean_n: float = 0.0  # the pooled mean at ``_reference_rad`` and its variance [N, N²]
+    _variance_n2: float = math.inf
     _count: int = 0
+    _reference_rad: float | None = None
     _window_from_s: float | None = None
+    _rest_from_s: float | None = None
     _last_closed: bool = True
 
     def __post_init__(self) -> None:
+        if self.skin_stiffness_n_per_m == 0.0:
+            self.skin_stiffness_n_per_m = fem_skin_stiffness_n_per_m(self.target_force_n)
         if not (self.target_force_n > 0 and self.skin_stiffness_n_per_m > 0
                 and self.window_s >= 0 and 0 < self.gain <= 1 and self.tolerance >= 0
-                and self.sample_noise_n >= 0):
+                and self.sample_noise_n >= 0 and self.min_samples >= 1 and self.transient_s >= 0
+                and self.stiffness_uncertainty >= 0
+                and self.significance >= 0
+                and self.lowering_significance >= 0):
             raise ValueError("ForceSettler needs a positive target and stiffness, a window "
-                             "of at least 0 s, a gain in (0, 1] and a noise of at least 0.")
+                             "of at least 0 s and one sample, a gain in (0, 1], and a noise, "
+                             "significance and stiffness uncertainty of at least 0.")
+
+    @property
+    def newton_per_rad(self) -> float:
+        return self.skin_stiffness_n_per_m * self.geometry.pitch_radius_m
 
     def add(self, sum_n: float, count: int, now_s: float) -> None:
-        """Forces that arrived since the last call (their sum and how many); the window
-        opens with the first."""
-        if count and self._window_from_s is None:
+        """Forces that arrived since the last call (their sum and how many), all taken at
+        rest where the next ``command`` finds the fingers; the window opens with the first."""
+        if not count:
+            return
+        if self._rest_from_s is None:
+            self._rest_from_s = now_s
+        if now_s - self._rest_from_s < self.transient_s:
+            return
+        if self._window_from_s is None:
             self._window_from_s = now_s
-        self._sum_n += sum_n
-        self._count += count
+        self._pending_sum_n += sum_n
+        self._pending_count += count
 
-    def restart_window(self) -> None:
-        """Drop what the window held (a correction moved the fingers)."""
-        self._sum_n, self._count, self._window_from_s = 0.0, 0, None
+    def estimate_n(self, position_rad: float) -> float | None:
+        """The pooled mean force referred to ``position_rad`` (None before any force)."""
+        return self._referred(position_rad)[0]
+
+    def sigma_n(self, position_rad: float) -> float:
+        """That mean's standard deviation there [N] (inf before any force)."""
+        return math.sqrt(self._referred(position_rad)[1])
+
+    def _referred(self, position_rad: float) -> tuple[float | None, float]:
+        """The mean so far referred to ``position_rad`` through the stiffness, and its
+        variance, grown by the stiffness's uncertainty over the force it moved."""
+        if self._reference_rad is None:
+            return None, math.inf
+        moved_n = self.newton_per_rad * (position_rad - self._reference_rad)
+        return (self._mean_n + moved_n,
+                self._variance_n2 + (self.stiffness_uncertainty * moved_n) ** 2)
+
+    def _pool(self, position_rad: float) -> None:
+        """Fold the pending forces in, weighed against the mean so far referred here."""
+        n = self._pending_count
+        if not n:
+            return
+        batch_n = self._pending_sum_n / n
+        batch_var = self.sample_noise_n**2 / n
+        self._pending_sum_n, self._pending_count = 0.0, 0
+        self._count += n
+        prior, prior_var = self._referred(position_rad)
+        self._reference_rad = position_rad
+        if prior is None or batch_var == 0.0:
+            self._mean_n, self._variance_n2 = batch_n, batch_var
+            return
+        weight = batch_var / (prior_var + batch_var)  # the prior's share
+        self._mean_n = weight * prior + (1.0 - weight) * batch_n
+        self._variance_n2 = prior_var * batch_var / (prior_var + batch_var)
 
     def command(self, now_s: float, servo: ServoReading, current_a: float,
                 velocity_rad_s: float) -> tuple[ServoCommand | None, bool]:
         """(goal for this tick, or None to hold still; settled?)."""
-        if self._window_from_s is None or now_s - self._window_from_s < self.window_s:
+        self._pool(servo.position_rad)
+        if (self._window_from_s is None or now_s - self._window_from_s < self.window_s
+                or self._count < self.min_samples):
             return None, False
-        self.judged_n = self._sum_n / self._count
-        error = self.judged_n - self.target_force_n
-        sigma_n = self.sample_noise_n / math.sqrt(self._count)
-        self.restart_window()
-        if abs(error) <= self.tolerance * self.target_force_n:
+        estimate = self.estimate_n(servo.position_rad)
+        assert estimate is not None
+        self.judged_n = estimate
+        error = estimate - self.target_force_n
+        sigma_n = self.sigma_n(servo.position_rad)
+        allowed = self.tolerance * self.target_force_n
+        step_rad = self.gain * error / self.newton_per_rad
+        tiny = abs(step_rad) < 0.5 * RAD_PER_PULSE
+        pulse_n = self.newton_per_rad * RAD_PER_PULSE
+        if abs(error) <= allowed:
+            if abs(error) + sigma_n <= allowed or sigma_n <= 0.5 * pulse_n:
+                return None, True  # within, and known so (or finer than a pulse places)
+            return None, False  # within as far as the mean tells: more forces decide
+        if abs(error) <= (self.lowering_significance if error > 0.0
+                          else self.significance) * sigma_n:
+            return None, False  # the mean cannot yet tell this error from its noise
+        if tiny:
             return None, True
-        step_rad = self.gain * error / (self.skin_stiffness_n_per_m
-                                        * self.geometry.pitch_radius_m)
-        if abs(step_rad) < 0.5 * RAD_PER_PULSE:
-            return None, True
-        if 0.0 < error <= 2.0 * sigma_n:
-            # the mean cannot tell this excess from its noise, and taking it off costs the
-            # crossing of the friction's band and an approach from below: judge a longer
-            # mean first (a force short of the target is raised at once: that is cheap)
-            self.window_s = min(2.0 * self.window_s, max(self.max_window_s, self.window_s))
-            return None, False
-        self.window_s = min(2.0 * self.window_s, max(self.max_window_s, self.window_s))
+        self.corrections += 1
+        self._rest_from_s = None  # the forces after this move start a new transient
         return ServoCommand(self._goal_rad(servo, step_rad), velocity_rad_s, current_a), False
 
     def _goal_rad(self, servo: ServoReading, step_rad: float) -> float:

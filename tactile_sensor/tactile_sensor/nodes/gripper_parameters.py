@@ -42,8 +42,10 @@ SPECS = [
     ParamSpec("settle_time", 1.5, "after contact, regulate the force onto the target for "
               "at most this long [s] (0 = hold where contact was detected)", minimum=0.0,
               maximum=10.0),
-    ParamSpec("skin_stiffness", 2500.0, "fingertip skin stiffness the contact stop and the "
-              "hold assume [N/m] (FEM: 1750 N/m at touch to 2850 N/m at 3 mm)", minimum=1.0),
+    ParamSpec("skin_stiffness", 2500.0, "fingertip skin stiffness the contact stop assumes "
+              "[N/m] (FEM: 1750 N/m at touch to 2850 N/m at 3 mm); the hold moves on the FEM "
+              "skin's tangent at its target and on the servo's measured position",
+              minimum=1.0),
     ParamSpec("packet_timeout", 0.05, "wait this long for a status packet [s]", minimum=0.001,
               maximum=1.0),
     ParamSpec("comm_retries", 2, "retries of a transaction that timed out or arrived "
