@@ -13,14 +13,22 @@ the object accelerated), and held ``AFTER_S`` more. The adaptive hold's peak gri
 largest true grip over the whole run; a fixed hold is then run at that peak from the
 start. Do no harm: every object the fixed hold at the peak keeps, the adaptive hold keeps.
 
+That count cannot see an object the probe itself loses (the adaptive hold never above its
+start grip, so the fixed hold runs at the start and loses it at the doubling too), nor a
+probe that stopped with nothing slid (a false alarm: more grip): both are counted beside
+it, the latter from the held object's true slip when the friction was learned.
+``--probe-sigmas`` sets the probe's threshold in place of the hold's own (a sweep).
+
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_slip_harm.py [--design-only] [--seeds N]
+        [--probe-sigmas K]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 from bench_slip_hold import CEILING_N, GRIPPED_S, TICK_S, WORLD_STEP_S, Loop
 
 from tactile_sensor.analysis.slip.signature import Scenario, least_grip_n
+from tactile_sensor.control.slip_hold import HoldPhase, SlipHoldConfig
 from tactile_sensor.sim.object_set import HOUSEHOLD_OBJECTS, HouseholdObject
 
 #: The starting grip over the least grip for the weight at the kinetic friction [1].
@@ -39,14 +48,37 @@ HOLD_S = 3.0
 AFTER_S = 1.5
 
 
+#: The true slip under which a probe's stop saw nothing slide [mm].
+STILL_MM = 1e-3
+
+
+@dataclass(frozen=True)
+class SweptThreshold(SlipHoldConfig):
+    """The hold's configuration with the probe's threshold set (``--probe-sigmas``)."""
+
+    sigmas: float = math.nan
+
+    @property
+    def probe_sigmas(self) -> float:
+        return self.sigmas
+
+
 @dataclass(frozen=True)
 class Outcome:
-    """One object under one hold: kept to the end, the peak true grip [N], its slip [mm]."""
+    """One object under one hold: kept to the end, the peak true grip [N], its slip [mm];
+    the adaptive hold's friction and its true slip when a probe's slip taught it [mm] (NaN:
+    none learned; inf: the probe reached the largest friction and claimed no slip)."""
 
     kept: bool
     peak_n: float
     slip_mm: float
     friction: float | None = None
+    probe_slip_mm: float = math.nan
+    probed: bool = False
+
+    def lost_in_probe(self, start_n: float) -> bool:
+        """Probed and dropped with the grip never above its start: the probe let it go."""
+        return self.probed and not self.kept and self.peak_n <= start_n * 1.01
 
 
 def scenario(obj: HouseholdObject) -> Scenario:
@@ -56,10 +88,16 @@ def scenario(obj: HouseholdObject) -> Scenario:
     return replace(s, grip_n=start)
 
 
-def run(s: Scenario, adaptive: bool, seed: int) -> Outcome:
+def run(s: Scenario, adaptive: bool, seed: int, probe_sigmas: float | None = None) -> Outcome:
     """The world, the motor and the hold (adaptive) or the fingers where they closed."""
     loop = Loop(s, adaptive, seed)
     world = loop.world
+    if loop.hold is not None and probe_sigmas is not None:
+        cfg = loop.hold.config
+        loop.hold.config = SweptThreshold(
+            **{f.name: getattr(cfg, f.name) for f in fields(cfg)}, sigmas=probe_sigmas)
+    # the true slip when the friction was learned, from where the probe started
+    probe_slip_mm, probe_from_m, probed = math.nan, 0.0, False
     steps = round((GRIPPED_S + s.duration_s) / WORLD_STEP_S)
     per_tick = round(TICK_S / WORLD_STEP_S)
     read = 0
@@ -68,17 +106,34 @@ def run(s: Scenario, adaptive: bool, seed: int) -> Outcome:
             world.lift()
         loop.step(i * WORLD_STEP_S)
         if i % per_tick == 0:
+            hold = loop.hold
+            was_probing = hold is not None and hold.phase is HoldPhase.PROBING
             read = loop.tick(i * WORLD_STEP_S, read)
+            if hold is None or world.held is None or not math.isnan(probe_slip_mm):
+                continue
+            slip_m = world.held.state.slip_m
+            if hold.phase is HoldPhase.PROBING and not was_probing:
+                probe_from_m, probed = slip_m, True
+            elif hold.friction is not None:
+                # a probe whose grip reached |Ft| / Fn = max_friction took the ratio it saw
+                # and claimed no slip (the hold's own stop rule, from its probe's start)
+                level, start_n, start_s = hold._probe
+                cfg = hold.config
+                declared = (start_n - cfg.probe_rate_n_s * (i * WORLD_STEP_S - start_s)
+                            > level / cfg.max_friction)
+                probe_slip_mm = abs(slip_m - probe_from_m) * 1e3 if declared else math.inf
     held = world.held
     assert held is not None
     peak = float(np.max([sample[1] for sample in loop.samples]))
     return Outcome(not held.dropped, peak, abs(held.state.slip_m) * 1e3,
-                   loop.hold.friction if loop.hold is not None else None)
+                   loop.hold.friction if loop.hold is not None else None, probe_slip_mm,
+                   probed)
 
 
-def compare(obj: HouseholdObject, seed: int) -> tuple[Scenario, Outcome, Outcome]:
+def compare(obj: HouseholdObject, seed: int, probe_sigmas: float | None = None
+            ) -> tuple[Scenario, Outcome, Outcome]:
     s = scenario(obj)
-    adaptive = run(s, True, seed)
+    adaptive = run(s, True, seed, probe_sigmas)
     fixed = run(replace(s, grip_n=adaptive.peak_n), False, seed)
     return s, adaptive, fixed
 
@@ -89,33 +144,43 @@ def main() -> None:
                         help="leave out the held-out objects")
     parser.add_argument("--seeds", type=int, default=1,
                         help="noise seeds per object (default 1)")
+    parser.add_argument("--probe-sigmas", type=float, default=None,
+                        help="the probe's threshold [standard errors] in place of the "
+                        "hold's own (one false alarm an hour)")
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error(f"--seeds {args.seeds} must be 1 or more")
+    if args.probe_sigmas is not None and not args.probe_sigmas > 0:
+        parser.error(f"--probe-sigmas {args.probe_sigmas} must be > 0, e.g. 4.0")
     objects = [o for o in HOUSEHOLD_OBJECTS if not (args.design_only and o.held_out)]
     print(f"{'object':<26} {'g':>5} {'mu_s':>4} {'mu_k':>4} {'start':>5} {'seed':>4} | "
           f"{'adaptive':>8} {'peak N':>6} {'slip':>6} {'mu':>5} | {'fixed@peak':>10} "
           f"{'slip':>6} | harm")
-    harms = kept_fixed = kept_adaptive = runs = 0
+    harms = kept_fixed = kept_adaptive = runs = lost = still = 0
     for obj in objects:
         number = HOUSEHOLD_OBJECTS.index(obj)
         for seed in range(args.seeds):
-            s, a, f = compare(obj, 1000 * number + seed)
+            s, a, f = compare(obj, 1000 * number + seed, args.probe_sigmas)
             harm = f.kept and not a.kept
             runs += 1
+            lost += a.lost_in_probe(s.grip_n)
+            still += a.probe_slip_mm < STILL_MM
             harms += harm
             kept_fixed += f.kept
             kept_adaptive += a.kept
             learned = "-" if a.friction is None else f"{a.friction:.2f}"
+            notes = (" (lost in the probe)" if a.lost_in_probe(s.grip_n) else "") + (
+                " (probe: nothing slid)" if a.probe_slip_mm < STILL_MM else "")
             name = obj.name + (" *" if obj.held_out else "")
             print(f"{name:<26} {obj.mass_kg * 1e3:5.0f} {s.friction_static:4.2f} "
                   f"{s.friction_kinetic:4.2f} {s.grip_n:5.2f} {seed:>4} | "
                   f"{'kept' if a.kept else 'DROPPED':>8} {a.peak_n:6.2f} {a.slip_mm:6.2f} "
                   f"{learned:>5} | {'kept' if f.kept else 'dropped':>10} {f.slip_mm:6.2f} | "
-                  f"{'HARM' if harm else '-'}")
+                  f"{'HARM' if harm else '-'}{notes}")
     print(f"runs {runs} (* held out); fixed at the adaptive peak kept {kept_fixed}; "
           f"adaptive kept {kept_adaptive}; dropped by the adaptive hold where the fixed one "
-          f"kept: {harms} (goal 0: {'met' if harms == 0 else 'not met'})")
+          f"kept: {harms} (goal 0: {'met' if harms == 0 else 'not met'}); lost in the probe "
+          f"(grip never above its start): {lost}; probes stopped with nothing slid: {still}")
 
 
 if __name__ == "__main__":

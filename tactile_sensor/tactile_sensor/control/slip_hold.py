@@ -17,8 +17,9 @@ hold therefore runs in three phases:
 2. *probing*: lower the grip at ``probe_rate_n_s``. While the object sticks, |Ft| stays at
    its level; at the break-away it drops by (mu_s - mu_k) Fn and then falls with the grip
    as mu_k Fn. The probe stops at the first run of its latest ticks (1 to 20) whose mean
-   |Ft| is ``PROBE_SIGMAS`` standard errors below the level: a step shows in a tick or
-   two, a slow fall in a longer run. mu is the slope of |Ft| on Fn through the origin
+   |Ft| is ``probe_sigmas`` standard errors below the level (the detector's false-alarm
+   rate at the ticks' bandwidth): a step shows in a tick or two, a slow fall in a longer
+   run. mu is the slope of |Ft| on Fn through the origin
    over the sliding ticks (at least 5: the ticks just before the break-away sat at mu_s),
    two standard errors lower (the kinetic friction, what the margin needs; erring low),
    and the grip goes at once to the least grip plus the detector's least margin: (|Ft| +
@@ -53,10 +54,6 @@ RATIO_TICKS = 10
 PROBE_TICKS = 20
 #: A probe starts on a steady |Ft| this many of its falls deep [1].
 PROBE_LEVELS = 4.0
-#: A probe's run of ticks slid once its mean |Ft| is this many of its standard errors
-#: below the level (about one false alarm in 10^4 probes of a second, a false one errs
-#: toward more grip).
-PROBE_SIGMAS = 4.5
 #: The hold modes a goal may ask for: today's fixed force, or the slip-aware hold.
 HOLD_MODES = ("fixed", "adaptive")
 #: The shear fingertip's force noise (docs/gripper.md, "Can the sensor see slip?": 38.9 mN
@@ -173,6 +170,18 @@ class SlipHoldConfig:
         return self.noise.shear_density * math.sqrt(self.control_rate_hz / 2.0)
 
     @property
+    def probe_sigmas(self) -> float:
+        """k of the probe's fall test, from the detector's ``false_alarms_per_hour``: the
+        tick means are the 1 kHz stream's 10 ms means, white at the control rate, a
+        bandwidth of half of it, so Rice's rate there (4.92 at 100 Hz and one an hour).
+        Checked on still Gaussian noise with the probe's own test (its 1-20 tick runs
+        each tick, the level's error; benchmarks/probe_false_alarms.py): 0.83 false alarms
+        an hour of probing here, 5.4 at 4.5, 42 at 4.0, 1100 at 3.0. A false one learns a
+        stuck ratio, under mu_s: 0.96-1.8 times the grip a true slip leaves on the
+        household objects (docs/gripper-adaptive-hold-measured.md)."""
+        return threshold_sigmas(self.noise.false_alarms_per_hour, self.control_rate_hz / 2.0)
+
+    @property
     def probe_threshold_n(self) -> float:
         """A fall of the probe window's mean |Ft| this large is a slip: 4 sigma of that
         mean (a false one makes the friction err low, toward more grip) [N]."""
@@ -285,8 +294,9 @@ class SlipHold:
         error = cfg.tick_shear_sigma_n / math.sqrt(count)  # of one window's mean
         # |Ft| of two noisy axes averages 1.25 sigma with no shear at all: a level
         # twice that is the object's
-        if (steady and mean > 2.0 * cfg.tick_shear_sigma_n + PROBE_SIGMAS * error
-                and abs(mean - last) <= PROBE_SIGMAS * math.sqrt(2.0) * error):
+        k = cfg.probe_sigmas
+        if (steady and mean > 2.0 * cfg.tick_shear_sigma_n + k * error
+                and abs(mean - last) <= k * math.sqrt(2.0) * error):
             # the least grip per shear that kept the object still (a load still easing on
             # would give more, the safe side)
             ratio = self.grip_n / mean
@@ -347,7 +357,7 @@ class SlipHold:
 
     def _sliding_ticks(self, level: float) -> int:
         """How many of the last ticks slid (0: none seen): the shortest run of the probe's
-        latest ticks whose mean |Ft| lies ``PROBE_SIGMAS`` of its noise (and the level's)
+        latest ticks whose mean |Ft| lies ``probe_sigmas`` of its noise (and the level's)
         below the level. Sliding, |Ft| = mu_k Fn falls with the grip, and at break-away it
         drops at once by (mu_s - mu_k) Fn: a short run sees a step, a long one a slow
         fall, so the probe stops within a few ticks of the break-away rather than once a
@@ -355,11 +365,12 @@ class SlipHold:
         cfg = self.config
         sigma = cfg.tick_shear_sigma_n
         level_var = sigma * sigma / (cfg.steady_s * cfg.control_rate_hz)
+        k = cfg.probe_sigmas
         window = list(self._shear_window)[-min(self._probe_ticks, PROBE_TICKS):]
         total = 0.0
         for n, shear in enumerate(reversed(window), start=1):
             total += shear
-            if level - total / n > PROBE_SIGMAS * math.sqrt(sigma * sigma / n + level_var):
+            if level - total / n > k * math.sqrt(sigma * sigma / n + level_var):
                 return n
         return 0
 
