@@ -79,8 +79,8 @@ class ForceSettler:
     #: The skin's stiffness at the target [N/m] (default: the FEM skin's there).
     skin_stiffness_n_per_m: float = 0.0
     tolerance: float = 0.03
-    #: The least span of forces [s] (the goal's clock) and count before the first judgment:
-    #: the driver's filter correlates its forces over 40 ms.
+    #: The least span of forces [s] (the goal's clock) and of ADC samples before the first
+    #: judgment: the driver's filter correlates its forces over 40 ms.
     window_s: float = 0.08
     min_samples: int = 80
     gain: float = 0.9
@@ -90,6 +90,11 @@ class ForceSettler:
     lowering_significance: float = 2.5
     #: One tactile sample's noise [N] (the paper's 31.5 dB: 0.56 N at 1 kHz).
     sample_noise_n: float = 0.56
+    #: The ADC rate that noise is per sample of [Hz]. A driver that publishes fewer forces
+    #: (``publish_rate`` 250 Hz: the newest filtered force every 4 ms) still carries the
+    #: filtered stream, so a batch counts the samples of the time it spans, at most a
+    #: filter's length (``transient_s``) per force: one force stands for no more.
+    sample_rate_hz: float = 1000.0
     #: Forces of this long after the fingers came to rest are left out [s]: the driver's
     #: filter (40 samples at 1 kHz) still carries the move in them.
     transient_s: float = 0.04
@@ -108,9 +113,11 @@ class ForceSettler:
     stiffness_uncertainty: float = 0.2
     _pending_sum_n: float = 0.0
     _pending_count: int = 0
+    _pending_samples: float = 0.0  # the ADC samples the pending forces stand for
+    _last_add_s: float | None = None
     _mean_n: float = 0.0  # the pooled mean at ``_reference_rad`` and its variance [N, N²]
     _variance_n2: float = math.inf
-    _count: int = 0
+    _count: float = 0.0  # ADC samples pooled
     _reference_rad: float | None = None
     _window_from_s: float | None = None
     _rest_from_s: float | None = None
@@ -122,12 +129,14 @@ class ForceSettler:
         if not (self.target_force_n > 0 and self.skin_stiffness_n_per_m > 0
                 and self.window_s >= 0 and 0 < self.gain <= 1 and self.tolerance >= 0
                 and self.sample_noise_n >= 0 and self.min_samples >= 1 and self.transient_s >= 0
+                and self.sample_rate_hz > 0
                 and self.stiffness_uncertainty >= 0
                 and self.significance >= 0
                 and self.lowering_significance >= 0):
             raise ValueError("ForceSettler needs a positive target and stiffness, a window "
                              "of at least 0 s and one sample, a gain in (0, 1], and a noise, "
-                             "significance and stiffness uncertainty of at least 0.")
+                             "significance and stiffness uncertainty of at least 0 and a "
+                             "positive sample rate.")
 
     @property
     def newton_per_rad(self) -> float:
@@ -138,6 +147,10 @@ class ForceSettler:
         rest where the next ``command`` finds the fingers; the window opens with the first."""
         if not count:
             return
+        span_s = count / self.sample_rate_hz
+        if self._last_add_s is not None:
+            span_s = max(span_s, now_s - self._last_add_s)
+        self._last_add_s = now_s
         if self._rest_from_s is None:
             self._rest_from_s = now_s
         if now_s - self._rest_from_s < self.transient_s:
@@ -146,6 +159,9 @@ class ForceSettler:
             self._window_from_s = now_s
         self._pending_sum_n += sum_n
         self._pending_count += count
+        self._pending_samples += min(span_s, count * max(self.transient_s, 1.0
+                                                         / self.sample_rate_hz)
+                                     ) * self.sample_rate_hz
 
     def estimate_n(self, position_rad: float) -> float | None:
         """The pooled mean force referred to ``position_rad`` (None before any force)."""
@@ -166,13 +182,13 @@ class ForceSettler:
 
     def _pool(self, position_rad: float) -> None:
         """Fold the pending forces in, weighed against the mean so far referred here."""
-        n = self._pending_count
+        n, samples = self._pending_count, self._pending_samples
         if not n:
             return
         batch_n = self._pending_sum_n / n
-        batch_var = self.sample_noise_n**2 / n
-        self._pending_sum_n, self._pending_count = 0.0, 0
-        self._count += n
+        batch_var = self.sample_noise_n**2 / samples
+        self._pending_sum_n, self._pending_count, self._pending_samples = 0.0, 0, 0.0
+        self._count += samples
         prior, prior_var = self._referred(position_rad)
         self._reference_rad = position_rad
         if prior is None or batch_var == 0.0:
@@ -208,7 +224,7 @@ class ForceSettler:
         if tiny:
             return None, True
         self.corrections += 1
-        self._rest_from_s = None  # the forces after this move start a new transient
+        self._rest_from_s = self._last_add_s = None  # a new transient after this move
         return ServoCommand(self._goal_rad(servo, step_rad), velocity_rad_s, current_a), False
 
     def _goal_rad(self, servo: ServoReading, step_rad: float) -> float:

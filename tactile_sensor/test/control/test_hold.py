@@ -99,6 +99,30 @@ def test_a_move_the_friction_swallowed_is_seen_at_once():
     assert len(sent) == 2 and sent[1] - sent[0] <= settler.transient_s + 2 * TICK_S
 
 
+@pytest.mark.parametrize(("per_tick", "ticks_apart"), [(10, 1), (2.5, 1), (1, 10)])
+def test_a_batch_counts_the_samples_of_its_span_at_most_a_filter_per_force(per_tick,
+                                                                           ticks_apart):
+    """1 kHz forces, the driver's 250 Hz ones (the newest filtered force every 4 ms) and a
+    starved stream of one force per 0.1 s: the pooled mean's σ counts the ADC samples the
+    forces stand for, so 250 Hz judges as soon and as sure as 1 kHz, and one force alone
+    stands for no more than the filter's 40 samples."""
+    settler = ForceSettler(G, 2.0, transient_s=0.04)
+    servo = Servo(CONTACT + 2.0 / (fem_skin_stiffness_n_per_m(2.0) * G.pitch_radius_m))
+    t, sent = 0.0, 0.0
+    for _ in range(40):
+        t += ticks_apart * TICK_S
+        sent += per_tick
+        n = int(sent)
+        sent -= n
+        settler.add(2.0 * n, n, t)
+        settler.command(t, servo, 0.6, 6.0)
+    span_s = t - settler.transient_s - ticks_apart * TICK_S  # the first batch: transient
+    per_force_s = ticks_apart * TICK_S / max(per_tick, 1.0)
+    samples = span_s * 1000.0 * min(1.0, settler.transient_s / per_force_s)
+    assert settler.sigma_n(servo.position_rad) == pytest.approx(
+        0.56 / np.sqrt(samples), rel=0.1)
+
+
 def test_the_estimate_moves_with_the_measured_position():
     settler = ForceSettler(G, 2.0, skin_stiffness_n_per_m=2000.0, min_samples=1,
                            window_s=0.0, transient_s=0.0)
@@ -155,7 +179,8 @@ def test_a_correction_under_half_a_pulse_counts_as_settled():
 @pytest.mark.parametrize("kw", [dict(target_force_n=0.0), dict(skin_stiffness_n_per_m=-1.0),
                                 dict(window_s=-0.1), dict(gain=1.5), dict(tolerance=-1),
                                 dict(sample_noise_n=-0.1), dict(min_samples=0),
-                                dict(transient_s=-0.01), dict(significance=-1.0)])
+                                dict(transient_s=-0.01), dict(significance=-1.0),
+                                dict(sample_rate_hz=0.0)])
 def test_rejects_a_configuration_that_cannot_regulate(kw):
     with pytest.raises(ValueError, match="ForceSettler needs"):
         ForceSettler(**{"geometry": G, "target_force_n": 1.0, **kw})
