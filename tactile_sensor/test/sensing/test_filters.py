@@ -30,17 +30,23 @@ def test_moving_average_is_the_mean_of_the_last_window(xs, window):
     np.testing.assert_allclose(got, want, atol=1e-9)
 
 
+def newest_of_fit(seg: np.ndarray, degree: int) -> float:
+    """The least-squares polynomial of ``degree`` through ``seg``, at its newest sample;
+    too few samples for it: the newest sample itself."""
+    if len(seg) <= degree:
+        return float(seg[-1])
+    return float(np.polyval(np.polyfit(np.arange(len(seg)), seg, degree), len(seg) - 1))
+
+
 @settings(max_examples=40)
-@given(signals, st.integers(2, 50))
-def test_savgol_is_the_least_squares_line_at_the_newest_sample(xs, window):
-    got = run(SavitzkyGolayLinear(window), xs)
+@given(signals, st.integers(3, 60), st.sampled_from([1, 2]))
+def test_savgol_is_the_least_squares_fit_at_the_newest_sample(xs, window, degree):
+    """Degree 1: the line (``SavitzkyGolayLinear``); degree 2: the parabola."""
+    kind = SavitzkyGolayLinear if degree == 1 else SavitzkyGolayQuadratic
+    got = run(kind(window), xs)
     for k, g in enumerate(got):
         seg = np.asarray(xs[max(0, k - window + 1):k + 1])
-        if len(seg) == 1:
-            assert g == seg[0]
-            continue
-        slope, intercept = np.polyfit(np.arange(len(seg)), seg, 1)
-        assert g == pytest.approx(intercept + slope * (len(seg) - 1), abs=1e-7)
+        assert g == pytest.approx(newest_of_fit(seg, degree), abs=1e-7)
 
 
 def test_savgol_has_no_lag_on_a_ramp_where_the_average_lags():
@@ -60,19 +66,6 @@ def test_default_filter_is_less_noisy_than_the_nine_point_average():
     # the theory: √((4N−2)/(N(N+1))) for the linear fit, 1/3 for the average
     assert np.std(default) == pytest.approx(np.sqrt(158 / 1640), rel=0.03)
     assert np.std(ma9) == pytest.approx(1 / 3, rel=0.03)
-
-
-@settings(max_examples=40)
-@given(signals, st.integers(3, 60))
-def test_savgol_quadratic_is_the_least_squares_parabola_at_the_newest_sample(xs, window):
-    got = run(SavitzkyGolayQuadratic(window), xs)
-    for k, g in enumerate(got):
-        seg = np.asarray(xs[max(0, k - window + 1):k + 1])
-        if len(seg) < 3:
-            assert g == seg[-1]
-            continue
-        assert g == pytest.approx(np.polyval(np.polyfit(np.arange(len(seg)), seg, 2),
-                                             len(seg) - 1), abs=1e-7)
 
 
 def test_savgol_quadratic_stays_exact_past_its_running_sums_refresh():
