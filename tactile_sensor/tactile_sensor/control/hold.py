@@ -106,8 +106,6 @@ class ForceSettler:
     closing_lead_rad: float | None = None
     #: The loop as the close saw it in free air (None: not known): the lead a force needs.
     loop: LoopLead | None = None
-    #: Corrections sent so far.
-    corrections: int = 0
     #: How far the skin under the fingers may be from that stiffness (relative): a mean
     #: referred across a move is trusted less by that fraction of the force moved.
     stiffness_uncertainty: float = 0.2
@@ -223,7 +221,6 @@ class ForceSettler:
             return None, False  # the mean cannot yet tell this error from its noise
         if tiny:
             return None, True
-        self.corrections += 1
         self._rest_from_s = self._last_add_s = None  # a new transient after this move
         return ServoCommand(self._goal_rad(servo, step_rad), velocity_rad_s, current_a), False
 
