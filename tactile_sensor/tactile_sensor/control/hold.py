@@ -19,13 +19,13 @@ it costs only a fraction of each move, not of the force.
 
 It corrects an error beyond the tolerance once it is beyond ``significance`` σ of the
 pooled mean (a smaller one may be noise: more forces decide; a lowering, which crosses the
-friction's band, needs ``lowering_significance``), by ``gain`` × the error, and has settled
-when the error
-plus the mean's σ is within ``tolerance`` of the target (or the error is, and the mean is
-known to half the force of one position pulse), or when the correction is under half a
-pulse: the servo cannot place the fingers finer. One pulse (2π/4096 rad of the pinion, 21 µm
-of each finger) is 0.041 N on the FEM skin at 1 N and 0.043 N at 1.5 N: 4.1 and 2.8 % of
-those targets, so their ±5 % is ±1.2 and ±1.8 pulses.
+friction's band, needs ``lowering_significance``), by ``gain`` × the error, judged on
+forces taken after its last move. It has settled when the error plus the mean's σ is within
+``tolerance`` of the target (or the error is, and the mean is known to half the force of
+one position pulse), or when the error is under half a pulse, widened by the stiffness's
+uncertainty: the servo cannot place the fingers finer. One pulse (2π/4096 rad of the
+pinion, 21 µm of each finger) is 0.041 N on the FEM skin at 1 N and 0.043 N at 1.5 N: 4.1
+and 2.8 % of those targets, so their ±5 % is ±1.2 and ±1.8 pulses.
 
 Through the friction of a geared servo (sim/drivetrain.py) the output rests where the
 position loop's torque no longer beats the load and the friction at rest: short of its
@@ -119,6 +119,7 @@ class ForceSettler:
     _reference_rad: float | None = None
     _window_from_s: float | None = None
     _rest_from_s: float | None = None
+    _seen_since_move: bool = False  # forces pooled since the last correction
     _last_closed: bool = True
 
     def __post_init__(self) -> None:
@@ -187,6 +188,7 @@ class ForceSettler:
         batch_var = self.sample_noise_n**2 / samples
         self._pending_sum_n, self._pending_count, self._pending_samples = 0.0, 0, 0.0
         self._count += samples
+        self._seen_since_move = True
         prior, prior_var = self._referred(position_rad)
         self._reference_rad = position_rad
         if prior is None or batch_var == 0.0:
@@ -200,7 +202,8 @@ class ForceSettler:
                 velocity_rad_s: float) -> tuple[ServoCommand | None, bool]:
         """(goal for this tick, or None to hold still; settled?)."""
         self._pool(servo.position_rad)
-        if (self._window_from_s is None or now_s - self._window_from_s < self.window_s
+        if (not self._seen_since_move or self._window_from_s is None
+                or now_s - self._window_from_s < self.window_s
                 or self._count < self.min_samples):
             return None, False
         estimate = self.estimate_n(servo.position_rad)
@@ -210,7 +213,10 @@ class ForceSettler:
         sigma_n = self.sigma_n(servo.position_rad)
         allowed = self.tolerance * self.target_force_n
         step_rad = self.gain * error / self.newton_per_rad
-        tiny = abs(step_rad) < 0.5 * RAD_PER_PULSE
+        # within half a pulse of the target, the skin's stiffness as uncertain as assumed:
+        # the next pulse either way lands no nearer
+        tiny = abs(error) / self.newton_per_rad < (0.5 + self.stiffness_uncertainty
+                                                   ) * RAD_PER_PULSE
         pulse_n = self.newton_per_rad * RAD_PER_PULSE
         if abs(error) <= allowed:
             if abs(error) + sigma_n <= allowed or sigma_n <= 0.5 * pulse_n:
@@ -222,6 +228,7 @@ class ForceSettler:
         if tiny:
             return None, True
         self._rest_from_s = self._last_add_s = None  # a new transient after this move
+        self._seen_since_move = False  # judged again on forces taken after it
         return ServoCommand(self._goal_rad(servo, step_rad), velocity_rad_s, current_a), False
 
     def _goal_rad(self, servo: ServoReading, step_rad: float) -> float:
