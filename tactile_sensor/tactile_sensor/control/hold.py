@@ -20,12 +20,17 @@ it costs only a fraction of each move, not of the force.
 It corrects an error beyond the tolerance once it is beyond ``significance`` σ of the
 pooled mean (a smaller one may be noise: more forces decide; a lowering, which crosses the
 friction's band, needs ``lowering_significance``), by ``gain`` × the error, judged on
-forces taken after its last move. It has settled when the error plus the mean's σ is within
-``tolerance`` of the target (or the error is, and the mean is known to half the force of
-one position pulse), or when the error is under half a pulse, widened by the stiffness's
-uncertainty: the servo cannot place the fingers finer. One pulse (2π/4096 rad of the
-pinion, 21 µm of each finger) is 0.041 N on the FEM skin at 1 N and 0.043 N at 1.5 N: 4.1
-and 2.8 % of those targets, so their ±5 % is ±1.2 and ±1.8 pulses.
+forces taken after its last move. A raise closes the error less one σ of the mean (but at
+least a pulse): the force it leaves passes the target only where the mean read more than
+that low, so a first mean 3 σ low (σ ≈ 0.055 N a tenth of a second after the stop) does
+not press a 1 N hold 15 % over; a lowering undershoots, it never presses harder.
+
+It has settled when the error plus the mean's σ is within ``tolerance`` of the target (or
+the error is, and the mean is known to half the force of one position pulse), or when the
+error is under half a pulse, widened by the stiffness's uncertainty: the servo cannot place
+the fingers finer. One pulse (2π/4096 rad of the pinion, 21 µm of each finger) is 0.041 N
+on the FEM skin at 1 N and 0.043 N at 1.5 N: 4.1 and 2.8 % of those targets, so their ±5 %
+is ±1.2 and ±1.8 pulses.
 
 Through the friction of a geared servo (sim/drivetrain.py) the output rests where the
 position loop's torque no longer beats the load and the friction at rest: short of its
@@ -88,6 +93,11 @@ class ForceSettler:
     #: cheap, a lowering crosses the friction's band and approaches again from below.
     significance: float = 1.5
     lowering_significance: float = 2.5
+    #: A raise closes the error less this many σ of the mean: the force after it passes
+    #: the target only where the mean read more than that low, so a mean at a 3 σ low (one
+    #: grasp in a few hundred) no longer presses a 1 N hold 15 % over. A lowering aims at
+    #: the target: it undershoots, never presses harder.
+    raise_caution: float = 1.0
     #: One tactile sample's noise [N] (the paper's 31.5 dB: 0.56 N at 1 kHz).
     sample_noise_n: float = 0.56
     #: The ADC rate that noise is per sample of [Hz]. A driver that publishes fewer forces
@@ -130,12 +140,12 @@ class ForceSettler:
                 and self.sample_noise_n >= 0 and self.min_samples >= 1 and self.transient_s >= 0
                 and self.sample_rate_hz > 0
                 and self.stiffness_uncertainty >= 0
-                and self.significance >= 0
+                and self.significance >= 0 and self.raise_caution >= 0
                 and self.lowering_significance >= 0):
             raise ValueError("ForceSettler needs a positive target and stiffness, a window "
-                             "of at least 0 s and one sample, a gain in (0, 1], and a noise, "
-                             "significance and stiffness uncertainty of at least 0 and a "
-                             "positive sample rate.")
+                             "of at least 0 s and one sample, a gain in (0, 1], a noise, "
+                             "significance, raise caution and stiffness uncertainty of at "
+                             "least 0 and a positive sample rate.")
 
     @property
     def newton_per_rad(self) -> float:
@@ -212,7 +222,7 @@ class ForceSettler:
         error = estimate - self.target_force_n
         sigma_n = self.sigma_n(servo.position_rad)
         allowed = self.tolerance * self.target_force_n
-        step_rad = self.gain * error / self.newton_per_rad
+        step_rad = self.gain * self._missing_n(error, sigma_n) / self.newton_per_rad
         # within half a pulse of the target, the skin's stiffness as uncertain as assumed:
         # the next pulse either way lands no nearer
         tiny = abs(error) / self.newton_per_rad < (0.5 + self.stiffness_uncertainty
@@ -230,6 +240,16 @@ class ForceSettler:
         self._rest_from_s = self._last_add_s = None  # a new transient after this move
         self._seen_since_move = False  # judged again on forces taken after it
         return ServoCommand(self._goal_rad(servo, step_rad), velocity_rad_s, current_a), False
+
+    def _missing_n(self, error_n: float, sigma_n: float) -> float:
+        """The error a correction closes: a lowering's whole; a raise's less
+        ``raise_caution`` σ, but at least one position pulse (up to the error): the servo
+        places no finer, and a raise of a fraction of one waits out the stick-slip."""
+        if error_n >= 0.0:
+            return error_n
+        pulse_n = self.newton_per_rad * RAD_PER_PULSE
+        cautious = -error_n - self.raise_caution * sigma_n
+        return -min(-error_n, max(cautious, pulse_n / self.gain))
 
     def _goal_rad(self, servo: ServoReading, step_rad: float) -> float:
         """The goal that moves the output by ``-step_rad`` through the loop's friction.

@@ -177,10 +177,36 @@ def test_a_correction_under_half_a_pulse_counts_as_settled():
     assert settler.command(0.0, Servo(CONTACT), 0.6, 6.0) == (None, True)
 
 
+@pytest.mark.parametrize(("mean_n", "pulses"), [(0.80, None), (0.94, 1.0)])
+def test_a_raise_closes_the_error_less_the_means_sigma_but_at_least_a_pulse(mean_n, pulses):
+    """A raise aims one σ short of the target (a mean read low presses no harder than
+    the target), yet never less than a pulse (the servo places no finer); a lowering
+    aims at the target (and two pulses under it: the output rests under the target, the
+    next correction closes onto it)."""
+    k = 2000.0
+    settler = ForceSettler(G, 1.0, skin_stiffness_n_per_m=k, window_s=0.0, min_samples=1,
+                           transient_s=0.0, significance=0.0)
+    settler.add(400 * mean_n, 400, 0.0)
+    servo = Servo(CONTACT + 0.01)
+    command, settled = settler.command(0.0, servo, 0.6, 6.0)
+    sigma = 0.56 / np.sqrt(400)
+    moved = command.goal_position_rad - servo.position_rad
+    expected = (pulses * RAD_PER_PULSE if pulses is not None
+                else settler.gain * (1.0 - mean_n - sigma) / (k * G.pitch_radius_m))
+    assert not settled and moved == pytest.approx(expected, rel=1e-6)
+    lowering = ForceSettler(G, 1.0, skin_stiffness_n_per_m=k, window_s=0.0, min_samples=1,
+                            transient_s=0.0, significance=0.0, lowering_significance=0.0)
+    lowering.add(400 * 1.2, 400, 0.0)
+    command, _ = lowering.command(0.0, servo, 0.6, 6.0)
+    assert command.goal_position_rad - servo.position_rad == pytest.approx(
+        -lowering.gain * 0.2 / (k * G.pitch_radius_m) - 2 * RAD_PER_PULSE, rel=1e-6)
+
+
 @pytest.mark.parametrize("kw", [dict(target_force_n=0.0), dict(skin_stiffness_n_per_m=-1.0),
                                 dict(window_s=-0.1), dict(gain=1.5), dict(tolerance=-1),
                                 dict(sample_noise_n=-0.1), dict(min_samples=0),
                                 dict(transient_s=-0.01), dict(significance=-1.0),
+                                dict(raise_caution=-0.5),
                                 dict(sample_rate_hz=0.0)])
 def test_rejects_a_configuration_that_cannot_regulate(kw):
     with pytest.raises(ValueError, match="ForceSettler needs"):
