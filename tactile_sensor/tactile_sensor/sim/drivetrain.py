@@ -22,9 +22,14 @@ Parameters (``drivetrain.*`` on the mock, all at the servo's output):
   friction_viscous, load_friction_stribeck; its load_friction_base is 2e-10, so the
   load-dependent friction acts through the Stribeck coefficient alone). The Stribeck
   curve's exponent is that model's ``alpha``, 1.33. The XM430 has no identification.
-- ``backlash_rad`` 4.36e-3 rad: the X-series e-manual's 15 arcmin (0.25 deg). The servo's
-  encoder reads the output shaft, so the play the fingers see is after it; it is placed
-  between the output and the racks.
+- ``backlash_rad`` 4.36e-3 rad: the X-series e-manual's 15 arcmin (0.25 deg). That is the
+  gearbox's play, and the servo's encoder reads the output shaft, so it lies inside the
+  position loop, which closes on the output: a quasi-static model cannot show it there.
+  The model puts a play of that size where the fingers could feel it, between the output
+  and the racks (the rack-and-pinion mesh, for which no source gives a figure). Even
+  there a skin between the fingers hides it: the skins push the racks onto the pinion's
+  closing face whichever way it turns (test_drivetrain.py shows a record with the play
+  equal to one without it on an object nearer by the play).
 - ``guide_friction_n`` 0.001 N per finger: a ball carriage's rolling friction
   (coefficient 0.002-0.003, Thomson's profile rail notes) on a finger's weight (~0.3 N).
   Seal drag, which the catalogues do not quantify, would add to it.

@@ -170,3 +170,16 @@ def test_malformed_inputs_are_refused():
         ClosingRecord.of([0.0, 1.0], [0.0], [0.0, 0.0], [0.0, 0.0])
     record = ClosingRecord.of([0.0, math.nan], [1.0, 1.0], [0.0, 0.0], [0.0, 0.0])
     assert record.position_rad.size == 1  # a sample with a missing value is dropped
+
+
+@pytest.mark.parametrize("backlash_rad", [0.0044, 0.01])
+def test_a_play_changes_no_factor_only_where_finger_a_touched(backlash_rad):
+    """A close turns one way, so the play operator shifts every rack position by the play
+    alike: the fit's contact takes it up, to the last digit, and both factors stay."""
+    record = closing(0.9, 1.1)
+    without = fit_self_check(record, PREDICTION, DriveTrain())
+    played = fit_self_check(record, PREDICTION, DriveTrain(backlash_rad=backlash_rad))
+    assert (played.optical_gain, played.stiffness) == pytest.approx(
+        (without.optical_gain, without.stiffness), rel=1e-9)
+    assert without.contact_position_rad - played.contact_position_rad == pytest.approx(
+        backlash_rad, abs=1e-9)
