@@ -33,7 +33,9 @@ hold therefore runs in three phases:
 Grip to position: the skin's stiffness at the pinion (``newton_per_rad``) from an anchor,
 the servo position and the mean force over the last rest; re-anchored after each rest of
 ``settle_s``, so the grip converges on its target as the fixed hold does (within
-``tolerance``). Pure: one ``update`` a control tick, no clock, no I/O.
+``tolerance``); a raise carries the position loop's lead through the servo's friction,
+read at the output's first tick at rest after a close (``_regulate``). Pure: one
+``update`` a control tick, no clock, no I/O.
 """
 
 from __future__ import annotations
@@ -234,6 +236,8 @@ class SlipHold:
         #: 0 until a rest shows it) and whether the last goal closed.
         self._closing_lead_rad = 0.0
         self._last_closed = True
+        #: The output moved since the last goal (its next tick at rest shows the lead).
+        self._moved = False
         self._rest_sum, self._rest_count = 0.0, 0
         # (the last window's mean |Ft|, this window's start, its sum, sum of squares, count)
         self._steady: tuple[float, float | None, float, float, int] = (
@@ -434,9 +438,29 @@ class SlipHold:
         the largest lead seen at rest after a close on top of where the output is to be:
         without it a raise the output cannot follow leaves the grip where it was while
         the hold counts on the new one (a reflex that keeps nothing). A grip to lower gets
-        no lead: the output rests above an opening goal, on the side of more grip."""
+        no lead: the output rests above an opening goal, on the side of more grip.
+
+        The lead is read as soon as the output, having moved toward a closing goal, is
+        still at a tick: not only after ``settle_s``, which a force mean needs and a lead
+        does not. The hold starts on a grasp whose close it did not see, so its first
+        raise (the reflex after a probe's slip) carries no lead and the output rests short
+        by the band's closing edge (28 pulses on the default drivetrain) while the object
+        slides on; read at the first rest, the lead puts the catching grip on its target
+        a rest of ``settle_s`` sooner (docs/gripper-adaptive-hold-measured.md). A tick at
+        rest after moving is on that edge, not a stick-slip pause: a profile still running
+        at the hold's 6 rad/s adds 0.06 rad of lead a tick, more than the whole band
+        (about 35 pulses, 0.054 rad), so a stuck output breaks away within the tick. A
+        tick that never saw the output move (a goal inside the band, or a servo state
+        older than the command) says nothing of the edge."""
         cfg = self.config
         grip = self.grip_n
+        if moving:
+            self._moved = True
+        elif self._moved and self._last_closed and self._commanded_s is not None:
+            # at rest after moving toward a closing goal: on the band's closing edge
+            self._closing_lead_rad = max(self._closing_lead_rad,
+                                         self._goal_rad - position_rad)
+            self._moved = False
         if self._commanded_s is not None and (moving or now_s - self._commanded_s
                                               < cfg.settle_s):
             self._rest_sum, self._rest_count = 0.0, 0
@@ -463,6 +487,6 @@ class SlipHold:
         if abs(goal - self._goal_rad) < (0.5 if urgent else 1.0) * RAD_PER_PULSE:
             return None
         self._goal_rad, self._commanded_s = goal, now_s
-        self._last_closed = closing
+        self._last_closed, self._moved = closing, False
         self._rest_sum, self._rest_count = 0.0, 0
         return goal

@@ -174,6 +174,37 @@ def test_a_load_rising_before_the_friction_is_known_raises_the_grip_at_once() ->
     assert world.grip_n <= 2.0 / (weight / 2) * (1.5 * weight + hold.config.shear_threshold_n)
 
 
+def test_the_reflex_after_a_probe_passes_the_servo_s_friction_at_its_first_rest() -> None:
+    """A geared servo rests short of a closing goal by its band's closing edge (28 pulses
+    here, 1.5 N of grip on this skin); the hold starts on a grasp whose close it did not
+    see, so its first raise (the reflex after the probe's slip) carries no lead. The
+    output's first tick at rest after moving shows the lead, and the goal moves by it at
+    once: the grip is on its target two ticks after the reflex, not after a rest of
+    ``settle_s`` (15 ticks). A 300 g object at mu_k = mu_s = 0.35, no noise."""
+    band_rad = 28 * 2 * math.pi / 4096
+    load = 0.3 * 9.81
+    hold, world = start(1.5 * load / 0.7, load, 0.35, 0.35, noise=False)
+    moving, grips, learned = False, [], None
+    for i in range(400):
+        fn, ft = world.grip_n, world.shear_n()
+        step = hold.update(i * DT, fn, ft, 0.0, world.position_rad, moving)
+        moving = False
+        if step.goal_rad is not None:
+            # closing: the output rests short by the band (a goal inside it moves nothing);
+            # opening: it follows
+            to = (max(world.position_rad, step.goal_rad - band_rad)
+                  if step.goal_rad > world.position_rad else step.goal_rad)
+            moving, world.position_rad = to != world.position_rad, to
+        if step.event is not None and step.event.kind is EventKind.LEARNED:
+            learned = (i, step.grip_n)
+        grips.append(world.grip_n)
+    assert learned is not None
+    at, target = learned
+    assert target - grips[at] > 1.0  # the first raise rested short by the band
+    assert grips[at + 2] >= (1.0 - hold.config.tolerance) * target
+    assert world.slid_ticks < 20
+
+
 def test_a_ceiling_too_low_says_slipping_and_holds_at_the_ceiling() -> None:
     rng = np.random.default_rng(3)
     hold, world = start(3.0, 2.0, 0.5, 0.5, ceiling_n=3.5)
