@@ -76,10 +76,13 @@ def ros_domain(monkeypatch: pytest.MonkeyPatch) -> int:
 
 
 def _default_sigint() -> None:
-    """Children start with Ctrl-C at its default, as from a terminal. A test run started as a
-    background job of a non-interactive shell inherits SIGINT ignored, and ``ros2 launch``
-    then ignores the SIGINT a test sends it (measured: every SIGINT test timed out at 5 s)."""
+    """Children start with Ctrl-C and hang-up at their defaults, as from a terminal. A test
+    run started as a background job of a non-interactive shell inherits SIGINT ignored, and
+    ``ros2 launch`` then ignores the SIGINT a test sends it (measured: every SIGINT test timed
+    out at 5 s); one started under ``nohup`` inherits SIGHUP ignored, and a node then outlives
+    the SIGHUP a test sends it."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
 
 
 #: The longest a ``wait_for_output(..., while_progressing=True)`` waits [s].
