@@ -13,7 +13,9 @@ hold therefore runs in three phases:
    that ratio at once (``onset``, margin NaN), with no friction needed. Once the steady
    shear is four of the falls a probe resolves deep (``PROBE_LEVELS`` x 0.078 N: 0.31 N
    on each skin, an object of about 65 g; the 20 Hz margin's 3 k sigma_t, 0.78 N, would
-   leave every object under 160 g unprobed):
+   leave every object under 160 g unprobed), and the grip is at most half the ceiling
+   (``probe_headroom``: an object the ceiling cannot double the grip of keeps this
+   reflex):
 2. *probing*: lower the grip at ``probe_rate_n_s``. While the object sticks, |Ft| stays at
    its level; at the break-away it drops by (mu_s - mu_k) Fn and then falls with the grip
    as mu_k Fn. The probe stops at the first run of its latest ticks (1 to 20) whose mean
@@ -146,15 +148,26 @@ class SlipHoldConfig:
     settle_s: float = 0.15
     #: The grip is on target within this fraction [1].
     tolerance: float = 0.05
+    #: A probe starts only at a grip this many times under the ceiling [1]: a hold that
+    #: cannot double its grip does not trade the waiting phase's reflex for a friction
+    #: (``_wait``).
+    probe_headroom: float = 2.0
 
     def __post_init__(self) -> None:
         positive = ("ceiling_n", "newton_per_rad", "bandwidth_hz", "probe_rate_n_s",
                     "steady_s", "max_friction", "settle_s")
         bad = [name for name in positive if not getattr(self, name) > 0]
+        if not self.probe_headroom >= 1.0:
+            bad.append("probe_headroom (>= 1)")
         if bad or not 2 * self.bandwidth_hz < self.control_rate_hz:
             raise InvalidConfiguration(
                 f"The adaptive hold needs {', '.join(bad) or 'bandwidth_hz'} > 0 and a "
                 "slip bandwidth under half the control rate; fix the slip parameters.")
+
+    @property
+    def probe_grip_limit_n(self) -> float:
+        """The largest grip a probe starts from [N]."""
+        return self.ceiling_n / self.probe_headroom
 
     @property
     def shear_threshold_n(self) -> float:
@@ -282,7 +295,17 @@ class SlipHold:
         and the later one's tick means spread no more than twice their noise: an object
         ringing on stuck skins after a sudden lift (7-19 Hz in the model, for seconds)
         could slip at a ring's peak before the probe sees it. The later window's mean is
-        the probe's reference."""
+        the probe's reference.
+
+        No probe starts from a grip over ``probe_grip_limit_n`` (half the ceiling). After a
+        probe the hold meets a rising load with the detector's least margin and a reflex
+        that acts once that margin has closed, 20-30 ms after the forces show it, and the
+        probe's catch has left the object ringing on the stuck skins by about that margin.
+        Waiting, the load-following reflex acts on a rise of k sigma_t, in the ratio that
+        kept the object. A grip the ceiling cannot double leaves no room to be late: a
+        load that doubles in 0.1 s breaks such an object away before the reflex after a
+        probe, where the waiting hold takes it to the ceiling in time
+        (docs/gripper-adaptive-hold-measured.md, the cracker box)."""
         cfg = self.config
         last, since, total, squares, count = self._steady
         raw = self._shear_window[-1]
@@ -307,7 +330,8 @@ class SlipHold:
             if self._reference is not None:
                 ratio = min(ratio, self._reference[0])
             self._reference = (ratio, mean)
-        if steady and mean >= PROBE_LEVELS * cfg.probe_threshold_n:
+        if (steady and mean >= PROBE_LEVELS * cfg.probe_threshold_n
+                and self.grip_n <= cfg.probe_grip_limit_n):
             self.phase = HoldPhase.PROBING
             self._probe, self._probe_ticks = (mean, fn, now_s), 0
 

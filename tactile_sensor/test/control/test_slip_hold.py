@@ -180,10 +180,11 @@ def test_the_reflex_after_a_probe_passes_the_servo_s_friction_at_its_first_rest(
     see, so its first raise (the reflex after the probe's slip) carries no lead. The
     output's first tick at rest after moving shows the lead, and the goal moves by it at
     once: the grip is on its target two ticks after the reflex, not after a rest of
-    ``settle_s`` (15 ticks). A 300 g object at mu_k = mu_s = 0.35, no noise."""
+    ``settle_s`` (15 ticks). A 300 g object at mu_k = mu_s = 0.35, no noise, the ceiling
+    out of the way (a grip over half of it is not probed)."""
     band_rad = 28 * 2 * math.pi / 4096
     load = 0.3 * 9.81
-    hold, world = start(1.5 * load / 0.7, load, 0.35, 0.35, noise=False)
+    hold, world = start(1.5 * load / 0.7, load, 0.35, 0.35, ceiling_n=30.0, noise=False)
     moving, grips, learned = False, [], None
     for i in range(400):
         fn, ft = world.grip_n, world.shear_n()
@@ -207,7 +208,7 @@ def test_the_reflex_after_a_probe_passes_the_servo_s_friction_at_its_first_rest(
 
 def test_a_ceiling_too_low_says_slipping_and_holds_at_the_ceiling() -> None:
     rng = np.random.default_rng(3)
-    hold, world = start(3.0, 2.0, 0.5, 0.5, ceiling_n=3.5)
+    hold, world = start(1.7, 1.5, 0.5, 0.5, ceiling_n=3.5)  # probed: under half of it
     run(hold, world, 400, rng)
     assert hold.phase is HoldPhase.HOLDING
     world.load_n = 4.0  # needs 4 N of grip at mu 0.5
@@ -238,6 +239,29 @@ def test_a_sensor_reading_low_cannot_close_the_fingers_past_the_ceiling() -> Non
             world.position_rad = step.goal_rad
         assert world.grip_n <= 6.0 + 1e-9, (i, world.grip_n)
     assert hold.grip_n == pytest.approx(6.0)
+
+
+@pytest.mark.parametrize(("ceiling_n", "probed"), [(12.0, True), (11.9, False)])
+def test_a_grip_over_half_the_ceiling_is_not_probed_and_follows_its_load(
+        ceiling_n: float, probed: bool) -> None:
+    """Held at 6 N, 1.5 N a skin at mu 0.5: under a 12 N ceiling the probe learns the
+    friction; under 11.9 N, which cannot double the grip, the hold keeps waiting, and a
+    load that rises raises the grip at once in the ratio the object stuck at."""
+    rng = np.random.default_rng(11)
+    hold, world = start(6.0, 3.0, 0.5, 0.5, ceiling_n=ceiling_n)
+    steps = run(hold, world, 300, rng)
+    assert (HoldPhase.PROBING in [s.phase for s in steps]) is probed
+    if probed:
+        assert hold.phase is HoldPhase.HOLDING and hold.friction is not None
+        return
+    assert hold.phase is HoldPhase.WAITING and hold.friction is None
+    assert world.grip_n == pytest.approx(6.0, abs=0.06) and world.slid_ticks == 0
+    world.load_n = 4.5  # 2.25 N a skin: the grip follows in its 6 N / 1.5 N
+    steps = run(hold, world, 30, rng, start_s=3.0)
+    onsets = [s.event for s in steps if s.event is not None]
+    assert onsets and onsets[0].kind is EventKind.ONSET and math.isnan(onsets[0].margin_n)
+    assert world.grip_n >= 6.0 / 1.5 * 2.25 and world.slid_ticks == 0
+    assert hold.phase is HoldPhase.WAITING
 
 
 def test_a_shear_under_the_probe_s_resolution_keeps_the_grip() -> None:
@@ -305,6 +329,9 @@ def test_bad_configurations_are_refused_in_one_sentence() -> None:
     with pytest.raises(InvalidConfiguration, match="half the control rate"):
         SlipHoldConfig(SHEAR_FINGERTIP_NOISE, ceiling_n=5.0, newton_per_rad=PER_RAD,
                        closed_position_rad=1.0, bandwidth_hz=60.0)
+    with pytest.raises(InvalidConfiguration, match=r"probe_headroom \(>= 1\)"):
+        SlipHoldConfig(SHEAR_FINGERTIP_NOISE, ceiling_n=5.0, newton_per_rad=PER_RAD,
+                       closed_position_rad=1.0, probe_headroom=0.5)
     with pytest.raises(InvalidConfiguration, match="'hold_mode'"):
         HoldSettings(mode="gentle")
     with pytest.raises(InvalidConfiguration, match="'hold_time'"):
