@@ -3,7 +3,8 @@ grip, on household objects, offline.
 
 What runs: ``bench_slip_hold``'s closed loop (the pure ``control.slip_hold.SlipHold`` at
 the control tick on the gripper world, the held object and the motor model with the
-default drivetrain, the fingertip's noise and 5 ms of delay, no ROS), on the objects of
+default drivetrain or ``--drivetrain held-out``'s (``grasp_hold.DRIVETRAINS``), the
+fingertip's noise and 5 ms of delay, no ROS), on the objects of
 ``sim.object_set.HOUSEHOLD_OBJECTS`` (YCB masses; silicone's friction on their surfaces).
 
 Each object is gripped at ``START_OVER_LEAST`` times the least grip for its weight at its
@@ -20,7 +21,7 @@ it, the latter from the held object's true slip when the friction was learned.
 ``--probe-sigmas`` sets the probe's threshold in place of the hold's own (a sweep).
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/bench_slip_harm.py [--design-only] [--seeds N]
-        [--probe-sigmas K]
+        [--probe-sigmas K] [--drivetrain default|held-out]
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
 from bench_slip_hold import CEILING_N, GRIPPED_S, TICK_S, WORLD_STEP_S, Loop
+from grasp_hold import DRIVETRAINS
 
 from tactile_sensor.analysis.slip.signature import Scenario, least_grip_n
 from tactile_sensor.control.slip_hold import HoldPhase, SlipHoldConfig
@@ -88,9 +90,10 @@ def scenario(obj: HouseholdObject) -> Scenario:
     return replace(s, grip_n=start)
 
 
-def run(s: Scenario, adaptive: bool, seed: int, probe_sigmas: float | None = None) -> Outcome:
+def run(s: Scenario, adaptive: bool, seed: int, probe_sigmas: float | None = None,
+        drivetrain: str = "default") -> Outcome:
     """The world, the motor and the hold (adaptive) or the fingers where they closed."""
-    loop = Loop(s, adaptive, seed)
+    loop = Loop(s, adaptive, seed, drivetrain=DRIVETRAINS[drivetrain])
     world = loop.world
     if loop.hold is not None and probe_sigmas is not None:
         cfg = loop.hold.config
@@ -130,11 +133,11 @@ def run(s: Scenario, adaptive: bool, seed: int, probe_sigmas: float | None = Non
                    probed)
 
 
-def compare(obj: HouseholdObject, seed: int, probe_sigmas: float | None = None
-            ) -> tuple[Scenario, Outcome, Outcome]:
+def compare(obj: HouseholdObject, seed: int, probe_sigmas: float | None = None,
+            drivetrain: str = "default") -> tuple[Scenario, Outcome, Outcome]:
     s = scenario(obj)
-    adaptive = run(s, True, seed, probe_sigmas)
-    fixed = run(replace(s, grip_n=adaptive.peak_n), False, seed)
+    adaptive = run(s, True, seed, probe_sigmas, drivetrain)
+    fixed = run(replace(s, grip_n=adaptive.peak_n), False, seed, drivetrain=drivetrain)
     return s, adaptive, fixed
 
 
@@ -147,12 +150,16 @@ def main() -> None:
     parser.add_argument("--probe-sigmas", type=float, default=None,
                         help="the probe's threshold [standard errors] in place of the "
                         "hold's own (one false alarm an hour)")
+    parser.add_argument("--drivetrain", choices=tuple(k for k, v in DRIVETRAINS.items()
+                                                      if v is not None), default="default",
+                        help="the servo's drivetrain (grasp_hold.py; default: the mock's)")
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error(f"--seeds {args.seeds} must be 1 or more")
     if args.probe_sigmas is not None and not args.probe_sigmas > 0:
         parser.error(f"--probe-sigmas {args.probe_sigmas} must be > 0, e.g. 4.0")
     objects = [o for o in HOUSEHOLD_OBJECTS if not (args.design_only and o.held_out)]
+    print(f"drivetrain: {args.drivetrain}")
     print(f"{'object':<26} {'g':>5} {'mu_s':>4} {'mu_k':>4} {'start':>5} {'seed':>4} | "
           f"{'adaptive':>8} {'peak N':>6} {'slip':>6} {'mu':>5} | {'fixed@peak':>10} "
           f"{'slip':>6} | harm")
@@ -160,7 +167,7 @@ def main() -> None:
     for obj in objects:
         number = HOUSEHOLD_OBJECTS.index(obj)
         for seed in range(args.seeds):
-            s, a, f = compare(obj, 1000 * number + seed, args.probe_sigmas)
+            s, a, f = compare(obj, 1000 * number + seed, args.probe_sigmas, args.drivetrain)
             harm = f.kept and not a.kept
             runs += 1
             lost += a.lost_in_probe(s.grip_n)

@@ -49,6 +49,7 @@ from tactile_sensor.control.grasp import GraspConfig
 from tactile_sensor.control.slip_hold import SHEAR_FINGERTIP_NOISE, SlipHold, SlipHoldConfig
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.viscoelastic import RateDependentForce
+from tactile_sensor.sim.drivetrain import DEFAULT_DRIVETRAIN, Drivetrain
 from tactile_sensor.sim.gripper_world import GripperWorld
 from tactile_sensor.sim.held_object import HeldObject, ObjectSpec
 from tactile_sensor.sim.motor_model import MotorCommand, MotorModel
@@ -116,7 +117,8 @@ class Loop:
     """The world, the motor and (for the adaptive hold) the hold, one world step at a time."""
 
     def __init__(self, scenario: Scenario, adaptive: bool, seed: int,
-                 delay_s: float = DELAY_S) -> None:
+                 delay_s: float = DELAY_S,
+                 drivetrain: Drivetrain | None = DEFAULT_DRIVETRAIN) -> None:
         params = PhysicsParams()
         self.delay_s = delay_s
         self.geometry = GripperGeometry()
@@ -130,7 +132,7 @@ class Loop:
         self.world = GripperWorld(skin, self.geometry, rod_diameter_m=ROD_M, held=held)
         depth = indentation_for(skin, scenario.grip_n)
         start = self.geometry.position_rad(ROD_M - 2.0 * depth)
-        self.motor = MotorModel(start, self.world.load_torque_nm)
+        self.motor = MotorModel(start, self.world.load_torque_nm, drivetrain=drivetrain)
         self.command = self._command(start)
         self.rng = np.random.default_rng(seed)
         self.hold = SlipHold(self._hold_config(), scenario.grip_n, start) if adaptive else None
