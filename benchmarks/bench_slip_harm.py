@@ -38,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tactile_sensor"))
 
 from bench_slip_hold import CEILING_N, GRIPPED_S, TICK_S, WORLD_STEP_S, Loop
 from grasp_hold import DRIVETRAINS
+from results import Figure, write_results
 
 from tactile_sensor.analysis.slip.signature import Scenario, least_grip_n
 from tactile_sensor.control.slip_hold import HoldPhase, SlipHoldConfig
@@ -188,6 +189,22 @@ def main() -> None:
           f"adaptive kept {kept_adaptive}; dropped by the adaptive hold where the fixed one "
           f"kept: {harms} (goal 0: {'met' if harms == 0 else 'not met'}); lost in the probe "
           f"(grip never above its start): {lost}; probes stopped with nothing slid: {still}")
+    if args.probe_sigmas is not None:
+        return  # a sweep: printed only
+    name = ("slip_harm" + ("_design" if args.design_only else "")
+            + ("" if args.drivetrain == "default" else "_" + args.drivetrain.replace("-", "_")))
+    write_results(name, [
+        Figure("runs", runs), Figure("fixed at the adaptive peak: kept", kept_fixed),
+        Figure("adaptive: kept", kept_adaptive),
+        Figure("adaptive dropped where the fixed hold at its peak kept", harms, "", "0",
+               harms == 0),
+        Figure("lost in the probe (grip never above its start)", lost),
+        Figure("probes stopped with nothing slid", still)],
+        notes=f"{len(objects)} household objects "
+        f"({'design only' if args.design_only else 'held-out ones included'}) x "
+        f"{args.seeds} seeds, drivetrain {args.drivetrain}: gripped at "
+        f"{START_OVER_LEAST:g} x the least grip, lifted, held {HOLD_S:g} s, load doubled "
+        f"over 100 ms, held {AFTER_S:g} s.")
 
 
 if __name__ == "__main__":
