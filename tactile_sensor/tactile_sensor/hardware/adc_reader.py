@@ -114,6 +114,9 @@ class ReaderStats:
     awaiting_info: int = 0  # samples held now until the device's info frame arrives
     dropped_awaiting_info: int = 0  # samples thrown away: no info frame came in time
     channel_mismatches: int = 0  # data frames whose channel count contradicts the info
+    #: Data frames with a valid CRC but a code over the full scale the device's info states:
+    #: garbage whose CRC-16 matched by chance (1 in 65,536 candidates), dropped
+    over_full_scale: int = 0
 
 
 SampleCallback = Callable[[Sample], None]
@@ -199,6 +202,7 @@ class AdcStreamReader:
             backlog, _samples_in, SampleBatch.head)  # type: ignore[arg-type]
         self._parser = FrameParser(channels)
         self._seq = _Sequencer()
+        self._over_full_scale = 0
         self._gate = _InfoGate()
         self._lock = threading.Lock()  # counters, state
         self._port_lock = threading.Lock()  # the port, the parser: reads stay in order
@@ -255,7 +259,7 @@ class AdcStreamReader:
                 device_info=self._gate.info, info_frames=p.info_frames,
                 info_errors=p.info_errors, last_info_error=p.last_info_error,
                 awaiting_info=len(self._gate.waiting), dropped_awaiting_info=self._gate.dropped,
-                channel_mismatches=self._gate.mismatches,
+                channel_mismatches=self._gate.mismatches, over_full_scale=self._over_full_scale,
             )
 
     def start(self) -> None:
@@ -560,8 +564,14 @@ class AdcStreamReader:
         out: list[SampleBatch | _InfoChange] = []
         batch: SampleBatch | None = None
         info = gate.info
+        top = _full_scale(info)
         for f in frames:
             if type(f) is Frame:
+                if max(f.counts) > top:
+                    # no converter of the stated resolution outputs it: garbage that passed
+                    # the CRC, whose seq and clock would also skew the stream's timing
+                    self._over_full_scale += 1
+                    continue
                 t_us = seqr.advance(f.seq, f.t_us)
                 if (info is not None and f.version == info.version
                         and len(f.counts) == info.codes):
@@ -575,6 +585,7 @@ class AdcStreamReader:
             else:
                 released = gate.on_info(f)
             info = gate.info
+            top = _full_scale(info)
             for item in released:
                 if type(item) is Sample:
                     if batch is None:
@@ -586,6 +597,11 @@ class AdcStreamReader:
                     out.append(item)
                     batch = None
         return out
+
+
+def _full_scale(info: DeviceInfo | None) -> int:
+    """The largest code the device says it outputs (any 16-bit code before it says)."""
+    return (1 << info.adc_bits) - 1 if info is not None and info.adc_bits else 0xFFFF
 
 
 def _samples_in(item: object) -> int:

@@ -107,6 +107,7 @@ def adc_health(stats: ReaderStats, adc: AdcSettings | None, chain: SignalChain |
         "frames_backlog_peak": stats.backlog_peak,
         "readings_published": readings_published, "wrench_skipped": wrench_skipped,
         "sequence_gaps": stats.sequence_gaps, "crc_errors": stats.crc_errors,
+        "frames_over_full_scale": stats.over_full_scale,
         "bytes_discarded": stats.bytes_discarded, "reconnections": stats.connections,
         "calibration_source": chain.calibration_source,
         "calibration_model": describe_model(chain.calibration),

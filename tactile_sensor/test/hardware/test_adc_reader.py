@@ -226,6 +226,29 @@ def test_samples_wait_for_the_info_and_none_is_lost(tmp_path):
     assert [s.seq for s in events.samples()] == list(range(6))
 
 
+def test_a_code_over_the_stated_full_scale_is_dropped_and_counted(tmp_path):
+    """A 10-bit device's frame with the code 1024 has a valid CRC but no converter of that
+    resolution makes it: it is garbage the CRC let through (1 in 65,536). It is dropped
+    before its seq and clock touch the stream's; the frames around it arrive."""
+    path = tmp_path / "adc"
+    events = Events()
+    with PtyLink(path) as link, \
+            AdcStreamReader(str(path), events.on_sample, on_info=events.on_info) as reader:
+        assert wait_until(lambda: port_opened(reader))
+        frames = [encode_frame(k, k * 1000, [1023 if k != 2 else 1024]) for k in range(4)]
+        frames.insert(3, encode_frame(40_000, 7, [37_261]))  # random seq and clock
+        assert link.write_all(encode_info(10, 1, 5.0, 1000, "avr") + b"".join(frames))
+        assert wait_until(lambda: len(events.samples()) == 3
+                          and reader.stats().over_full_scale == 2)
+        assert link.write_all(encode_frame(4, 4000, [0]))
+        assert wait_until(lambda: len(events.samples()) == 4)
+        stats = reader.stats()
+    assert [(s.seq, s.counts) for s in events.samples()] == [
+        (0, (1023,)), (1, (1023,)), (3, (1023,)), (4, (0,))]
+    assert [s.device_time_us for s in events.samples()] == [0, 1000, 3000, 4000]
+    assert stats.sequence_resets == 0 and stats.dropped_frames == 1  # seq 2
+
+
 def _sample(seq: int, channels: int = 1) -> Sample:
     return Sample(seq, seq * 1000, 0, (seq,) * channels, 1)
 
