@@ -47,6 +47,7 @@ from tactile_sensor.analysis.slip.signature import Scenario, least_grip_n
 from tactile_sensor.control.geometry import GripperGeometry
 from tactile_sensor.control.grasp import GraspConfig
 from tactile_sensor.control.slip_hold import SHEAR_FINGERTIP_NOISE, SlipHold, SlipHoldConfig
+from tactile_sensor.hardware.xm430_table import RAD_PER_PULSE
 from tactile_sensor.physics.params import PhysicsParams
 from tactile_sensor.physics.viscoelastic import RateDependentForce
 from tactile_sensor.sim.drivetrain import DEFAULT_DRIVETRAIN, Drivetrain
@@ -64,6 +65,11 @@ WORLD_STEP_S = 1e-3
 TICK_S = 0.01
 #: The tactile forces reach the hold this late: the ADC frame, the driver, the topic [s].
 DELAY_S = 0.005
+#: The settle that leaves the grasp (``Loop._settled_goal``): rounds of a close from this
+#: far open [rad], each this long [s].
+SETTLE_ROUNDS = 8
+SETTLE_FROM_RAD = 0.02
+SETTLE_S = 0.3
 #: Rod (the object's size across the fingers) [m].
 ROD_M = 0.020
 #: Gripped before the lift [s]; held after the lift before the doubling [s]; after it [s].
@@ -132,12 +138,33 @@ class Loop:
         self.world = GripperWorld(skin, self.geometry, rod_diameter_m=ROD_M, held=held)
         depth = indentation_for(skin, scenario.grip_n)
         start = self.geometry.position_rad(ROD_M - 2.0 * depth)
+        # as a grasp leaves it: at rest on the position loop's closing edge, whose lead the
+        # settle read (control/hold.py) and hands to the adaptive hold
+        goal = self._settled_goal(skin, start, drivetrain)
         self.motor = MotorModel(start, self.world.load_torque_nm, drivetrain=drivetrain)
-        self.command = self._command(start)
+        self.command = self._command(goal)
         self.rng = np.random.default_rng(seed)
-        self.hold = SlipHold(self._hold_config(), scenario.grip_n, start) if adaptive else None
+        self.hold = (SlipHold(self._hold_config(), scenario.grip_n, start, goal - start)
+                     if adaptive else None)
         #: (time, Fn, Ft) of each world step, true.
         self.samples: list[tuple[float, float, float]] = []
+
+    def _settled_goal(self, skin: Any, start_rad: float,
+                      drivetrain: Drivetrain | None) -> float:
+        """The goal at which the output, closing onto the skins, rests at ``start_rad``:
+        a settle's corrections from the closing side, on a servo and skins of their own."""
+        world = GripperWorld(skin, self.geometry, rod_diameter_m=ROD_M)
+        goal = start_rad
+        for _ in range(SETTLE_ROUNDS):
+            motor = MotorModel(start_rad - SETTLE_FROM_RAD, world.load_torque_nm,
+                               drivetrain=drivetrain)
+            for _ in range(round(SETTLE_S / WORLD_STEP_S)):
+                state = motor.step(WORLD_STEP_S, self._command(goal))
+            error = start_rad - state.position_rad
+            if abs(error) < 0.1 * RAD_PER_PULSE:
+                break
+            goal += error
+        return goal
 
     def _hold_config(self) -> SlipHoldConfig:
         per_rad = self.config.skin_stiffness_n_per_m * self.geometry.pitch_radius_m

@@ -189,9 +189,11 @@ class ActiveGoal:
         del step
         return None
 
-    def slip_hold(self, held_n: float | None, servo: ServoReading | None) -> SlipHold | None:
-        """The adaptive hold to run after the settle (None: the fixed hold alone)."""
-        del held_n, servo
+    def slip_hold(self, held_n: float | None, servo: ServoReading | None,
+                  closing_lead_rad: float | None = None) -> SlipHold | None:
+        """The adaptive hold to run after the settle (None: the fixed hold alone), with
+        the position loop's lead the settle saw at rest after a close."""
+        del held_n, servo, closing_lead_rad
         return None
 
     def back_off(self, full_scale_force_n: float | None) -> BackOff | None:
@@ -241,7 +243,8 @@ class TactileGoal(ActiveGoal):
         return ForceSettler(self.settings.config.geometry, self.target_force_n,
                             loop=getattr(self.controller, "free_loop", None))
 
-    def slip_hold(self, held_n: float | None, servo: ServoReading | None) -> SlipHold | None:
+    def slip_hold(self, held_n: float | None, servo: ServoReading | None,
+                  closing_lead_rad: float | None = None) -> SlipHold | None:
         if not self.adaptive or servo is None:
             return None
         s, geometry = self.settings, self.settings.config.geometry
@@ -250,7 +253,8 @@ class TactileGoal(ActiveGoal):
             newton_per_rad=s.skin_stiffness_n_per_m * geometry.pitch_radius_m,
             closed_position_rad=geometry.closed_position_rad,
             bandwidth_hz=s.hold.bandwidth_hz, control_rate_hz=s.control_rate_hz)
-        self.hold = SlipHold(config, held_n or self.target_force_n, servo.position_rad)
+        self.hold = SlipHold(config, held_n or self.target_force_n, servo.position_rad,
+                             closing_lead_rad or 0.0)
         return self.hold
 
     def back_off(self, full_scale_force_n: float | None) -> BackOff | None:

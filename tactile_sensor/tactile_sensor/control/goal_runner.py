@@ -334,7 +334,7 @@ class GoalRunner:
                 step, backed_off = self._safe_end(link, goal, step)
                 tail += " at the sensor's full scale" + backed_off
             else:
-                hold = goal.slip_hold(held_n, servo.state)
+                hold = goal.slip_hold(held_n, servo.state, settler.closing_lead_rad)
             if hold is not None:
                 tail = tail.format(force=self.snapshot(step, held_n).force_n)
                 ended = self._adaptive(link, goal, hold, step)

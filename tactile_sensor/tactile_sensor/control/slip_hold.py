@@ -230,7 +230,11 @@ class HoldStep:
 
 
 class SlipHold:
-    def __init__(self, config: SlipHoldConfig, grip_n: float, position_rad: float) -> None:
+    def __init__(self, config: SlipHoldConfig, grip_n: float, position_rad: float,
+                 closing_lead_rad: float = 0.0) -> None:
+        """``closing_lead_rad``: the position loop's lead the grasp's settle read at rest
+        after a close [rad] (0: not known), so the first raise passes the servo's friction
+        (``_regulate``)."""
         self.config = config
         self.phase = HoldPhase.WAITING
         self.friction: float | None = None
@@ -247,7 +251,7 @@ class SlipHold:
         self._commanded_s: float | None = None
         #: The position loop's lead at rest after a close [rad] (the band's closing edge;
         #: 0 until a rest shows it) and whether the last goal closed.
-        self._closing_lead_rad = 0.0
+        self._closing_lead_rad = max(closing_lead_rad, 0.0)
         self._last_closed = True
         #: The output moved since the last goal (its next tick at rest shows the lead).
         self._moved = False
@@ -459,18 +463,21 @@ class SlipHold:
         Through a geared servo's friction the output rests short of a closing goal by the
         position loop's lead (the friction and the load over the P gain; control/hold.py),
         and a goal moved within that band moves nothing. A grip to raise therefore gets
-        the largest lead seen at rest after a close on top of where the output is to be:
+        the largest lead seen at rest after a close (the grasp's settle's to begin with) on
+        top of where the output is to be:
         without it a raise the output cannot follow leaves the grip where it was while
         the hold counts on the new one (a reflex that keeps nothing). A grip to lower gets
         no lead: the output rests above an opening goal, on the side of more grip.
 
         The lead is read as soon as the output, having moved toward a closing goal, is
         still at a tick: not only after ``settle_s``, which a force mean needs and a lead
-        does not. The hold starts on a grasp whose close it did not see, so its first
-        raise (the reflex after a probe's slip) carries no lead and the output rests short
-        by the band's closing edge (28 pulses on the default drivetrain) while the object
-        slides on; read at the first rest, the lead puts the catching grip on its target
-        a rest of ``settle_s`` sooner (docs/gripper-adaptive-hold-measured.md). A tick at
+        does not. A hold started without the settle's lead has not seen the grasp's
+        close, so its first raise (the reflex after a probe's slip) carries no lead and the
+        output rests short by the band's closing edge (28 pulses on the default
+        drivetrain) while the object slides on; read at the first rest, the lead puts the
+        catching grip on its target a rest of ``settle_s`` sooner
+        (docs/gripper-adaptive-hold-measured.md); on a servo whose band is wider than the
+        raise the output does not move at all. A tick at
         rest after moving is on that edge, not a stick-slip pause: a profile still running
         at the hold's 6 rad/s adds 0.06 rad of lead a tick, more than the whole band
         (about 35 pulses, 0.054 rad), so a stuck output breaks away within the tick. A

@@ -324,8 +324,10 @@ def test_an_adaptive_grasp_holds_with_the_slip_hold_and_backs_off_only_above_the
     goal = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0,
                            hold_mode="adaptive", hold_time=3.0), SHEAR)
     assert goal.adaptive and goal.hold_time_s == 3.0
-    hold = goal.slip_hold(1.9, at(0.02))
+    hold = goal.slip_hold(1.9, at(0.02), 0.03)
     assert hold is not None and hold.grip_n == 1.9
+    assert hold._closing_lead_rad == 0.03  # the settle's lead carries into the first raise
+    assert goal.slip_hold(1.9, at(0.02))._closing_lead_rad == 0.0
     assert hold.config.ceiling_n == SHEAR.force_ceiling_n
     assert goal.back_off(None).target_force_n == SHEAR.force_ceiling_n
     fixed = accept_grasp(NS(target_force=2.0, closing_speed=0.0, timeout=0.0), SHEAR)

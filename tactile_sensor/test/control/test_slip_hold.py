@@ -206,6 +206,39 @@ def test_the_reflex_after_a_probe_passes_the_servo_s_friction_at_its_first_rest(
     assert world.slid_ticks < 20
 
 
+@pytest.mark.parametrize("settle_lead", [True, False])
+def test_the_settle_s_lead_puts_the_first_raise_through_a_band_wider_than_it(
+        settle_lead: bool) -> None:
+    """A stiffer servo's band (60 pulses here, 3.2 N of grip on this skin) is wider than a
+    raise of 2.3 N: a goal moved by the raise alone leaves the output where it is. Not
+    probed (6 N is over half the 10 N ceiling), the hold follows a load that rises with a
+    raise; given the lead the grasp's settle read at rest after its close, the output
+    reaches the raised grip at once. No noise."""
+    band_rad = 60 * 2 * math.pi / 4096
+    position = CONTACT + 6.0 / PER_RAD
+    hold = SlipHold(config(), 6.0, position, band_rad if settle_lead else 0.0)
+    world = World(position, 3.0, 0.5, 0.5, noise=False)
+    grips, onset = [], None
+    for i in range(150):
+        if i == 100:
+            world.load_n = 4.0  # 2 N a skin: the grip follows in its 6 N / 1.5 N
+        step = hold.update(i * DT, world.grip_n, world.shear_n(), 0.0, world.position_rad,
+                           False)
+        if step.goal_rad is not None:
+            world.position_rad = (max(world.position_rad, step.goal_rad - band_rad)
+                                  if step.goal_rad > world.position_rad else step.goal_rad)
+        if onset is None and step.event is not None:
+            onset = i
+        grips.append(world.grip_n)
+    assert onset is not None and hold.phase is HoldPhase.WAITING
+    assert hold.grip_n > 6.0 / 1.5 * 2.0
+    after = grips[onset + 3]
+    if settle_lead:
+        assert after >= (1 - hold.config.tolerance) * hold.grip_n
+    else:  # the goal stayed inside the band until a rest of settle_s showed it the edge
+        assert after == pytest.approx(6.0)
+
+
 def test_a_ceiling_too_low_says_slipping_and_holds_at_the_ceiling() -> None:
     rng = np.random.default_rng(3)
     hold, world = start(1.7, 1.5, 0.5, 0.5, ceiling_n=3.5)  # probed: under half of it
