@@ -18,10 +18,17 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 # The tests' own helper modules (waiting.py), importable in every import mode.
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ros2_tools import ros2_tools_missing, skip_reason
+
+# No per-example deadline: hypothesis's 200 ms is a timed assertion, which a busy core breaks
+# (a motor-model case took 353 ms beside two CPU-bound jobs). A test's own @settings may
+# still set one.
+settings.register_profile("tactile", deadline=None)
+settings.load_profile("tactile")
 
 SOURCE = Path(__file__).resolve().parents[1]
 #: The highest ROS domain id: Fast DDS derives its ports from the id and refuses any above
