@@ -120,11 +120,16 @@ class SelfCheckController(BaseController):
                           getattr(servo, "current_a", math.nan)))
         current = getattr(servo, "current_a", 0.0)
         if self._level is None:
-            self._level, self._free_a = output_v, current
+            self._level = output_v
+        if self._free_a is None and getattr(servo, "velocity_rad_s", 0.0) > 0.0:
+            # the free close's current, once it closes: a first tick after a release still
+            # sees the servo settling from the opening, and its current would put the rack
+            # force tens of newtons high before any contact
+            self._free_a = current
         if self._rise_at is None and output_v > self._level + CONTACT_RISE_V:
             self._rise_at = position
-        if self._rise_at is None and float(self._train.rack_force_n(
-                current, self._free_a or 0.0)) > MAX_RACK_FORCE_N:
+        if self._rise_at is None and self._free_a is not None and float(
+                self._train.rack_force_n(current, self._free_a)) > MAX_RACK_FORCE_N:
             return self._finish(Outcome.FORCE_LIMIT, (
                 f"the fingers pressed {MAX_RACK_FORCE_N:.3g} N without the module's output "
                 f"rising {CONTACT_RISE_V} V; check the module and the driver"), servo)

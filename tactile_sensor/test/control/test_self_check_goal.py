@@ -156,6 +156,29 @@ def test_a_close_whose_output_never_rises_stops_at_the_force_limit():
     assert goal.failure(step).startswith("force_limit: ") and close.applied == []
 
 
+def test_a_close_begun_while_the_servo_settles_from_a_release_still_fits():
+    """The first ticks after a release see the servo still easing off its opening: an
+    opening current, not the free close's. Taken as the free current it put the rack force
+    tens of newtons high and stopped every retried close at the force limit."""
+
+    class AfterRelease(Close):
+        ticks = 0
+
+        def servo(self, velocity: float) -> NS:
+            reading = super().servo(velocity)
+            self.ticks += 1
+            if self.ticks <= 3:  # the start and two ticks: still opening, at -0.6 A
+                return NS(**{**vars(reading), "velocity_rad_s": -0.05, "current_a": -0.6})
+            return reading
+
+    close = AfterRelease(0.8, 1.15)
+    goal, step = close.run(apply=True)
+    assert step.outcome is Outcome.CONTACT, step.message
+    assert goal.failure(step) is None and goal.applied
+    result = goal.result(NS(step=step, opening_m=0.02), "fitted")
+    assert result["stiffness"] == pytest.approx(1.15, abs=0.03)
+
+
 def test_no_fresh_output_ends_the_close_stale():
     close = Close(1.0, 1.0)
     close.links = close.with_links(lambda: None)
